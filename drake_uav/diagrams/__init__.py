@@ -1,0 +1,1 @@
+"""Builders that wire systems into ready-to-simulate diagrams."""

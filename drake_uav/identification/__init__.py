@@ -1,0 +1,1 @@
+"""Batch and recursive identification mathematics (numpy/scipy, no Drake systems)."""

@@ -1,0 +1,1 @@
+"""Flight logs: the FlightLog container and readers/writers for log formats."""

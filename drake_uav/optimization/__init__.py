@@ -1,0 +1,1 @@
+"""MathematicalProgram formulations (trim, minimum snap, terminal sets, NMPC)."""

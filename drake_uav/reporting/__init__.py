@@ -1,0 +1,1 @@
+"""Identification reports (markdown, HTML, figures, JSON summary)."""

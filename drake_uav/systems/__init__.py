@@ -1,0 +1,1 @@
+"""Drake LeafSystems: plants, wind, sensors, excitation, estimators, identifiers."""

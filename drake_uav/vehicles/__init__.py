@@ -1,0 +1,1 @@
+"""Vehicle parameter dataclasses and the catalog of known aircraft."""
