@@ -1,0 +1,327 @@
+"""Six-degree-of-freedom fixed-wing aircraft: the model function and the Drake plant.
+
+:class:`FixedWingModel` holds the equations of motion once (seed S0 ch. 3, seed
+S1 sec. 2, corrected as in the digest) as scalar-generic code; the LeafSystem
+:class:`FixedWingPlant`, the trim solver, the estimators and the identifiers
+all call it.
+
+State (13): ``[pN, pE, pD, qw, qx, qy, qz, u, v, w, p, q, r]``: NED position
+[m], body->NED unit quaternion, ground-relative body velocity [m/s], body rates
+[rad/s]. The aerodynamics see the air-relative velocity
+``v_r = v - R^T W_ned`` (steady wind plus gust).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, NamedTuple
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from drake_uav.rotations import quat_derivative, quat_to_euler
+from drake_uav.scalar import as_list, clamp, smax
+from drake_uav.systems.aerodynamics import (
+    AeroCondition,
+    CoefficientModel,
+    air_data_from_velocity,
+    lift_drag_to_body,
+)
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = [
+    "STATE_NAMES",
+    "CONTROL_NAMES",
+    "FixedWingModel",
+    "FixedWingEvaluation",
+    "FixedWingPlant",
+    "FixedWingPlant_",
+]
+
+STATE_NAMES = ("pN", "pE", "pD", "qw", "qx", "qy", "qz", "u", "v", "w", "p", "q", "r")
+"""Names of the 13 state entries, in order."""
+CONTROL_NAMES = ("elevator", "aileron", "rudder", "throttle")
+"""Names of the 4 control inputs, in order."""
+
+QUATERNION_STABILIZATION = 1.0
+"""Gain [1/s] of the term that keeps the integrated quaternion at unit norm."""
+
+
+class FixedWingEvaluation(NamedTuple):
+    """Everything the model computes at one (state, input) point."""
+
+    state_derivative: np.ndarray
+    """d(state)/dt (13)."""
+    air_data: np.ndarray
+    """[Va (m/s), alpha (rad), beta (rad)]."""
+    coefficients: np.ndarray
+    """Body-axis aerodynamic coefficients [C_X, C_Y, C_Z, C_l, C_m, C_n]."""
+    forces_moments: np.ndarray
+    """Total body force [N] (gravity included) and moment [N m] (6)."""
+    specific_force: np.ndarray
+    """Non-gravitational force per unit mass, body axes [m/s^2] (accelerometer truth)."""
+    thrust: Any
+    """Propeller thrust [N]."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FixedWingModel:
+    """Equations of motion of one aircraft; works for any Drake scalar type.
+
+    ``aerodynamics``, ``propulsion`` and ``gravity`` switch the corresponding
+    force groups off for verification runs (e.g. torque-free tumbling).
+    """
+
+    params: FixedWingParams
+    aerodynamics: bool = True
+    propulsion: bool = True
+    gravity: bool = True
+
+    def __post_init__(self):
+        p = self.params
+        gamma = p.Jx * p.Jz - p.Jxz**2
+        object.__setattr__(self, "coefficient_model", CoefficientModel(p.derivatives))
+        object.__setattr__(
+            self,
+            "_gamma",
+            (
+                p.Jxz * (p.Jx - p.Jy + p.Jz) / gamma,  # Gamma1
+                (p.Jz * (p.Jz - p.Jy) + p.Jxz**2) / gamma,  # Gamma2
+                p.Jz / gamma,  # Gamma3
+                p.Jxz / gamma,  # Gamma4
+                (p.Jz - p.Jx) / p.Jy,  # Gamma5
+                p.Jxz / p.Jy,  # Gamma6
+                (p.Jx * (p.Jx - p.Jy) + p.Jxz**2) / gamma,  # Gamma7 (corrected)
+                p.Jx / gamma,  # Gamma8
+            ),
+        )
+        limits = p.limits
+        object.__setattr__(self, "_lower", tuple(limits.lower()))
+        object.__setattr__(self, "_upper", tuple(limits.upper()))
+
+    def saturate(self, controls) -> list:
+        """Controls clipped to the actuator limits of the params."""
+        return [clamp(controls[i], self._lower[i], self._upper[i]) for i in range(4)]
+
+    def thrust(self, airspeed, throttle) -> tuple:
+        """Propeller thrust [N] and reaction torque [N m] of the params' propulsion model."""
+        return self.params.propulsion.thrust_torque(airspeed, throttle, self.params.rho)
+
+    def angular_acceleration(self, omega, moment) -> list:
+        """Body angular acceleration [rad/s^2] from J w_dot = M - w x J w (Gamma form)."""
+        g1, g2, g3, g4, g5, g6, g7, g8 = self._gamma
+        p, q, r = omega[0], omega[1], omega[2]
+        l, m, n = moment[0], moment[1], moment[2]
+        return [
+            g1 * p * q - g2 * q * r + g3 * l + g4 * n,
+            g5 * p * r - g6 * (p * p - r * r) + m / self.params.Jy,
+            g7 * p * q - g1 * q * r + g4 * l + g8 * n,
+        ]
+
+    def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None) -> FixedWingEvaluation:
+        """Evaluates the model at state ``x`` (13) and controls (4).
+
+        ``wind_ned`` is the total wind [m/s]; ``wrench`` an external body force
+        [N] and moment [N m] (6) or ``None``.
+        """
+        prm = self.params
+        x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
+        qw, qx, qy, qz = x[3], x[4], x[5], x[6]
+        inv_norm2 = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+        # Body->NED rotation of the normalised quaternion (seed S2 eq. A.55).
+        R = (
+            ((qw * qw + qx * qx - qy * qy - qz * qz) * inv_norm2,
+             2 * (qx * qy - qw * qz) * inv_norm2, 2 * (qx * qz + qw * qy) * inv_norm2),
+            (2 * (qx * qy + qw * qz) * inv_norm2,
+             (qw * qw - qx * qx + qy * qy - qz * qz) * inv_norm2,
+             2 * (qy * qz - qw * qx) * inv_norm2),
+            (2 * (qx * qz - qw * qy) * inv_norm2, 2 * (qy * qz + qw * qx) * inv_norm2,
+             (qw * qw - qx * qx - qy * qy + qz * qz) * inv_norm2),
+        )
+        u, v, w = x[7], x[8], x[9]
+        omega = (x[10], x[11], x[12])
+        wn, we, wd = wind_ned[0], wind_ned[1], wind_ned[2]
+        wind_body = [R[0][i] * wn + R[1][i] * we + R[2][i] * wd for i in range(3)]
+        u_r, v_r, w_r = u - wind_body[0], v - wind_body[1], w - wind_body[2]
+        airspeed, alpha, beta = air_data_from_velocity(u_r, v_r, w_r)
+        elevator, aileron, rudder, throttle = self.saturate(controls)
+
+        force = [0.0 * u, 0.0 * u, 0.0 * u]
+        moment = [0.0 * u, 0.0 * u, 0.0 * u]
+        thrust = 0.0 * u
+        if self.propulsion:
+            thrust, torque = self.thrust(airspeed, throttle)
+            force[0] = force[0] + thrust
+            moment[0] = moment[0] + torque
+        if wrench is not None:
+            wrench = as_list(wrench)
+            force = [force[i] + wrench[i] for i in range(3)]
+            moment = [moment[i] + wrench[3 + i] for i in range(3)]
+
+        g = prm.gravity if self.gravity else 0.0
+        # Gravity per unit mass in body axes: g R^T e_down = g * (third row of R) (S0 eq. 3.20).
+        gravity_body = (g * R[2][0], g * R[2][1], g * R[2][2])
+        coefficients = [0.0 * u] * 6
+        q_bar_s = 0.5 * prm.rho * airspeed * airspeed * prm.S
+        if self.aerodynamics:
+            cond = AeroCondition(
+                airspeed=airspeed, alpha=alpha, beta=beta, p=omega[0], q=omega[1], r=omega[2],
+                elevator=elevator, aileron=aileron, rudder=rudder,
+                thrust_coefficient=thrust / smax(q_bar_s, 1e-9),
+            )
+            model = self.coefficient_model
+            CL, CD, CY, Cl, Cm, Cn = model.evaluate(cond, prm.b, prm.c)
+            CX, CZ = lift_drag_to_body(CL, CD, alpha)
+            coefficients = [CX, CY, CZ, Cl, Cm, Cn]
+            if model.has_alphadot:
+                coefficients = self._add_alphadot_terms(
+                    coefficients, cond, force, gravity_body, omega, (u_r, v_r, w_r), q_bar_s)
+            force = [force[0] + q_bar_s * coefficients[0], force[1] + q_bar_s * coefficients[1],
+                     force[2] + q_bar_s * coefficients[2]]
+            moment = [moment[0] + q_bar_s * prm.b * coefficients[3],
+                      moment[1] + q_bar_s * prm.c * coefficients[4],
+                      moment[2] + q_bar_s * prm.b * coefficients[5]]
+
+        m = prm.mass
+        specific_force = [force[0] / m, force[1] / m, force[2] / m]
+        accel = [specific_force[i] + gravity_body[i] for i in range(3)]
+        p, q, r = omega
+        v_dot = [r * v - q * w + accel[0], p * w - r * u + accel[1], q * u - p * v + accel[2]]
+        omega_dot = self.angular_acceleration(omega, moment)
+        p_dot = [R[i][0] * u + R[i][1] * v + R[i][2] * w for i in range(3)]
+        q_dot = quat_derivative((qw, qx, qy, qz), omega, QUATERNION_STABILIZATION)
+        xdot = np.array([*p_dot, *q_dot, *v_dot, *omega_dot])
+        total_force = [force[i] + m * gravity_body[i] for i in range(3)]
+        return FixedWingEvaluation(
+            state_derivative=xdot,
+            air_data=np.array([airspeed, alpha, beta]),
+            coefficients=np.array(coefficients),
+            forces_moments=np.array([*total_force, *moment]),
+            specific_force=np.array(specific_force),
+            thrust=thrust,
+        )
+
+    def _add_alphadot_terms(self, coefficients, cond, force, gravity_body, omega, v_rel,
+                            q_bar_s):
+        """Adds alpha-dot terms, solving alpha_dot = f(v_dot(alpha_dot)) exactly.
+
+        alpha_dot enters the X/Z forces linearly, so the implicit equation is
+        linear; the wind is taken as constant in NED over the instant.
+        """
+        prm, model = self.params, self.coefficient_model
+        u_r, v_r, w_r = v_rel
+        p, q, r = omega
+        m = prm.mass
+        # Air-relative acceleration without the alpha-dot terms (d/dt v_r = F/m + g - w x v_r).
+        base = [(force[i] + q_bar_s * coefficients[i]) / m + gravity_body[i] for i in (0, 2)]
+        base_x = base[0] + r * v_r - q * w_r
+        base_z = base[1] + q * u_r - p * v_r
+        cl_a = model.alphadot_sensitivity("CL", cond.airspeed, prm.c)
+        cd_a = model.alphadot_sensitivity("CD", cond.airspeed, prm.c)
+        cx_a, cz_a = lift_drag_to_body(cl_a, cd_a, cond.alpha)
+        denom = u_r * u_r + w_r * w_r
+        gain = (u_r * q_bar_s * cz_a - w_r * q_bar_s * cx_a) / (m * denom)
+        alpha_dot = (u_r * base_z - w_r * base_x) / denom / (1.0 - gain)
+        cm_a = model.alphadot_sensitivity("Cm", cond.airspeed, prm.c)
+        return [coefficients[0] + cx_a * alpha_dot, coefficients[1],
+                coefficients[2] + cz_a * alpha_dot, coefficients[3],
+                coefficients[4] + cm_a * alpha_dot, coefficients[5]]
+
+    def euler(self, x) -> np.ndarray:
+        """Roll, pitch, yaw [rad] of a state."""
+        return quat_to_euler(x[3:7])
+
+
+@TemplateSystem.define("FixedWingPlant_")
+def FixedWingPlant_(T):
+    class Impl(LeafSystem_[T]):
+        """Fixed-wing aircraft plant (6-DOF rigid body, stability-derivative aerodynamics).
+
+        ===================  =====  ==============================================
+        Input port           size   content [unit]
+        ===================  =====  ==============================================
+        ``controls``         4      elevator, aileron, rudder [rad], throttle [0..1]
+        ``wind_ned``         3      total wind, NED [m/s] (zero when unconnected)
+        ``external_wrench``  6      body force [N], body moment [N m] (zero when
+                                    unconnected)
+        ===================  =====  ==============================================
+
+        ======================  =====  ===========================================
+        Output port             size   content [unit]
+        ======================  =====  ===========================================
+        ``state``               13     pNED [m], quaternion, uvw [m/s], pqr [rad/s]
+        ``air_data``            3      Va [m/s], alpha [rad], beta [rad]
+        ``euler``               3      roll, pitch, yaw [rad]
+        ``specific_force``      3      accelerometer truth, body [m/s^2]
+        ``aero_coefficients``   6      C_X, C_Y, C_Z, C_l, C_m, C_n [-]
+        ``forces_moments``      6      total body force [N] and moment [N m]
+        ======================  =====  ===========================================
+
+        Controls saturate at the limits of the params. ``state`` and ``euler``
+        have no direct feedthrough.
+        """
+
+        def _construct(self, params: FixedWingParams, model: FixedWingModel | None = None,
+                       converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            self.params = params
+            self.model = model if model is not None else FixedWingModel(params)
+            self.DeclareContinuousState(13)
+            self.DeclareVectorInputPort("controls", 4)
+            self.DeclareVectorInputPort("wind_ned", 3)
+            self.DeclareVectorInputPort("external_wrench", 6)
+            state_only = {self.all_state_ticket()}
+            self.DeclareVectorOutputPort("state", 13, self._calc_state,
+                                         prerequisites_of_calc=state_only)
+            self.DeclareVectorOutputPort("air_data", 3, self._calc_air_data)
+            self.DeclareVectorOutputPort("euler", 3, self._calc_euler,
+                                         prerequisites_of_calc=state_only)
+            self.DeclareVectorOutputPort("specific_force", 3, self._calc_specific_force)
+            self.DeclareVectorOutputPort("aero_coefficients", 6, self._calc_coefficients)
+            self.DeclareVectorOutputPort("forces_moments", 6, self._calc_forces_moments)
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other.params, other.model, converter=converter)
+
+        def _evaluate(self, context) -> FixedWingEvaluation:
+            x = context.get_continuous_state_vector().CopyToVector()
+            controls = self.get_input_port(0).Eval(context)
+            wind_port = self.get_input_port(1)
+            wind = wind_port.Eval(context) if wind_port.HasValue(context) else (0.0, 0.0, 0.0)
+            wrench_port = self.get_input_port(2)
+            wrench = wrench_port.Eval(context) if wrench_port.HasValue(context) else None
+            return self.model.evaluate(x, controls, wind, wrench)
+
+        def DoCalcTimeDerivatives(self, context, derivatives):
+            derivatives.get_mutable_vector().SetFromVector(
+                self._evaluate(context).state_derivative)
+
+        def _calc_state(self, context, output):
+            output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
+
+        def _calc_air_data(self, context, output):
+            output.SetFromVector(self._evaluate(context).air_data)
+
+        def _calc_euler(self, context, output):
+            x = context.get_continuous_state_vector().CopyToVector()
+            output.SetFromVector(self.model.euler(x))
+
+        def _calc_specific_force(self, context, output):
+            output.SetFromVector(self._evaluate(context).specific_force)
+
+        def _calc_coefficients(self, context, output):
+            output.SetFromVector(self._evaluate(context).coefficients)
+
+        def _calc_forces_moments(self, context, output):
+            output.SetFromVector(self._evaluate(context).forces_moments)
+
+        def set_state(self, context, state) -> None:
+            """Writes a 13-vector into the plant's continuous state."""
+            context.get_mutable_continuous_state_vector().SetFromVector(np.asarray(state))
+
+    return Impl
+
+
+FixedWingPlant = FixedWingPlant_[None]
+"""The default (float) instantiation of :func:`FixedWingPlant_`."""

@@ -1,0 +1,265 @@
+"""Multirotor rigid-body plant with motor limits, motor faults and optional motor lag.
+
+Model of seed S2 eq. 1.1 written in NED / FRD (thrust along ``-z_b``)::
+
+    p_dot     = v
+    v_dot     = R(q) f_b / m + [0, 0, g] + f_ext / m,   f_b = [0, 0, -F] - D R(q)^T v
+    q_dot     = 0.5 q (x) [0, omega]
+    omega_dot = J^-1 (tau + tau_ext - omega x J omega)
+
+with ``[F, tau] = A diag(h) sat(f)`` (allocation from the frame geometry, health
+``h`` in [0, 1] per motor, thrusts saturated to ``[0, f_max]``) and ``D`` the
+optional linear rotor drag. With a motor time constant ``T_m > 0`` the produced
+thrusts become states: ``f_dot = (sat(u) - f) / T_m``.
+
+The equations live in plain functions that accept float, ``AutoDiffXd`` and
+``symbolic.Expression`` entries; the plant, linearisation and the flatness
+module all call them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pydrake.math as pm
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from drake_uav.rotations import quat_derivative, quat_to_euler, quat_to_rotmat
+from drake_uav.vehicles.multirotor import MultirotorParams
+
+__all__ = [
+    "STATE_SIZE",
+    "POSITION",
+    "QUATERNION",
+    "VELOCITY",
+    "BODY_RATES",
+    "produced_thrusts",
+    "motor_wrench",
+    "multirotor_dynamics",
+    "multirotor_derivatives",
+    "specific_force",
+    "MultirotorPlant_",
+    "MultirotorPlant",
+]
+
+STATE_SIZE = 13
+"""Rigid-body state size: position (3), quaternion (4), velocity (3), body rates (3)."""
+POSITION = slice(0, 3)
+"""NED position [m]."""
+QUATERNION = slice(3, 7)
+"""Unit quaternion (w, x, y, z), body FRD -> NED."""
+VELOCITY = slice(7, 10)
+"""NED velocity [m/s]."""
+BODY_RATES = slice(10, 13)
+"""Body rates (p, q, r) in FRD [rad/s]."""
+
+
+def _saturate(value, low, high):
+    return pm.min(pm.max(value, low), high)
+
+
+def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> np.ndarray:
+    """Thrust each motor produces [N]: saturated command (or lag state) times health.
+
+    ``x`` is the plant state (13, or 13 + n with motor lag, whose last n entries
+    are the produced thrusts of healthy motors); ``commands`` the n thrust
+    commands [N]; ``health`` n values in [0, 1] (None: all healthy).
+    """
+    n = params.num_motors
+    if params.motor_time_constant > 0:
+        thrust = [x[STATE_SIZE + i] for i in range(n)]
+    else:
+        thrust = [_saturate(commands[i], 0.0, params.f_max) for i in range(n)]
+    if health is not None:
+        thrust = [thrust[i] * _saturate(health[i], 0.0, 1.0) for i in range(n)]
+    return np.array(thrust)
+
+
+def motor_wrench(thrusts, params: MultirotorParams) -> np.ndarray:
+    """``[F, tau_x, tau_y, tau_z]`` [N, N m] of produced motor thrusts (allocation A f)."""
+    return params.allocation_matrix @ np.asarray(thrusts)
+
+
+def _body_force(R, v, thrust, params: MultirotorParams) -> list:
+    """Thrust plus rotor drag in body FRD [N]."""
+    dx, dy, dz = params.rotor_drag
+    zero = thrust * 0.0
+    if dx == 0.0 and dy == 0.0 and dz == 0.0:
+        return [zero, zero, -thrust]
+    vb = [R[0][k] * v[0] + R[1][k] * v[1] + R[2][k] * v[2] for k in range(3)]
+    return [-dx * vb[0], -dy * vb[1], -thrust - dz * vb[2]]
+
+
+def _unit_rotation(q):
+    """Rotation matrix of ``q / |q|`` (entries of R(q) are quadratic in q)."""
+    return quat_to_rotmat(q) / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=None,
+                        quaternion_stabilization: float = 1.0) -> np.ndarray:
+    """Rigid-body state derivative (13) for a body wrench.
+
+    ``x``: state (13) [m, -, m/s, rad/s]; ``wrench``: ``[F, tau_x, tau_y, tau_z]``
+    with ``F`` the thrust along ``-z_b`` [N] and torques in FRD [N m];
+    ``external_wrench``: ``[f_N, f_E, f_D]`` NED force [N] then body FRD torque
+    [N m] (None: zero). ``quaternion_stabilization`` [1/s] pulls ``|q|`` to 1.
+    """
+    q = x[QUATERNION]
+    v = x[VELOCITY]
+    w = x[BODY_RATES]
+    R = _unit_rotation(q)
+    fb = _body_force(R, v, wrench[0], params)
+    m = params.mass
+    acc = R @ np.array(fb) / m
+    acc[2] = acc[2] + params.gravity
+    tau = np.array([wrench[1], wrench[2], wrench[3]])
+    if external_wrench is not None:
+        acc = acc + np.asarray(external_wrench[:3]) / m
+        tau = tau + np.asarray(external_wrench[3:6])
+    J = params.inertia_matrix
+    Jw = J @ w
+    gyro = np.array([w[1] * Jw[2] - w[2] * Jw[1], w[2] * Jw[0] - w[0] * Jw[2],
+                     w[0] * Jw[1] - w[1] * Jw[0]])
+    w_dot = params.inertia_inverse @ (tau - gyro)
+    q_dot = quat_derivative(q, w, quaternion_stabilization)
+    return np.concatenate([np.asarray(v), q_dot, acc, w_dot])
+
+
+def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,
+                           external_wrench=None,
+                           quaternion_stabilization: float = 1.0) -> np.ndarray:
+    """Full plant state derivative: rigid body (13) plus motor lag states (n) if any.
+
+    ``commands``: n motor thrust commands [N]; see :func:`produced_thrusts` and
+    :func:`multirotor_dynamics` for the other arguments.
+    """
+    wrench = motor_wrench(produced_thrusts(x, commands, params, health), params)
+    xdot = multirotor_dynamics(x, wrench, params, external_wrench, quaternion_stabilization)
+    if params.motor_time_constant <= 0:
+        return xdot
+    n = params.num_motors
+    lag = [(_saturate(commands[i], 0.0, params.f_max) - x[STATE_SIZE + i])
+           / params.motor_time_constant for i in range(n)]
+    return np.concatenate([xdot, np.array(lag)])
+
+
+def specific_force(x, wrench, params: MultirotorParams, external_wrench=None) -> np.ndarray:
+    """Accelerometer reading in body FRD [m/s^2]: non-gravitational force / mass."""
+    R = _unit_rotation(x[QUATERNION])
+    fb = np.array(_body_force(R, x[VELOCITY], wrench[0], params))
+    if external_wrench is not None:
+        fb = fb + R.T @ np.asarray(external_wrench[:3])
+    return fb / params.mass
+
+
+@TemplateSystem.define("MultirotorPlant_")
+def MultirotorPlant_(T):
+    class Impl(LeafSystem_[T]):
+        """Multirotor with saturated, possibly failed and lagged motors.
+
+        ========================  ======  =========================================
+        Input port                Size    Content [unit]
+        ========================  ======  =========================================
+        ``motor_thrusts``         n       thrust commands, saturated to [0, f_max] [N]
+        ``motor_health``          n       1 healthy, 0 failed, between: partial [-];
+                                          all ones when unconnected
+        ``external_wrench``       6       force NED [N], then torque FRD [N m];
+                                          zero when unconnected
+        ========================  ======  =========================================
+
+        ========================  ======  =========================================
+        Output port               Size    Content [unit]
+        ========================  ======  =========================================
+        ``state``                 13      p_NED [m], q (w,x,y,z), v_NED [m/s],
+                                          omega FRD [rad/s]
+        ``euler``                 3       roll, pitch, yaw [rad]
+        ``specific_force``        3       accelerometer reading, FRD [m/s^2]
+        ``wrench``                4       total thrust along -z_b [N], torques [N m]
+        ``rotor_thrusts``         n       thrust each motor produces [N]
+        ========================  ======  =========================================
+
+        The continuous state is the 13 rigid-body states, followed by the n
+        produced thrusts when ``params.motor_time_constant > 0``. The default
+        state is at rest at the origin, level, with the motors at hover thrust.
+        """
+
+        def _construct(self, params: MultirotorParams, quaternion_stabilization: float = 1.0,
+                       converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            params.validate()
+            self.params = params
+            self.quaternion_stabilization = float(quaternion_stabilization)
+            n = params.num_motors
+            self._has_lag = params.motor_time_constant > 0
+            x0 = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            if self._has_lag:
+                x0 += list(params.thrusts_for_wrench([params.weight, 0.0, 0.0, 0.0]))
+            self.DeclareContinuousState(BasicVector_[T](x0))
+            self._commands = self.DeclareVectorInputPort("motor_thrusts", n)
+            self._health = self.DeclareVectorInputPort("motor_health", n)
+            self._external = self.DeclareVectorInputPort("external_wrench", 6)
+            state_only = {self.all_state_ticket()}
+            motor_deps = (
+                {self.all_state_ticket(), self._health.ticket()} if self._has_lag else
+                {self._commands.ticket(), self._health.ticket()}
+            )
+            self.DeclareVectorOutputPort("state", STATE_SIZE, self._calc_state,
+                                         prerequisites_of_calc=state_only)
+            self.DeclareVectorOutputPort("euler", 3, self._calc_euler,
+                                         prerequisites_of_calc=state_only)
+            self.DeclareVectorOutputPort(
+                "specific_force", 3, self._calc_specific_force,
+                prerequisites_of_calc=motor_deps | {self.all_state_ticket(),
+                                                    self._external.ticket()})
+            self.DeclareVectorOutputPort("wrench", 4, self._calc_wrench,
+                                         prerequisites_of_calc=motor_deps)
+            self.DeclareVectorOutputPort("rotor_thrusts", n, self._calc_rotor_thrusts,
+                                         prerequisites_of_calc=motor_deps)
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other.params, other.quaternion_stabilization,
+                            converter=converter)
+
+        def _inputs(self, context, need_commands: bool):
+            x = context.get_continuous_state_vector().CopyToVector()
+            commands = self._commands.Eval(context) if need_commands else None
+            health = self._health.Eval(context) if self._health.HasValue(context) else None
+            external = (self._external.Eval(context) if self._external.HasValue(context)
+                        else None)
+            return x, commands, health, external
+
+        def _produced(self, context):
+            x, commands, health, _ = self._inputs(context, not self._has_lag)
+            return produced_thrusts(x, commands, self.params, health)
+
+        def DoCalcTimeDerivatives(self, context, derivatives):
+            x, commands, health, external = self._inputs(context, True)
+            xdot = multirotor_derivatives(x, commands, self.params, health, external,
+                                          self.quaternion_stabilization)
+            derivatives.get_mutable_vector().SetFromVector(xdot)
+
+        def _calc_state(self, context, output):
+            x = context.get_continuous_state_vector().CopyToVector()
+            output.SetFromVector(x[:STATE_SIZE])
+
+        def _calc_euler(self, context, output):
+            q = context.get_continuous_state_vector().CopyToVector()[QUATERNION]
+            output.SetFromVector(quat_to_euler(q / pm.sqrt(q @ q)))
+
+        def _calc_specific_force(self, context, output):
+            x, commands, health, external = self._inputs(context, not self._has_lag)
+            wrench = motor_wrench(produced_thrusts(x, commands, self.params, health),
+                                  self.params)
+            output.SetFromVector(specific_force(x, wrench, self.params, external))
+
+        def _calc_wrench(self, context, output):
+            output.SetFromVector(motor_wrench(self._produced(context), self.params))
+
+        def _calc_rotor_thrusts(self, context, output):
+            output.SetFromVector(self._produced(context))
+
+    return Impl
+
+
+MultirotorPlant = MultirotorPlant_[None]
+"""Double-valued :class:`MultirotorPlant_` (``MultirotorPlant(params)``)."""

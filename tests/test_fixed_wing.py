@@ -1,0 +1,202 @@
+"""FixedWingPlant: physics, trim, linearisation and bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+from pydrake.systems.primitives import FirstOrderTaylorApproximation, Linearize
+
+from drake_uav.optimization.trim import TrimError, trim
+from drake_uav.rotations import quat_to_rotmat
+from drake_uav.systems.fixed_wing import FixedWingModel, FixedWingPlant
+from drake_uav.vehicles.fixed_wing import aerosonde, unatrap
+
+
+def _plant_context(plant, state, controls, wind=(0, 0, 0), wrench=None):
+    context = plant.CreateDefaultContext()
+    plant.set_state(context, state)
+    plant.GetInputPort("controls").FixValue(context, np.asarray(controls, float))
+    plant.GetInputPort("wind_ned").FixValue(context, np.asarray(wind, float))
+    if wrench is not None:
+        plant.GetInputPort("external_wrench").FixValue(context, np.asarray(wrench, float))
+    return context
+
+
+@pytest.fixture(scope="module")
+def trim25():
+    return trim(aerosonde(), 25.0)
+
+
+@pytest.mark.parametrize("airspeed", [15.0, 20.0, 25.0, 30.0])
+@pytest.mark.parametrize("aircraft", [aerosonde, unatrap])
+def test_trim_residual_is_tiny(aircraft, airspeed):
+    params = aircraft()
+    result = trim(params, airspeed)
+    xdot = FixedWingModel(params).evaluate(result.state, result.controls).state_derivative
+    assert np.linalg.norm(xdot[7:13]) < 1e-8
+    assert np.linalg.norm(xdot[3:7]) < 1e-8  # wings level: attitude constant
+    assert np.linalg.norm(xdot[0:3]) == pytest.approx(airspeed, rel=1e-10)
+    assert xdot[2] == pytest.approx(0.0, abs=1e-8)  # level
+
+
+def test_coordinated_turn_and_climb_trims():
+    params = aerosonde()
+    turn = trim(params, 25.0, turn_rate=0.15)
+    climb = trim(params, 25.0, flight_path_angle=np.radians(5))
+    model = FixedWingModel(params)
+    for result in (turn, climb):
+        ev = model.evaluate(result.state, result.controls)
+        assert np.linalg.norm(ev.state_derivative[7:13]) < 1e-8
+        assert ev.air_data[2] == pytest.approx(0.0, abs=1e-10)  # no sideslip
+    # Climb rate is Va sin(gamma); turning right needs right bank, lift balances weight.
+    assert -model.evaluate(climb.state, climb.controls).state_derivative[2] == pytest.approx(
+        25.0 * np.sin(np.radians(5)), rel=1e-8)
+    roll = np.arctan2(2 * (turn.state[3] * turn.state[4] + turn.state[5] * turn.state[6]),
+                      1 - 2 * (turn.state[4] ** 2 + turn.state[5] ** 2))
+    assert roll == pytest.approx(np.arctan(25.0 * 0.15 / params.gravity), rel=0.05)
+
+
+def test_impossible_trim_raises_a_clear_error():
+    with pytest.raises(TrimError, match="elevator"):
+        trim(aerosonde(), 8.0)
+    with pytest.raises(TrimError, match="throttle"):
+        trim(unatrap(), 25.0, flight_path_angle=0.9)
+    with pytest.raises(ValueError, match="airspeed"):
+        trim(aerosonde(), -3.0)
+
+
+def test_quaternion_norm_is_preserved_over_a_60_s_doublet_flight(trim25):
+    plant = FixedWingPlant(aerosonde())
+    controls = trim25.controls.copy()
+    context = _plant_context(plant, trim25.state, controls)
+    simulator = Simulator(plant, context)
+    for t_end, d_elevator in ((2.0, 0.0), (3.0, 0.05), (4.0, -0.05), (60.0, 0.0)):
+        controls[0] = trim25.controls[0] + d_elevator
+        plant.GetInputPort("controls").FixValue(context, controls)
+        simulator.AdvanceTo(t_end)
+    x = context.get_continuous_state_vector().CopyToVector()
+    assert abs(np.linalg.norm(x[3:7]) - 1.0) < 1e-6
+    assert np.all(np.isfinite(x))
+
+
+def test_torque_free_tumbling_conserves_energy_and_angular_momentum():
+    params = aerosonde()
+    model = FixedWingModel(params, aerodynamics=False, propulsion=False, gravity=False)
+    plant = FixedWingPlant(params, model)
+    omega0 = np.array([1.2, -0.7, 2.1])
+    state = np.array([0, 0, 0, 1, 0, 0, 0, 3.0, -1.0, 0.5, *omega0])
+    context = _plant_context(plant, state, [0, 0, 0, 0])
+    simulator = Simulator(plant, context)
+    integrator = ResetIntegratorFromFlags(simulator, "runge_kutta5", 0.01)
+    integrator.set_target_accuracy(1e-10)
+    J = params.inertia
+
+    def invariants(x):
+        omega = x[10:13]
+        h_ned = quat_to_rotmat(x[3:7]) @ (J @ omega)
+        return 0.5 * omega @ J @ omega, h_ned, 0.5 * params.mass * x[7:10] @ x[7:10]
+
+    e0, h0, k0 = invariants(state)
+    simulator.AdvanceTo(10.0)
+    x = context.get_continuous_state_vector().CopyToVector()
+    e1, h1, k1 = invariants(x)
+    assert abs(e1 - e0) / e0 < 1e-6
+    assert abs(np.linalg.norm(h1) - np.linalg.norm(h0)) / np.linalg.norm(h0) < 1e-6
+    np.testing.assert_allclose(h1, h0, rtol=1e-6, atol=1e-6 * np.linalg.norm(h0))
+    assert abs(k1 - k0) / k0 < 1e-6  # translational energy: no force
+
+
+def test_linearize_matches_finite_differences_at_trim(trim25):
+    params = aerosonde()
+    plant = FixedWingPlant(params)
+    context = _plant_context(plant, trim25.state, trim25.controls, wrench=np.zeros(6))
+    # The position keeps moving at trim, so the linearisation is taken about a
+    # non-equilibrium point: A and B are the Jacobians of f.
+    linear = Linearize(plant, context, equilibrium_check_tolerance=np.inf)
+    taylor = FirstOrderTaylorApproximation(plant, context)
+    model = FixedWingModel(params)
+    x0, u0 = trim25.state, trim25.controls
+    eps = 1e-6
+    A_fd = np.column_stack([
+        (model.evaluate(x0 + eps * e, u0).state_derivative
+         - model.evaluate(x0 - eps * e, u0).state_derivative) / (2 * eps) for e in np.eye(13)])
+    B_fd = np.column_stack([
+        (model.evaluate(x0, u0 + eps * e).state_derivative
+         - model.evaluate(x0, u0 - eps * e).state_derivative) / (2 * eps) for e in np.eye(4)])
+    np.testing.assert_allclose(linear.A(), A_fd, atol=1e-6)
+    np.testing.assert_allclose(linear.B()[:, :4], B_fd, atol=1e-6)
+    np.testing.assert_allclose(taylor.A(), A_fd, atol=1e-6)
+
+
+def test_symbolic_conversion_gives_the_same_derivatives(trim25):
+    plant = FixedWingPlant(aerosonde())
+    symbolic = plant.ToSymbolic()
+    context = _plant_context(symbolic, trim25.state, trim25.controls)
+    derivatives = symbolic.EvalTimeDerivatives(context).CopyToVector()
+    values = np.array([d.Evaluate() for d in derivatives])
+    expected = FixedWingModel(aerosonde()).evaluate(trim25.state, trim25.controls)
+    np.testing.assert_allclose(values, expected.state_derivative, atol=1e-12)
+
+
+def test_external_wrench_gives_the_expected_acceleration(trim25):
+    params = aerosonde()
+    plant = FixedWingPlant(params)
+    force = np.array([13.5, -27.0, 6.75])
+    moment = np.array([0.8244, 0.0, 0.0])
+    base = _plant_context(plant, trim25.state, trim25.controls, wrench=np.zeros(6))
+    pushed = _plant_context(plant, trim25.state, trim25.controls,
+                            wrench=np.concatenate([force, moment]))
+    d0 = plant.EvalTimeDerivatives(base).CopyToVector()
+    d1 = plant.EvalTimeDerivatives(pushed).CopyToVector()
+    np.testing.assert_allclose(d1[7:10] - d0[7:10], force / params.mass, atol=1e-12)
+    np.testing.assert_allclose(d1[10:13] - d0[10:13], np.linalg.solve(params.inertia, moment),
+                               atol=1e-12)
+    sf0 = plant.GetOutputPort("specific_force").Eval(base)
+    sf1 = plant.GetOutputPort("specific_force").Eval(pushed)
+    np.testing.assert_allclose(sf1 - sf0, force / params.mass, atol=1e-12)
+
+
+def test_outputs_are_consistent_with_the_trim(trim25):
+    params = aerosonde()
+    plant = FixedWingPlant(params)
+    wind = np.array([3.0, -2.0, 0.5])
+    # Add the wind to the ground velocity: the air-relative flow is the trim one.
+    state = trim25.state.copy()
+    state[7:10] += quat_to_rotmat(state[3:7]).T @ wind
+    context = _plant_context(plant, state, trim25.controls, wind=wind)
+    air = plant.GetOutputPort("air_data").Eval(context)
+    np.testing.assert_allclose(air, [25.0, trim25.alpha, 0.0], atol=1e-10)
+    fm = plant.GetOutputPort("forces_moments").Eval(context)
+    np.testing.assert_allclose(fm, np.zeros(6), atol=1e-8)  # steady: total force balances
+    euler = plant.GetOutputPort("euler").Eval(context)
+    assert euler[1] == pytest.approx(trim25.alpha, abs=1e-10)  # level: pitch = alpha
+    sf = plant.GetOutputPort("specific_force").Eval(context)
+    np.testing.assert_allclose(np.linalg.norm(sf), params.gravity, rtol=1e-9)
+
+
+def test_controls_saturate_at_the_limits(trim25):
+    params = aerosonde()
+    plant = FixedWingPlant(params)
+    over = trim25.controls + np.array([5.0, 0, 0, 0])
+    at_limit = trim25.controls.copy()
+    at_limit[0] = params.limits.elevator
+    d_over = plant.EvalTimeDerivatives(_plant_context(plant, trim25.state, over)).CopyToVector()
+    d_lim = plant.EvalTimeDerivatives(
+        _plant_context(plant, trim25.state, at_limit)).CopyToVector()
+    np.testing.assert_array_equal(d_over, d_lim)
+
+
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"mass": -1.0}, "mass"),
+        ({"Jxz": 1.5}, "inertia"),
+        ({"Jz": 5.0}, "inertia"),
+        ({"derivatives": {"CL_alpha": 3.0, "CL_banana": 1.0}}, "CL_banana"),
+        ({"S": 0.0}, "S"),
+    ],
+)
+def test_invalid_params_name_the_field(change, field):
+    with pytest.raises(ValueError, match=field):
+        dataclasses.replace(aerosonde(), **change)
