@@ -37,9 +37,8 @@ Body-axis coefficients follow from lift and drag by seed S0 eq. A'.12-A'.14:
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from pydrake.math import atan2, cos, sin, sqrt
@@ -52,6 +51,7 @@ __all__ = [
     "AeroCondition",
     "CoefficientModel",
     "signal_value",
+    "signal_values",
     "regressor_matrix",
     "split_derivative_name",
     "validate_derivative_names",
@@ -85,8 +85,7 @@ MIN_NORMALISING_AIRSPEED = 1e-3
 """Airspeed floor [m/s] used only to normalise rates, so a body at rest stays finite."""
 
 
-@dataclasses.dataclass(frozen=True)
-class AeroCondition:
+class AeroCondition(NamedTuple):
     """Air data, rates and controls at which the coefficients are evaluated.
 
     Fields are scalars (any Drake scalar type) or equally shaped numpy arrays.
@@ -144,28 +143,35 @@ def _normalising_speed(airspeed):
     return smax(airspeed, MIN_NORMALISING_AIRSPEED)
 
 
-def signal_value(signal: str, cond: AeroCondition, b: float, c: float):
-    """Value of one regressor signal (see the module table) at ``cond``.
+def signal_values(cond: AeroCondition, b: float, c: float) -> dict:
+    """All regressor signals (see the module table) at ``cond``, by name.
 
     ``b`` is the wingspan [m] and ``c`` the mean chord [m].
     """
-    if signal == "0":
-        return cond.alpha * 0.0 + 1.0
-    if signal == "alpha":
-        return cond.alpha
-    if signal == "alpha2":
-        return cond.alpha * cond.alpha
-    if signal == "beta":
-        return cond.beta
-    if signal in ("p", "r", "q", "alphadot"):
-        length = c if signal in ("q", "alphadot") else b
-        rate = getattr(cond, signal)
-        return length * rate / (2.0 * _normalising_speed(cond.airspeed))
-    if signal == "Tc":
-        return cond.thrust_coefficient
-    if signal in ("elevator", "aileron", "rudder", "flap"):
-        return getattr(cond, signal)
-    raise ValueError(f"unknown regressor signal '{signal}'")
+    half_inverse_speed = 0.5 / _normalising_speed(cond.airspeed)
+    alpha = cond.alpha
+    return {
+        "0": alpha * 0.0 + 1.0,
+        "alpha": alpha,
+        "alpha2": alpha * alpha,
+        "alphadot": c * cond.alphadot * half_inverse_speed,
+        "beta": cond.beta,
+        "p": b * cond.p * half_inverse_speed,
+        "q": c * cond.q * half_inverse_speed,
+        "r": b * cond.r * half_inverse_speed,
+        "elevator": cond.elevator,
+        "aileron": cond.aileron,
+        "rudder": cond.rudder,
+        "flap": cond.flap,
+        "Tc": cond.thrust_coefficient,
+    }
+
+
+def signal_value(signal: str, cond: AeroCondition, b: float, c: float):
+    """Value of one regressor signal (see the module table) at ``cond``."""
+    if signal not in SIGNALS:
+        raise ValueError(f"unknown regressor signal '{signal}'")
+    return signal_values(cond, b, c)[signal]
 
 
 def regressor_matrix(names: Sequence[str], cond: AeroCondition, b: float, c: float) -> np.ndarray:
@@ -174,7 +180,8 @@ def regressor_matrix(names: Sequence[str], cond: AeroCondition, b: float, c: flo
     With array fields in ``cond`` the result is ``(N, len(names))``; with
     scalar fields it is a row of length ``len(names)``.
     """
-    columns = [signal_value(split_derivative_name(n)[1], cond, b, c) for n in names]
+    signals = signal_values(cond, b, c)
+    columns = [signals[split_derivative_name(n)[1]] for n in names]
     if isinstance(cond.alpha, np.ndarray):
         shape = np.shape(cond.alpha)
         return np.column_stack([np.broadcast_to(col, shape) for col in columns])
@@ -196,7 +203,6 @@ class CoefficientModel:
             coefficient, signal = split_derivative_name(name)
             terms[coefficient].append((signal, value))
         self._terms = {k: tuple(v) for k, v in terms.items()}
-        self._signals = tuple({s for entries in terms.values() for s, _ in entries})
         self.has_alphadot = any(
             signal == "alphadot" and value != 0.0
             for entries in self._terms.values()
@@ -209,14 +215,15 @@ class CoefficientModel:
 
     def coefficient(self, coefficient: str, cond: AeroCondition, b: float, c: float):
         """One coefficient (``"CL"``, ...) at ``cond``."""
+        signals = signal_values(cond, b, c)
         total = 0.0
         for signal, value in self._terms[coefficient]:
-            total = total + value * signal_value(signal, cond, b, c)
+            total = total + value * signals[signal]
         return total
 
     def evaluate(self, cond: AeroCondition, b: float, c: float) -> tuple:
         """``(CL, CD, CY, Cl, Cm, Cn)`` at ``cond``; each signal is computed once."""
-        signals = {s: signal_value(s, cond, b, c) for s in self._signals}
+        signals = signal_values(cond, b, c)
         out = []
         for k in COEFFICIENTS:
             total = 0.0

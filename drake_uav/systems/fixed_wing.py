@@ -102,7 +102,10 @@ class FixedWingModel:
 
     def saturate(self, controls) -> list:
         """Controls clipped to the actuator limits of the params."""
-        return [clamp(controls[i], self._lower[i], self._upper[i]) for i in range(4)]
+        lower, upper = self._lower, self._upper
+        if all(isinstance(u, float) for u in controls):
+            return [min(max(controls[i], lower[i]), upper[i]) for i in range(4)]
+        return [clamp(controls[i], lower[i], upper[i]) for i in range(4)]
 
     def thrust(self, airspeed, throttle) -> tuple:
         """Propeller thrust [N] and reaction torque [N m] of the params' propulsion model."""
