@@ -58,7 +58,12 @@ def _saturate(value, low, high):
     return pm.min(pm.max(value, low), high)
 
 
-def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> np.ndarray:
+def _as_list(values) -> list:
+    """Entries as a Python list (floats stay Python floats: fast scalar arithmetic)."""
+    return values.tolist() if isinstance(values, np.ndarray) else list(values)
+
+
+def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> list:
     """Thrust each motor produces [N]: saturated command (or lag state) times health.
 
     ``x`` is the plant state (13, or 13 + n with motor lag, whose last n entries
@@ -67,32 +72,44 @@ def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> np.n
     """
     n = params.num_motors
     if params.motor_time_constant > 0:
-        thrust = [x[STATE_SIZE + i] for i in range(n)]
+        thrust = _as_list(x[STATE_SIZE:STATE_SIZE + n])
     else:
-        thrust = [_saturate(commands[i], 0.0, params.f_max) for i in range(n)]
+        f_max = params.f_max
+        thrust = [_saturate(c, 0.0, f_max) for c in _as_list(commands)]
     if health is not None:
-        thrust = [thrust[i] * _saturate(health[i], 0.0, 1.0) for i in range(n)]
-    return np.array(thrust)
+        thrust = [f * _saturate(h, 0.0, 1.0) for f, h in zip(thrust, _as_list(health), strict=True)]
+    return thrust
 
 
-def motor_wrench(thrusts, params: MultirotorParams) -> np.ndarray:
+def motor_wrench(thrusts, params: MultirotorParams) -> list:
     """``[F, tau_x, tau_y, tau_z]`` [N, N m] of produced motor thrusts (allocation A f)."""
-    return params.allocation_matrix @ np.asarray(thrusts)
+    F = tx = ty = tz = 0.0
+    for (a0, a1, a2, a3), fi in zip(params.allocation_matrix.T.tolist(), _as_list(thrusts),
+                                    strict=True):
+        F, tx, ty, tz = F + a0 * fi, tx + a1 * fi, ty + a2 * fi, tz + a3 * fi
+    return [F, tx, ty, tz]
 
 
-def _body_force(R, v, thrust, params: MultirotorParams) -> list:
-    """Thrust plus rotor drag in body FRD [N]."""
+def _rotation(q) -> tuple[list, object]:
+    """``R(q)`` as nested lists and ``1/|q|^2``: ``R(q)/|q|^2`` is the rotation of ``q/|q|``."""
+    return (quat_to_rotmat(q).tolist(),
+            1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]))
+
+
+def _body_force(R, scale, v, thrust, params: MultirotorParams) -> list:
+    """Thrust plus rotor drag in body FRD [N] (``R``, ``scale`` from :func:`_rotation`)."""
     dx, dy, dz = params.rotor_drag
     zero = thrust * 0.0
     if dx == 0.0 and dy == 0.0 and dz == 0.0:
         return [zero, zero, -thrust]
-    vb = [R[0][k] * v[0] + R[1][k] * v[1] + R[2][k] * v[2] for k in range(3)]
+    vb = [(R[0][k] * v[0] + R[1][k] * v[1] + R[2][k] * v[2]) * scale for k in range(3)]
     return [-dx * vb[0], -dy * vb[1], -thrust - dz * vb[2]]
 
 
-def _unit_rotation(q):
-    """Rotation matrix of ``q / |q|`` (entries of R(q) are quadratic in q)."""
-    return quat_to_rotmat(q) / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+def _matvec(M, v) -> list:
+    return [M[0][0] * v[0] + M[0][1] * v[1] + M[0][2] * v[2],
+            M[1][0] * v[0] + M[1][1] * v[1] + M[1][2] * v[2],
+            M[2][0] * v[0] + M[2][1] * v[1] + M[2][2] * v[2]]
 
 
 def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=None,
@@ -104,25 +121,25 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     ``external_wrench``: ``[f_N, f_E, f_D]`` NED force [N] then body FRD torque
     [N m] (None: zero). ``quaternion_stabilization`` [1/s] pulls ``|q|`` to 1.
     """
-    q = x[QUATERNION]
-    v = x[VELOCITY]
-    w = x[BODY_RATES]
-    R = _unit_rotation(q)
-    fb = _body_force(R, v, wrench[0], params)
-    m = params.mass
-    acc = R @ np.array(fb) / m
-    acc[2] = acc[2] + params.gravity
-    tau = np.array([wrench[1], wrench[2], wrench[3]])
+    x = _as_list(x)
+    F, tx, ty, tz = _as_list(wrench)
+    q, v, w = x[3:7], x[7:10], x[10:13]
+    R, scale = _rotation(q)
+    acc = _matvec(R, _body_force(R, scale, v, F, params))
+    k = scale / params.mass
+    acc = [acc[0] * k, acc[1] * k, acc[2] * k + params.gravity]
+    inv_m = 1.0 / params.mass
     if external_wrench is not None:
-        acc = acc + np.asarray(external_wrench[:3]) / m
-        tau = tau + np.asarray(external_wrench[3:6])
-    J = params.inertia_matrix
-    Jw = J @ w
-    gyro = np.array([w[1] * Jw[2] - w[2] * Jw[1], w[2] * Jw[0] - w[0] * Jw[2],
-                     w[0] * Jw[1] - w[1] * Jw[0]])
-    w_dot = params.inertia_inverse @ (tau - gyro)
-    q_dot = quat_derivative(q, w, quaternion_stabilization)
-    return np.concatenate([np.asarray(v), q_dot, acc, w_dot])
+        e = _as_list(external_wrench)
+        acc = [acc[0] + e[0] * inv_m, acc[1] + e[1] * inv_m, acc[2] + e[2] * inv_m]
+        tx, ty, tz = tx + e[3], ty + e[4], tz + e[5]
+    Jw = _matvec(params.inertia_matrix.tolist(), w)
+    net = [tx - (w[1] * Jw[2] - w[2] * Jw[1]),
+           ty - (w[2] * Jw[0] - w[0] * Jw[2]),
+           tz - (w[0] * Jw[1] - w[1] * Jw[0])]
+    w_dot = _matvec(params.inertia_inverse.tolist(), net)
+    q_dot = quat_derivative(q, w, quaternion_stabilization).tolist()
+    return np.array(v + q_dot + acc + w_dot)
 
 
 def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,
@@ -137,19 +154,22 @@ def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,
     xdot = multirotor_dynamics(x, wrench, params, external_wrench, quaternion_stabilization)
     if params.motor_time_constant <= 0:
         return xdot
-    n = params.num_motors
-    lag = [(_saturate(commands[i], 0.0, params.f_max) - x[STATE_SIZE + i])
-           / params.motor_time_constant for i in range(n)]
+    f_max, inv_tau = params.f_max, 1.0 / params.motor_time_constant
+    lag = [(_saturate(c, 0.0, f_max) - f) * inv_tau
+           for c, f in zip(_as_list(commands), _as_list(x[STATE_SIZE:]), strict=True)]
     return np.concatenate([xdot, np.array(lag)])
 
 
 def specific_force(x, wrench, params: MultirotorParams, external_wrench=None) -> np.ndarray:
     """Accelerometer reading in body FRD [m/s^2]: non-gravitational force / mass."""
-    R = _unit_rotation(x[QUATERNION])
-    fb = np.array(_body_force(R, x[VELOCITY], wrench[0], params))
+    x = _as_list(x)
+    R, scale = _rotation(x[3:7])
+    fb = _body_force(R, scale, x[7:10], _as_list(wrench)[0], params)
     if external_wrench is not None:
-        fb = fb + R.T @ np.asarray(external_wrench[:3])
-    return fb / params.mass
+        e = _as_list(external_wrench)
+        fb = [fb[k] + (R[0][k] * e[0] + R[1][k] * e[1] + R[2][k] * e[2]) * scale
+              for k in range(3)]
+    return np.array(fb) / params.mass
 
 
 @TemplateSystem.define("MultirotorPlant_")
@@ -253,10 +273,10 @@ def MultirotorPlant_(T):
             output.SetFromVector(specific_force(x, wrench, self.params, external))
 
         def _calc_wrench(self, context, output):
-            output.SetFromVector(motor_wrench(self._produced(context), self.params))
+            output.SetFromVector(np.array(motor_wrench(self._produced(context), self.params)))
 
         def _calc_rotor_thrusts(self, context, output):
-            output.SetFromVector(self._produced(context))
+            output.SetFromVector(np.array(self._produced(context)))
 
     return Impl
 
