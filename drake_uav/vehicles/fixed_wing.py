@@ -13,14 +13,17 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 import numpy as np
+from pydrake.math import sqrt
 
 from drake_uav.systems.aerodynamics import validate_derivative_names
 
 __all__ = [
     "ControlLimits",
     "Propulsion",
+    "MotorPropeller",
     "FixedWingParams",
     "aerosonde",
+    "aerosonde_mavsim",
     "unatrap",
     "fixed_wing_catalog",
 ]
@@ -83,6 +86,95 @@ class Propulsion:
 
 
 @dataclasses.dataclass(frozen=True)
+class MotorPropeller:
+    """Electric motor driving a fixed-pitch propeller: McLain's propulsion model, as used by
+    the simulator accompanying Beard & McLain (repository randybeard/mavsim_public).
+
+    The battery voltage ``V_in = V_max dT`` drives a DC motor (back-emf constant ``KV``,
+    torque constant ``KQ``, resistance ``R_motor``, no-load current ``i0``). The propeller
+    speed ``Omega`` [rad/s] balances motor and propeller torque, the positive root of
+
+        a Omega^2 + b Omega + c = 0,  a = rho D^5 C_Q0 / (2 pi)^2,
+        b = rho D^4 C_Q1 Va / (2 pi) + KQ KV / R_motor,
+        c = rho D^3 C_Q2 Va^2 - KQ V_in / R_motor + KQ i0.
+
+    With the advance ratio ``J = 2 pi Va / (Omega D)`` and the polynomial fits
+    ``C_T(J) = C_T0 + C_T1 J + C_T2 J^2`` and ``C_Q(J)`` alike, thrust is
+    ``T = rho (Omega / 2 pi)^2 D^4 C_T(J)`` [N] along body x and the propeller torque
+    ``Q = rho (Omega / 2 pi)^2 D^5 C_Q(J)`` [N m]; the airframe feels ``-Q`` about body x.
+    The defaults are that simulator's Aerosonde: 20 in propeller, 145 rpm/V motor, 12 cells.
+    """
+
+    diameter: float = 20 * 0.0254
+    """Propeller diameter D [m]."""
+    KV: float = 60.0 / (2 * math.pi * 145.0)
+    """Motor back-emf constant [V s/rad] (60 / (2 pi KV_rpm) for KV_rpm in rpm/V)."""
+    KQ: float = 60.0 / (2 * math.pi * 145.0)
+    """Motor torque constant [N m/A] (equal to ``KV`` in SI units for an ideal motor)."""
+    R_motor: float = 0.042
+    """Motor winding resistance [ohm]."""
+    i0: float = 1.5
+    """No-load (zero-torque) current [A]."""
+    V_max: float = 3.7 * 12
+    """Battery voltage at full throttle [V]."""
+    C_T0: float = 0.09357
+    """Thrust coefficient at J = 0 [-]."""
+    C_T1: float = -0.06044
+    """Thrust coefficient slope in J [-]."""
+    C_T2: float = -0.1079
+    """Thrust coefficient curvature in J [-]."""
+    C_Q0: float = 0.005230
+    """Torque coefficient at J = 0 [-]."""
+    C_Q1: float = 0.004970
+    """Torque coefficient slope in J [-]."""
+    C_Q2: float = -0.01664
+    """Torque coefficient curvature in J [-]."""
+
+    def validate(self) -> None:
+        """Raises ``ValueError`` naming the first invalid field."""
+        for field in ("diameter", "KV", "KQ", "R_motor", "V_max", "C_T0"):
+            value = getattr(self, field)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(
+                    f"FixedWingParams.propulsion.{field} must be positive and finite, got {value}")
+        for field in ("i0", "C_Q0"):
+            value = getattr(self, field)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(
+                    f"FixedWingParams.propulsion.{field} must be non-negative and finite, "
+                    f"got {value}")
+        for field in ("C_T1", "C_T2", "C_Q1", "C_Q2"):
+            value = getattr(self, field)
+            if not np.isfinite(value):
+                raise ValueError(f"FixedWingParams.propulsion.{field} must be finite, got {value}")
+
+    def propeller_speed(self, airspeed, throttle, rho: float):
+        """Propeller speed Omega [rad/s] at ``airspeed`` [m/s], ``throttle`` [0..1] and
+        air density ``rho`` [kg/m^3]; any Drake scalar type."""
+        D = self.diameter
+        two_pi = 2.0 * math.pi
+        a = rho * D**5 * self.C_Q0 / two_pi**2
+        b = rho * D**4 * self.C_Q1 * airspeed / two_pi + self.KQ * self.KV / self.R_motor
+        c = (rho * D**3 * self.C_Q2 * airspeed * airspeed
+             - self.KQ * self.V_max * throttle / self.R_motor + self.KQ * self.i0)
+        # (-b + sqrt(b^2 - 4ac)) / (2a) written without cancellation (b > 0), valid for a = 0.
+        return -2.0 * c / (b + sqrt(b * b - 4.0 * a * c))
+
+    def thrust_torque(self, airspeed, throttle, rho: float) -> tuple:
+        """Thrust [N] and reaction torque on the airframe [N m] at ``airspeed`` [m/s],
+        ``throttle`` [0..1] and air density ``rho`` [kg/m^3]; any Drake scalar type."""
+        omega = self.propeller_speed(airspeed, throttle, rho)
+        D = self.diameter
+        n_d = omega * D / (2.0 * math.pi)  # revolutions per second times D [m/s]
+        # rho n^2 D^4 (C0 + C1 J + C2 J^2) with J = Va / (n D), expanded so Omega = 0 is finite.
+        thrust = rho * D**2 * (self.C_T0 * n_d * n_d + self.C_T1 * n_d * airspeed
+                               + self.C_T2 * airspeed * airspeed)
+        torque = rho * D**3 * (self.C_Q0 * n_d * n_d + self.C_Q1 * n_d * airspeed
+                               + self.C_Q2 * airspeed * airspeed)
+        return thrust, -torque
+
+
+@dataclasses.dataclass(frozen=True)
 class FixedWingParams:
     """Rigid-body, geometric, propulsive and aerodynamic parameters of a fixed wing."""
 
@@ -109,7 +201,7 @@ class FixedWingParams:
     """Air density [kg/m^3]."""
     gravity: float = GRAVITY
     """Gravitational acceleration [m/s^2]."""
-    propulsion: Propulsion = dataclasses.field(default_factory=Propulsion)
+    propulsion: Propulsion | MotorPropeller = dataclasses.field(default_factory=Propulsion)
     """Propulsion model: any object with ``validate()`` and ``thrust_torque(Va, dT, rho)``."""
     limits: ControlLimits = dataclasses.field(default_factory=ControlLimits)
 
@@ -165,15 +257,20 @@ class FixedWingParams:
         return dataclasses.replace(self, derivatives=merged)
 
 
-def _aerosonde_derivatives(S: float, b: float, e: float, C_D_p: float, CL0: float,
-                           CL_alpha: float) -> dict[str, float]:
+def _drag_polar(S: float, b: float, e: float, C_D_p: float, CL0: float,
+                CL_alpha: float) -> dict[str, float]:
     # Beard & McLain's drag polar C_D = C_D_p + (CL0 + CL_alpha alpha)^2 / (pi e AR)
     # is exactly quadratic in alpha: expand it into CD_0 + CD_alpha a + CD_alpha2 a^2.
     k = 1.0 / (math.pi * e * b**2 / S)
+    return {"CD_0": C_D_p + k * CL0**2, "CD_alpha": 2 * k * CL0 * CL_alpha,
+            "CD_alpha2": k * CL_alpha**2}
+
+
+def _aerosonde_derivatives(S: float, b: float, e: float, C_D_p: float, CL0: float,
+                           CL_alpha: float) -> dict[str, float]:
     return {
         "CL_0": CL0, "CL_alpha": CL_alpha, "CL_q": 0.0, "CL_elevator": -0.36,
-        "CD_0": C_D_p + k * CL0**2, "CD_alpha": 2 * k * CL0 * CL_alpha,
-        "CD_alpha2": k * CL_alpha**2, "CD_q": 0.0, "CD_elevator": 0.0,
+        **_drag_polar(S, b, e, C_D_p, CL0, CL_alpha), "CD_q": 0.0, "CD_elevator": 0.0,
         "Cm_0": -0.02338, "Cm_alpha": -0.38, "Cm_q": -3.6, "Cm_elevator": -0.5,
         "CY_0": 0.0, "CY_beta": -0.98, "CY_p": 0.0, "CY_r": 0.0,
         "CY_aileron": 0.0, "CY_rudder": -0.17,
@@ -208,6 +305,70 @@ def aerosonde() -> FixedWingParams:
         rho=1.2682,
         derivatives=_aerosonde_derivatives(S, b, e=0.9, C_D_p=0.0437, CL0=0.28, CL_alpha=3.45),
         propulsion=Propulsion(S_prop=0.2027, C_prop=1.0, k_motor=80.0, k_Tp=0.0, k_Omega=0.0),
+    )
+
+
+def aerosonde_mavsim() -> FixedWingParams:
+    """The Aerosonde of Beard & McLain's simulator ``mavsim_python`` (2nd-edition set).
+
+    Source: repository randybeard/mavsim_public, file
+    ``mavsim_python/parameters/aerosonde_parameters.py`` (mass, inertia, geometry,
+    derivatives, motor and propeller), whose published trim and linear models
+    (``mavsim_python/design_projects/model_coef.py``) this set reproduces.
+
+    Differences from :func:`aerosonde` (the 2012 book's appendix E):
+
+    * mass 11 kg (13.5), gravity 9.81 m/s^2 as in the simulator;
+    * new longitudinal derivatives: C_L0 = 0.23, C_Lalpha = 5.61, C_Lq = 7.95,
+      C_Ldelta_e = +0.13, C_m0 = 0.0135, C_malpha = -2.74, C_mq = -38.21,
+      C_mdelta_e = -0.99, C_Ddelta_e = 0.0135; the drag polar
+      ``C_D_p + (C_L0 + C_Lalpha alpha)^2 / (pi e AR)`` with C_D_p = 0 and e = 0.9
+      (the file's C_D_0 = 0.043 and C_D_alpha = 0.03 are not used by that polar),
+      written exactly as ``CD_0 + CD_alpha alpha + CD_alpha2 alpha^2``;
+    * new lateral derivatives (C_lbeta = -0.13, C_nbeta = 0.073, C_lp = -0.51, ...);
+      with these the spiral mode is unstable;
+    * propulsion: :class:`MotorPropeller`, a 20 in propeller on a 145 rpm/V motor
+      with a 12-cell battery, instead of the book's k_motor model.
+
+    Same convention for the controls: positive elevator gives a nose-down moment,
+    throttle in 0..1 scales the battery voltage. The simulator's sigmoid blending
+    to a flat-plate lift past stall (M = 50, alpha0 = 0.47 rad) is not part of the
+    linear-in-parameters model: it changes C_L by 4e-10 at the 25 m/s trim
+    (alpha = 0.05 rad) and by less than 2e-7 below alpha = 0.15 rad.
+    """
+    S, b = 0.55, 2.8956
+    CL0, CL_alpha = 0.23, 5.61
+    derivatives = {
+        "CL_0": CL0, "CL_alpha": CL_alpha, "CL_q": 7.95, "CL_elevator": 0.13,
+        **_drag_polar(S, b, e=0.9, C_D_p=0.0, CL0=CL0, CL_alpha=CL_alpha),
+        "CD_q": 0.0, "CD_elevator": 0.0135,
+        "Cm_0": 0.0135, "Cm_alpha": -2.74, "Cm_q": -38.21, "Cm_elevator": -0.99,
+        "CY_0": 0.0, "CY_beta": -0.98, "CY_p": 0.0, "CY_r": 0.0,
+        "CY_aileron": 0.075, "CY_rudder": 0.19,
+        "Cl_0": 0.0, "Cl_beta": -0.13, "Cl_p": -0.51, "Cl_r": 0.25,
+        "Cl_aileron": 0.17, "Cl_rudder": 0.0024,
+        "Cn_0": 0.0, "Cn_beta": 0.073, "Cn_p": 0.069, "Cn_r": -0.095,
+        "Cn_aileron": -0.011, "Cn_rudder": -0.069,
+    }
+    kv = 60.0 / (2 * math.pi * 145.0)  # 145 rpm/V in V s/rad
+    return FixedWingParams(
+        name="aerosonde_mavsim",
+        mass=11.0,
+        Jx=0.8244,
+        Jy=1.135,
+        Jz=1.759,
+        Jxz=0.1204,
+        S=S,
+        b=b,
+        c=0.18994,
+        rho=1.2682,
+        gravity=9.81,
+        derivatives=derivatives,
+        propulsion=MotorPropeller(
+            diameter=20 * 0.0254, KV=kv, KQ=kv, R_motor=0.042, i0=1.5, V_max=3.7 * 12,
+            C_T0=0.09357, C_T1=-0.06044, C_T2=-0.1079,
+            C_Q0=0.005230, C_Q1=0.004970, C_Q2=-0.01664,
+        ),
     )
 
 
@@ -262,4 +423,5 @@ def unatrap() -> FixedWingParams:
 
 def fixed_wing_catalog() -> dict[str, FixedWingParams]:
     """All catalog aircraft by name."""
-    return {"aerosonde": aerosonde(), "unatrap": unatrap()}
+    return {"aerosonde": aerosonde(), "aerosonde_mavsim": aerosonde_mavsim(),
+            "unatrap": unatrap()}
