@@ -25,6 +25,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_uav.rotations import quat_derivative, quat_to_euler, quat_to_rotmat
+from drake_uav.scalar import as_list, clamp
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = [
@@ -54,15 +55,6 @@ BODY_RATES = slice(10, 13)
 """Body rates (p, q, r) in FRD [rad/s]."""
 
 
-def _saturate(value, low, high):
-    return pm.min(pm.max(value, low), high)
-
-
-def _as_list(values) -> list:
-    """Entries as a Python list (floats stay Python floats: fast scalar arithmetic)."""
-    return values.tolist() if isinstance(values, np.ndarray) else list(values)
-
-
 def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> list:
     """Thrust each motor produces [N]: saturated command (or lag state) times health.
 
@@ -72,19 +64,19 @@ def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> list
     """
     n = params.num_motors
     if params.motor_time_constant > 0:
-        thrust = _as_list(x[STATE_SIZE:STATE_SIZE + n])
+        thrust = as_list(x[STATE_SIZE:STATE_SIZE + n])
     else:
         f_max = params.f_max
-        thrust = [_saturate(c, 0.0, f_max) for c in _as_list(commands)]
+        thrust = [clamp(c, 0.0, f_max) for c in as_list(commands)]
     if health is not None:
-        thrust = [f * _saturate(h, 0.0, 1.0) for f, h in zip(thrust, _as_list(health), strict=True)]
+        thrust = [f * clamp(h, 0.0, 1.0) for f, h in zip(thrust, as_list(health), strict=True)]
     return thrust
 
 
 def motor_wrench(thrusts, params: MultirotorParams) -> list:
     """``[F, tau_x, tau_y, tau_z]`` [N, N m] of produced motor thrusts (allocation A f)."""
     F = tx = ty = tz = 0.0
-    for (a0, a1, a2, a3), fi in zip(params.allocation_matrix.T.tolist(), _as_list(thrusts),
+    for (a0, a1, a2, a3), fi in zip(params.allocation_matrix.T.tolist(), as_list(thrusts),
                                     strict=True):
         F, tx, ty, tz = F + a0 * fi, tx + a1 * fi, ty + a2 * fi, tz + a3 * fi
     return [F, tx, ty, tz]
@@ -121,8 +113,8 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     ``external_wrench``: ``[f_N, f_E, f_D]`` NED force [N] then body FRD torque
     [N m] (None: zero). ``quaternion_stabilization`` [1/s] pulls ``|q|`` to 1.
     """
-    x = _as_list(x)
-    F, tx, ty, tz = _as_list(wrench)
+    x = as_list(x)
+    F, tx, ty, tz = as_list(wrench)
     q, v, w = x[3:7], x[7:10], x[10:13]
     R, scale = _rotation(q)
     acc = _matvec(R, _body_force(R, scale, v, F, params))
@@ -130,7 +122,7 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     acc = [acc[0] * k, acc[1] * k, acc[2] * k + params.gravity]
     inv_m = 1.0 / params.mass
     if external_wrench is not None:
-        e = _as_list(external_wrench)
+        e = as_list(external_wrench)
         acc = [acc[0] + e[0] * inv_m, acc[1] + e[1] * inv_m, acc[2] + e[2] * inv_m]
         tx, ty, tz = tx + e[3], ty + e[4], tz + e[5]
     Jw = _matvec(params.inertia_matrix.tolist(), w)
@@ -155,18 +147,18 @@ def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,
     if params.motor_time_constant <= 0:
         return xdot
     f_max, inv_tau = params.f_max, 1.0 / params.motor_time_constant
-    lag = [(_saturate(c, 0.0, f_max) - f) * inv_tau
-           for c, f in zip(_as_list(commands), _as_list(x[STATE_SIZE:]), strict=True)]
+    lag = [(clamp(c, 0.0, f_max) - f) * inv_tau
+           for c, f in zip(as_list(commands), as_list(x[STATE_SIZE:]), strict=True)]
     return np.concatenate([xdot, np.array(lag)])
 
 
 def specific_force(x, wrench, params: MultirotorParams, external_wrench=None) -> np.ndarray:
     """Accelerometer reading in body FRD [m/s^2]: non-gravitational force / mass."""
-    x = _as_list(x)
+    x = as_list(x)
     R, scale = _rotation(x[3:7])
-    fb = _body_force(R, scale, x[7:10], _as_list(wrench)[0], params)
+    fb = _body_force(R, scale, x[7:10], as_list(wrench)[0], params)
     if external_wrench is not None:
-        e = _as_list(external_wrench)
+        e = as_list(external_wrench)
         fb = [fb[k] + (R[0][k] * e[0] + R[1][k] * e[1] + R[2][k] * e[2]) * scale
               for k in range(3)]
     return np.array(fb) / params.mass
