@@ -1,0 +1,563 @@
+"""Batch linear-in-the-parameters regression: OLS, TLS/GTLS and PCA-TLS (seed S0, ch. 4).
+
+The model is ``z = X theta + v`` (S0 4.3-4.4): ``X`` is the ``N x n`` regressor matrix (one
+row per sample, usually a constant column first), ``z`` the ``N`` observations (an aerodynamic
+coefficient), ``theta`` the ``n`` parameters.
+
+* :func:`ols` -- ordinary least squares (S0 4.2): estimate, covariance ``s^2 (X^T X)^-1`` with
+  ``s`` estimated from the residuals, Student-t ratios and significance (4.12-4.13), R^2 (4.25).
+* :func:`tls` -- total least squares when the regressors are noisy too (S0 4.3). With an error
+  standard deviation per column (or a full error covariance ``W_T = C^T C``) it is generalised
+  TLS: the augmented matrix ``[X | z]`` is normalised by ``C^-1`` and the parameter vector comes
+  from the last right singular vector (4.54-4.61).
+* :func:`pca_tls` -- TLS restricted to the singular directions that the data excite (S0 4.3.6):
+  direction ``j <= n`` is excited when ``s_j > (1 + S/n) sqrt(N - n)`` (4.68-4.70); the
+  parameters are the weighted minimum-norm member of the remaining solution space (4.75-4.79)
+  and the parameter combinations the data cannot fix are reported.
+
+All return one :class:`RegressionResult`. Data that do not support every parameter (rank
+deficiency, ill conditioning, insufficient excitation) never crash and never give a silent huge
+number: :func:`ols` and :func:`tls` emit :class:`InsufficientExcitationWarning` and return the
+reduced (PCA-style) answer, with ``sigma = inf`` for the parameters that load on an
+unidentifiable direction.
+
+Covariance of TLS/GTLS. S0 (4.62) gives ``s^2 (X0^T X0)^-1`` with ``s^2 = [theta; -1]^T W_T
+[theta; -1]``; that is the Cramer-Rao bound of the errors-in-variables model (see
+``crlb.py``). The estimator's asymptotic covariance adds a second term of order (regressor
+noise / regressor signal)^2 (Fuller, *Measurement Error Models*, 1987, Thm 2.3.2); both are
+returned, so the reported sigma stays honest when the regressor noise is large. ``X0^T X0`` is
+estimated as ``X^T X`` minus the noise energy ``s_min^2`` along every retained singular
+direction (as in S0 4.63), and the error covariance is known up to a scale factor estimated
+from the smallest singular value (``scale_from_data``), the TLS analogue of the residual variance
+of OLS.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+__all__ = [
+    "IdentificationWarning",
+    "InsufficientExcitationWarning",
+    "RegressionResult",
+    "excitation_threshold",
+    "normalization_matrix",
+    "ols",
+    "pca_tls",
+    "tls",
+    "tls_covariance",
+    "tls_solution",
+    "unidentifiable_loading",
+]
+
+#: A parameter whose unit vector has a squared projection above this on the unidentifiable
+#: subspace (raw parameter coordinates) is reported as not identifiable (sigma = inf).
+LOADING_TOL = 0.01
+
+#: Relative singular-value floor of the column-equilibrated OLS regressor matrix below which a
+#: direction is treated as unsupported (it carries < 1e-12 of the regressor energy).
+OLS_RCOND = 1e-6
+
+#: Error std used for a column declared exact (std 0) in batch TLS: this fraction of the column's
+#: root-mean-square value (S0 4.41 uses "a small positive number" for the constant column).
+EXACT_COLUMN_REL = 1e-6
+
+
+class IdentificationWarning(UserWarning):
+    """Base class of the warnings of the identification package."""
+
+
+class InsufficientExcitationWarning(IdentificationWarning):
+    """The data do not support every parameter (rank deficient, ill conditioned or under-excited).
+
+    The estimator returned the reduced answer: it estimates what the data support and lists the
+    parameter combinations it could not identify in ``RegressionResult.unidentifiable``.
+    """
+
+
+@dataclass(frozen=True, eq=False)
+class RegressionResult:
+    """Estimate and statistics of one linear regression, whatever the method.
+
+    Attributes:
+        method: "OLS", "TLS", "GTLS" or "PCA-TLS" (TLS/GTLS reduced to the excited directions).
+        names: parameter names, length n.
+        estimate: parameter vector theta (n,), units of z per unit of each regressor.
+        covariance: parameter covariance (n, n) of the identifiable part (zero along
+            ``unidentifiable``).
+        sigma: one-standard-deviation uncertainty of each parameter (n,); inf when not identifiable.
+        t_statistic: theta / sigma (n,), 0 where sigma is inf (S0 4.12).
+        significant: |t| above the two-sided Student-t quantile with ``dof`` degrees of freedom.
+        identifiable: False for parameters loading on an unidentifiable direction (n,).
+        noise_std: estimated standard deviation of the equation error z - X theta (units of z).
+        r_squared: coefficient of determination 1 - SSE/SST (equals S0 4.25 for OLS with a
+            constant column); nan when z is constant.
+        residual: z - X theta (N,), with the measured regressors.
+        dof: degrees of freedom N - rank.
+        rank: number of parameter directions the data support (n when fully identifiable).
+        singular_values: of the column-equilibrated X (OLS) or of the normalised [X | z] (TLS).
+        excitation_threshold: singular-value threshold used to count supported directions.
+        condition_number: condition number of the column-equilibrated (normalised) regressor
+            matrix, inf if singular.
+        unidentifiable: (n - rank, n) orthonormal parameter-space directions the data do not fix.
+        t_critical: the Student-t quantile used for ``significant``.
+    """
+
+    method: str
+    names: tuple[str, ...]
+    estimate: np.ndarray
+    covariance: np.ndarray
+    sigma: np.ndarray
+    t_statistic: np.ndarray
+    significant: np.ndarray
+    identifiable: np.ndarray
+    noise_std: float
+    r_squared: float
+    residual: np.ndarray
+    dof: int
+    rank: int
+    singular_values: np.ndarray
+    excitation_threshold: float
+    condition_number: float
+    unidentifiable: np.ndarray
+    t_critical: float
+
+    def __getitem__(self, name: str) -> float:
+        """Estimate of the parameter called ``name``."""
+        return float(self.estimate[self.names.index(name)])
+
+    def table(self) -> str:
+        """Plain-text table: name, estimate, +-1 sigma, t, significant."""
+        lines = [
+            f"{self.method}: R^2 = {self.r_squared:.4f}, noise std = {self.noise_std:.4g}, "
+            f"rank {self.rank}/{len(self.names)}, cond = {self.condition_number:.3g}",
+            f"{'parameter':>12} {'estimate':>11} {'+-1 sigma':>11} {'t':>9}  significant",
+        ]
+        for i, name in enumerate(self.names):
+            lines.append(
+                f"{name:>12} {self.estimate[i]:11.5f} {self.sigma[i]:11.5f} "
+                f"{self.t_statistic[i]:9.2f}  {'yes' if self.significant[i] else 'no'}"
+            )
+        for direction in self.unidentifiable:
+            terms = " ".join(f"{c:+.3f}*{n}" for c, n in zip(direction, self.names, strict=True))
+            lines.append(f"  not identifiable: {terms}")
+        return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _as_data(X, z) -> tuple[np.ndarray, np.ndarray]:
+    X = np.asarray(X, dtype=float)
+    z = np.asarray(z, dtype=float)
+    if X.ndim != 2:
+        raise ValueError(f"X must be a 2-D regressor matrix (N, n), got shape {X.shape}")
+    if z.shape != (X.shape[0],):
+        raise ValueError(f"z must have shape ({X.shape[0]},) to match X, got {z.shape}")
+    if X.shape[0] <= X.shape[1]:
+        raise ValueError(f"need more samples than parameters: X has shape {X.shape}")
+    if not np.isfinite(X).all():
+        raise ValueError("X contains NaN or inf")
+    if not np.isfinite(z).all():
+        raise ValueError("z contains NaN or inf")
+    return X, z
+
+
+def _names(names, n: int) -> tuple[str, ...]:
+    if names is None:
+        return tuple(f"theta{i}" for i in range(n))
+    names = tuple(str(s) for s in names)
+    if len(names) != n:
+        raise ValueError(f"names has {len(names)} entries for {n} parameters")
+    return names
+
+
+def _orthonormal_columns(A: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns) of the range of A, empty if A has no columns."""
+    if A.shape[1] == 0:
+        return A
+    u, s, _ = np.linalg.svd(A, full_matrices=False)
+    return u[:, s > s[0] * 1e-12] if s[0] > 0 else u[:, :0]
+
+
+def _r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """Upper-triangular R with R^T R = A^T A, by QR of row blocks then of the stacked R's.
+
+    Block (tall-skinny) QR is as stable as one QR of A and faster for long flight records.
+    """
+    if A.shape[0] <= 2 * chunk:
+        return np.linalg.qr(A, mode="r")
+    blocks = [np.linalg.qr(A[i : i + chunk], mode="r") for i in range(0, A.shape[0], chunk)]
+    return np.linalg.qr(np.vstack(blocks), mode="r")
+
+
+def excitation_threshold(n_rows: float, n_params: int, snr_min: float, scale: float = 1.0):
+    """Singular-value threshold of sufficient excitation (S0 4.68-4.69), normalised units.
+
+    ``(1 + S/n) * sqrt(scale * (n_rows - n_params))``: the noise energy of a normalised
+    direction is ``scale * (n_rows - n_params)`` (S0 4.67), ``scale`` = 1 when the error
+    covariance is exact. ``n_rows`` may be an effective (forgetting-weighted) row count.
+    """
+    return (1.0 + snr_min) * np.sqrt(scale * max(n_rows - n_params, 0.0))
+
+
+def unidentifiable_loading(directions: np.ndarray, n: int) -> np.ndarray:
+    """Squared projection of each parameter axis on the unidentifiable subspace, (n,) in [0, 1]."""
+    if directions.size == 0:
+        return np.zeros(n)
+    return np.sum(directions**2, axis=0)
+
+
+def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.ndarray:
+    """Upper-triangular error std matrix C with C^T C = W_T (S0 4.38-4.40).
+
+    ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
+    Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
+    batch :func:`tls` replaces zero stds of exact columns before calling this.
+    """
+    if error_std is not None and error_cov is not None:
+        raise ValueError("give error_std or error_cov, not both")
+    if error_cov is not None:
+        W = np.asarray(error_cov, dtype=float)
+        if W.shape != (n_cols, n_cols):
+            raise ValueError(f"error_cov must have shape ({n_cols}, {n_cols}), got {W.shape}")
+        if not np.allclose(W, W.T):
+            raise ValueError("error_cov must be symmetric")
+        try:
+            return np.linalg.cholesky(W).T
+        except np.linalg.LinAlgError:
+            raise ValueError(
+                "error_cov must be positive definite (use error_std with 0 for exact columns)"
+            ) from None
+    if error_std is None:
+        return np.eye(n_cols)
+    c = np.asarray(error_std, dtype=float)
+    if c.shape != (n_cols,):
+        raise ValueError(f"error_std must have shape ({n_cols},), got {c.shape}")
+    if not (np.isfinite(c).all() and (c > 0).all()):
+        raise ValueError("error_std entries must be finite and positive")
+    return np.diag(c)
+
+
+# ----------------------------------------------------------------------------- OLS
+
+
+def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND):
+    """Ordinary least squares with statistics (S0 4.2, A.10).
+
+    Args:
+        X: (N, n) regressors, assumed exact. z: (N,) observations.
+        names: parameter names (default theta0..).
+        confidence: two-sided level of the significance test (0.95 -> |t| > ~1.96).
+        rcond: directions of the column-equilibrated X with singular value below
+            ``rcond * s_max`` are unsupported: they trigger an
+            :class:`InsufficientExcitationWarning` and the minimum-norm answer.
+
+    Returns:
+        RegressionResult with method "OLS".
+    """
+    X, z = _as_data(X, z)
+    N, n = X.shape
+    names = _names(names, n)
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0.0] = 1.0
+    # QR of the augmented, equilibrated matrix: R[:n,:n] is R of X/scale, R[:n, n] = Q^T z.
+    R = _r_factor(np.column_stack([X / scale, z]))
+    u, s, vt = np.linalg.svd(R[:n, :n])
+    rank = int(np.sum(s > rcond * s[0])) if s[0] > 0 else 0
+    qtz = u[:, :rank].T @ R[:n, n]
+    theta = (vt[:rank].T @ (qtz / s[:rank])) / scale
+    directions = _orthonormal_columns((vt[rank:] / scale).T).T
+    if rank < n:
+        warnings.warn(
+            f"OLS: regressors support only {rank} of {n} parameter directions "
+            f"(equilibrated condition number {s[0] / max(s[-1], 1e-300):.3g}); "
+            "returning the minimum-norm estimate",
+            InsufficientExcitationWarning,
+            stacklevel=2,
+        )
+        theta = theta - directions.T @ (directions @ theta)
+    residual = z - X @ theta
+    dof = N - rank
+    noise_var = float(residual @ residual) / dof
+    info_equilibrated = R[:n, :n].T @ R[:n, :n]
+    cov_unit = _restricted_inverse(info_equilibrated, directions, scale)
+    return _finish(
+        method="OLS",
+        names=names,
+        theta=theta,
+        covariance=noise_var * cov_unit,
+        noise_std=np.sqrt(noise_var),
+        residual=residual,
+        z=z,
+        dof=dof,
+        rank=rank,
+        singular_values=s,
+        threshold=rcond * s[0],
+        condition=s[0] / s[-1] if s[-1] > 0 else np.inf,
+        directions=directions,
+        confidence=confidence,
+    )
+
+
+def _restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.ndarray):
+    """Inverse of an information matrix on the complement of unidentifiable directions.
+
+    ``info_eq`` is given in equilibrated coordinates (theta_eq = scale * theta), ``null_dirs``
+    holds the orthonormal raw unidentifiable directions (rows). Returns the raw covariance
+    factor B (B^T I B)^-1 B^T, B an orthonormal raw basis of the complement of ``null_dirs``.
+    """
+    n = info_eq.shape[0]
+    if null_dirs.shape[0] == 0:
+        inv_eq = np.linalg.inv(info_eq)
+        inv_eq = 0.5 * (inv_eq + inv_eq.T)
+        return inv_eq / np.outer(scale, scale)
+    m = null_dirs.shape[0]
+    q, _ = np.linalg.qr(np.column_stack([null_dirs.T, np.eye(n)]))
+    basis = q[:, m:n]  # raw orthonormal complement
+    basis_eq = basis * scale[:, None]
+    reduced = basis_eq.T @ info_eq @ basis_eq
+    cov = basis @ np.linalg.inv(reduced) @ basis.T
+    return 0.5 * (cov + cov.T)
+
+
+def _finish(
+    *,
+    method,
+    names,
+    theta,
+    covariance,
+    noise_std,
+    residual,
+    z,
+    dof,
+    rank,
+    singular_values,
+    threshold,
+    condition,
+    directions,
+    confidence,
+):
+    n = theta.size
+    identifiable = unidentifiable_loading(directions, n) <= LOADING_TOL
+    sigma = np.where(identifiable, np.sqrt(np.clip(np.diag(covariance), 0.0, None)), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.isfinite(sigma) & (sigma > 0), theta / sigma, 0.0)
+    t_crit = float(stats.t.ppf(0.5 + 0.5 * confidence, max(dof, 1)))
+    zc = z - z.mean()
+    sst = float(zc @ zc)
+    r2 = 1.0 - float(residual @ residual) / sst if sst > 0 else float("nan")
+    return RegressionResult(
+        method=method,
+        names=names,
+        estimate=theta,
+        covariance=covariance,
+        sigma=sigma,
+        t_statistic=t,
+        significant=(np.abs(t) > t_crit) & identifiable,
+        identifiable=identifiable,
+        noise_std=float(noise_std),
+        r_squared=r2,
+        residual=residual,
+        dof=int(dof),
+        rank=int(rank),
+        singular_values=np.asarray(singular_values, dtype=float),
+        excitation_threshold=float(threshold),
+        condition_number=float(condition),
+        unidentifiable=directions,
+        t_critical=t_crit,
+    )
+
+
+# ----------------------------------------------------------------------------- TLS core
+
+
+def tls_solution(s, V, C_inv, k: int, weights=None):
+    """Weighted minimum-norm TLS solution from the SVD of the normalised augmented matrix.
+
+    Args:
+        s: singular values (n+1,) in decreasing order. V: right singular vectors (n+1, n+1),
+            columns. C_inv: inverse error std matrix (n+1, n+1).
+        k: number of excited directions (<= n); k = n is plain TLS/GTLS (S0 4.61).
+        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (S0 4.76); None = identity.
+
+    Returns:
+        (theta, k_used, directions): estimate (n,), the number of directions actually kept
+        (lowered if the kept subspace cannot represent [theta; -1], the non-generic TLS case),
+        and the orthonormal parameter-space directions (rows) the data do not determine.
+    """
+    n = V.shape[0] - 1
+    if weights is None:
+        Wm = None
+    else:
+        w = np.asarray(weights, dtype=float)
+        Wm = np.diag(w) if w.ndim == 1 else w
+    while k >= 0:
+        G = C_inv @ V[:, k:]  # solution space of [theta; -1] (S0 4.75)
+        G_theta, g = G[:n], G[n]
+        g_norm = np.linalg.norm(g)
+        if g_norm > 1e-12 * np.linalg.norm(G):
+            if G.shape[1] == 1:
+                return -G_theta[:, 0] / g[0], k, np.zeros((0, n))
+            # min ||W G_theta mu|| subject to g^T mu = -1 (S0 4.76-4.79 without the big number):
+            # mu = mu_p + N nu, mu_p = -g / |g|^2, N an orthonormal basis of {mu : g^T mu = 0}.
+            _, _, gt = np.linalg.svd(g[None, :])
+            N = gt[1:].T
+            mu_p = -g / g_norm**2
+            A = G_theta if Wm is None else Wm @ G_theta
+            nu = np.linalg.lstsq(A @ N, -(A @ mu_p), rcond=None)[0]
+            directions = _orthonormal_columns(G_theta @ N).T
+            return G_theta @ (mu_p + N @ nu), k, directions
+        k -= 1
+    return np.zeros(n), 0, np.eye(n)
+
+
+def tls_covariance(s, V, C, theta, k: int, directions, n_rows: float, scale: float):
+    """Asymptotic covariance of the (PCA-)TLS estimate (S0 4.62-4.63, 4.80; Fuller Thm 2.3.2).
+
+    Args:
+        s, V: SVD of the normalised augmented matrix (singular values, right vectors as columns).
+        C: error std matrix (n+1, n+1), W_T = C^T C. theta: estimate (n,). k: kept directions.
+        directions: unidentifiable parameter directions (rows); the covariance is zero along them.
+        n_rows: (effective) number of rows. scale: error-variance scale factor (1 if C exact).
+
+    Returns:
+        (covariance (n, n), equation-error variance s^2 = scale [theta; -1]^T W_T [theta; -1]).
+    """
+    n = theta.size
+    W_T = C.T @ C
+    w = np.append(theta, -1.0)
+    s2 = scale * float(w @ W_T @ w)
+    energy = np.clip(s[:k] ** 2 - s[-1] ** 2, 0.0, None)
+    CV = C.T @ V[:, :k]
+    M = (CV * energy) @ CV.T  # estimate of [X0|y0]^T [X0|y0]
+    Mxx = M[:n, :n]
+    d = np.sqrt(np.clip(np.diag(Mxx), 0.0, None))
+    d[d == 0.0] = 1.0
+    Mp = _restricted_inverse(Mxx / np.outer(d, d), directions, d)
+    S_uu = scale * W_T[:n, :n]
+    S_uv = scale * (W_T[:n, n] - W_T[:n, :n] @ theta)
+    cov = s2 * Mp + n_rows * Mp @ (s2 * S_uu - np.outer(S_uv, S_uv)) @ Mp
+    return 0.5 * (cov + cov.T), s2
+
+
+def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, warn):
+    X, z = _as_data(X, z)
+    N, n = X.shape
+    names = _names(names, n)
+    if snr_min < 0:
+        raise ValueError(f"snr_min must be >= 0, got {snr_min}")
+    D = np.column_stack([X, z])
+    if error_std is not None:
+        c = np.asarray(error_std, dtype=float).copy()
+        if c.shape == (n + 1,) and np.isfinite(c).all() and (c >= 0).all():
+            rms = np.sqrt(np.mean(D**2, axis=0))
+            exact = c == 0.0
+            c[exact] = EXACT_COLUMN_REL * np.where(rms[exact] > 0, rms[exact], 1.0)
+        error_std = c
+    method = "TLS" if error_std is None and error_cov is None else "GTLS"
+    C = normalization_matrix(error_std, error_cov, n + 1)
+    C_inv = np.linalg.inv(C)
+    R = _r_factor(D @ C_inv)
+    _, s, vt = np.linalg.svd(R)
+    # R[:n, :n] is the R factor of the normalised regressors X C_xx^-1 (C is upper triangular)
+    Rx = R[:n, :n] / np.maximum(np.linalg.norm(R[:n, :n], axis=0), 1e-300)
+    sx = np.linalg.svd(Rx, compute_uv=False)
+    V = vt.T
+    noise_energy = s[-1] ** 2
+    scale = noise_energy / (N - n) if scale_from_data else 1.0
+    threshold = excitation_threshold(N, n, snr_min, scale)
+    floor = (n + 1) * np.finfo(float).eps * s[0]
+    k = int(np.sum(s[:n] > max(threshold, floor)))
+    theta, k, directions = tls_solution(s, V, C_inv, k, weights)
+    if k < n:
+        method = "PCA-TLS"
+        if warn:
+            warnings.warn(
+                f"TLS: only {k} of {n} parameter directions are excited above the threshold "
+                f"(S/n = {snr_min}); returning the PCA-TLS estimate",
+                InsufficientExcitationWarning,
+                stacklevel=3,
+            )
+    covariance, s2 = tls_covariance(s, V, C, theta, k, directions, N, scale)
+    return _finish(
+        method=method,
+        names=names,
+        theta=theta,
+        covariance=covariance,
+        noise_std=np.sqrt(s2),
+        residual=z - X @ theta,
+        z=z,
+        dof=N - k,
+        rank=k,
+        singular_values=s,
+        threshold=threshold,
+        condition=sx[0] / sx[-1] if sx[-1] > 0 else np.inf,
+        directions=directions,
+        confidence=confidence,
+    )
+
+
+def tls(
+    X,
+    z,
+    error_std=None,
+    *,
+    error_cov=None,
+    names=None,
+    snr_min: float = 1.0,
+    weights=None,
+    confidence: float = 0.95,
+    scale_from_data: bool = True,
+):
+    """Total least squares / generalised TLS via SVD (S0 4.3, A.13).
+
+    Args:
+        X: (N, n) measured regressors. z: (N,) measured observations.
+        error_std: (n+1,) error standard deviations of the columns of [X | z] (units of each
+            column); 0 marks an exact column (the constant), replaced by 1e-6 of its rms.
+        error_cov: (n+1, n+1) full error covariance W_T instead of ``error_std``.
+            Neither: plain TLS (C = I).
+        names: parameter names.
+        snr_min: S/n of the excitation test (S0 4.68, typically 1..10).
+        weights: W of the minimum-norm choice if some direction is not excited (S0 4.76).
+        confidence: level of the significance test.
+        scale_from_data: estimate the error-variance scale from the smallest singular value
+            (C known up to a factor); False trusts C exactly.
+
+    Returns:
+        RegressionResult, method "TLS"/"GTLS"; if a direction is not excited, warns
+        (:class:`InsufficientExcitationWarning`) and returns the PCA-TLS answer.
+    """
+    return _tls(
+        X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, True
+    )
+
+
+def pca_tls(
+    X,
+    z,
+    error_std=None,
+    *,
+    error_cov=None,
+    names=None,
+    snr_min: float = 1.0,
+    weights=None,
+    confidence: float = 0.95,
+    scale_from_data: bool = True,
+):
+    """PCA-TLS: GTLS restricted to the excited singular directions (S0 4.3.6, A.14).
+
+    Same arguments as :func:`tls`. Estimates only what the data support, without a warning:
+    ``result.rank`` directions are kept, ``result.unidentifiable`` lists the parameter
+    combinations left at their weighted minimum norm and ``result.identifiable`` /
+    ``result.sigma`` (inf) mark the parameters involved. Method "PCA-TLS" when rank < n,
+    otherwise "TLS"/"GTLS".
+    """
+    return _tls(
+        X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, False
+    )
