@@ -1,0 +1,452 @@
+"""Dryden turbulence (MIL-F-8785C) plus steady wind, as a Drake system.
+
+The gust components follow seed S0 eq. (2.11), the Dryden shaping filters of
+MIL-F-8785C driven by unit-intensity white noise (a = V/L, V airspeed):
+
+    H_u(s) = sigma_u sqrt(2 a_u) / (s + a_u)
+    H_v(s) = sigma_v sqrt(3 a_v) (s + a_v/sqrt(3)) / (s + a_v)^2
+    H_w(s) = sigma_w sqrt(3 a_w) (s + a_w/sqrt(3)) / (s + a_w)^2
+
+Seed typo: S0 (2.11b) prints L_u in the gain and the pole of H_v. The filter here
+uses L_v, as MIL-F-8785C does (the two coincide in the seed's own table).
+
+Gusts are body-axis components (translational only, as in the seed); the output
+``wind_ned`` is the steady wind plus the gust rotated to NED with the aircraft
+attitude. MIL-F-8785C orients the low-altitude components along the mean wind
+instead; for a small UAV flying through a short identification pattern the
+body-axis form of the seed is used throughout.
+
+Discretisation: each filter is realised as the cascade z1 = xi/(s + a),
+z2 = z1/(s + a) and advanced with its exact transition matrix and the exact
+covariance of the integrated white noise. Sampled gusts therefore have the
+continuous process's variance and autocorrelation for any update period. The
+filter starts in its stationary distribution (drawn from the first noise sample).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import RandomSource
+
+from drake_uav.rotations import quat_to_rotmat
+
+__all__ = [
+    "TURBULENCE_LEVELS",
+    "TURBULENCE_MODELS",
+    "TurbulenceScales",
+    "DrydenParams",
+    "dryden_scales",
+    "dryden_psd",
+    "dryden_transition",
+    "dryden_stationary_factor",
+    "dryden_gust",
+    "DrydenFilter",
+    "DrydenWind",
+]
+
+TURBULENCE_LEVELS = ("light", "moderate", "severe")
+TURBULENCE_MODELS = ("mil-f-8785c", "seed")
+
+_FT = 0.3048  # m per ft
+_KT = 0.514444  # m/s per knot
+
+# MIL-F-8785C low altitude: wind speed at 20 ft per level [kt].
+_W20_KT = {"light": 15.0, "moderate": 30.0, "severe": 45.0}
+# MIL-F-8785C medium/high altitude: rms intensity [ft/s] against altitude [ft] for the
+# probabilities of exceedance 1e-2 (light), 1e-3 (moderate) and 1e-5 (severe).
+_HIGH_ALT_FT = np.array(
+    [500, 1750, 3750, 7500, 15000, 25000, 35000, 45000, 55000, 65000, 75000, 80000], float
+)
+_HIGH_ALT_SIGMA_FPS = {
+    "light": np.array([6.6, 6.9, 7.4, 6.7, 4.6, 2.7, 0.4, 0, 0, 0, 0, 0]),
+    "moderate": np.array([8.6, 9.6, 10.6, 10.1, 8.0, 6.6, 5.0, 4.2, 2.7, 0, 0, 0]),
+    "severe": np.array([15.6, 17.6, 23.0, 23.6, 22.1, 20.0, 16.0, 15.1, 12.1, 7.9, 6.2, 5.1]),
+}
+_HIGH_ALT_LENGTH_FT = 1750.0
+
+# Seed S0 Figure 7 (after Beard & McLain): (altitude, L_u = L_v, L_w, sigma_u = sigma_v,
+# sigma_w) in m and m/s per level. The seed gives no "severe" rows.
+_SEED_TABLE = {
+    ("low", "light"): (50.0, 200.0, 50.0, 1.06, 0.7),
+    ("low", "moderate"): (50.0, 200.0, 50.0, 2.12, 1.4),
+    ("medium", "light"): (600.0, 533.0, 533.0, 1.5, 1.5),
+    ("medium", "moderate"): (600.0, 533.0, 533.0, 3.0, 3.0),
+}
+# Altitude [m] that separates the seed's 50 m and 600 m rows (their midpoint).
+_SEED_ROW_SPLIT = 325.0
+
+# Output row of the cascade realisation: y = sigma sqrt(k a) (z1 + g a z2).
+_GAIN_K = np.array([2.0, 3.0, 3.0])
+_GAIN_G = np.array([0.0, 1.0 / math.sqrt(3.0) - 1.0, 1.0 / math.sqrt(3.0) - 1.0])
+
+
+@dataclass(frozen=True)
+class TurbulenceScales:
+    """Dryden length scales [m] and rms intensities [m/s] of the three gust components."""
+
+    length_u: float
+    length_v: float
+    length_w: float
+    sigma_u: float
+    sigma_v: float
+    sigma_w: float
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """(L_u, L_v, L_w) [m]."""
+        return np.array([self.length_u, self.length_v, self.length_w])
+
+    @property
+    def sigmas(self) -> np.ndarray:
+        """(sigma_u, sigma_v, sigma_w) [m/s]."""
+        return np.array([self.sigma_u, self.sigma_v, self.sigma_w])
+
+
+def _check_level(level: str, model: str) -> None:
+    if model not in TURBULENCE_MODELS:
+        raise ValueError(f"model: unknown turbulence model {model!r}; use {TURBULENCE_MODELS}")
+    if level not in TURBULENCE_LEVELS:
+        raise ValueError(f"level: unknown turbulence level {level!r}; use {TURBULENCE_LEVELS}")
+    if model == "seed" and level == "severe":
+        raise ValueError("level: the seed table (model='seed') has no 'severe' rows")
+
+
+def _mil_low_altitude(level: str, h_ft: float) -> tuple[float, float, float, float]:
+    """(L_u = L_v, L_w, sigma_u = sigma_v, sigma_w) in ft and ft/s, 10 ft <= h <= 1000 ft."""
+    k = 0.177 + 0.000823 * h_ft
+    sigma_w = 0.1 * _W20_KT[level] * _KT / _FT
+    return h_ft / k**1.2, h_ft, sigma_w / k**0.4, sigma_w
+
+
+def _mil_high_altitude(level: str, h_ft: float) -> tuple[float, float, float, float]:
+    """(L_u = L_v, L_w, sigma_u = sigma_v, sigma_w) in ft and ft/s, h >= 2000 ft."""
+    sigma = float(np.interp(h_ft, _HIGH_ALT_FT, _HIGH_ALT_SIGMA_FPS[level]))
+    return _HIGH_ALT_LENGTH_FT, _HIGH_ALT_LENGTH_FT, sigma, sigma
+
+
+def dryden_scales(level: str, altitude: float, model: str = "mil-f-8785c") -> TurbulenceScales:
+    """Length scales and intensities of a turbulence ``level`` at ``altitude`` [m].
+
+    ``model="mil-f-8785c"``: low altitude (below 1000 ft) L_w = h,
+    L_u = L_v = h / (0.177 + 0.000823 h)^1.2, sigma_w = 0.1 W20 (W20 = 15, 30, 45 kt),
+    sigma_u = sigma_v = sigma_w / (0.177 + 0.000823 h)^0.4 (h in ft, clamped to
+    >= 10 ft); medium/high altitude (above 2000 ft) L = 1750 ft and the intensity
+    of exceedance probability 1e-2 / 1e-3 / 1e-5; linear interpolation between.
+    ``model="seed"``: the rows of seed S0 Figure 7, the 50 m rows below 325 m and
+    the 600 m rows above (light and moderate only).
+    """
+    _check_level(level, model)
+    if not math.isfinite(altitude):
+        raise ValueError(f"altitude: must be finite, got {altitude}")
+    if model == "seed":
+        band = "low" if altitude < _SEED_ROW_SPLIT else "medium"
+        _, l_uv, l_w, s_uv, s_w = _SEED_TABLE[(band, level)]
+        return TurbulenceScales(l_uv, l_uv, l_w, s_uv, s_uv, s_w)
+    h_ft = max(altitude / _FT, 10.0)
+    if h_ft <= 1000.0:
+        values = _mil_low_altitude(level, h_ft)
+    elif h_ft >= 2000.0:
+        values = _mil_high_altitude(level, h_ft)
+    else:
+        f = (h_ft - 1000.0) / 1000.0
+        low = _mil_low_altitude(level, 1000.0)
+        high = _mil_high_altitude(level, 2000.0)
+        values = tuple((1.0 - f) * lo + f * hi for lo, hi in zip(low, high, strict=True))
+    l_uv, l_w, s_uv, s_w = (v * _FT for v in values)
+    return TurbulenceScales(l_uv, l_uv, l_w, s_uv, s_uv, s_w)
+
+
+def dryden_psd(omega, scales: TurbulenceScales, airspeed: float) -> np.ndarray:
+    """One-sided Dryden PSDs (3, n) [(m/s)^2 / (rad/s)] at angular frequencies ``omega``.
+
+    Normalised so that the integral over omega in [0, inf) is sigma^2:
+    Phi_u = sigma^2 (2 L / (pi V)) / (1 + (L w / V)^2),
+    Phi_v,w = sigma^2 (L / (pi V)) (1 + 3 (L w / V)^2) / (1 + (L w / V)^2)^2.
+    """
+    w = np.asarray(omega, float)
+    out = np.empty((3, w.size))
+    for i, (length, sigma) in enumerate(zip(scales.lengths, scales.sigmas, strict=True)):
+        x2 = (length * w.ravel() / airspeed) ** 2
+        if i == 0:
+            out[i] = sigma**2 * 2.0 * length / (math.pi * airspeed) / (1.0 + x2)
+        else:
+            out[i] = sigma**2 * length / (math.pi * airspeed) * (1.0 + 3.0 * x2) / (1.0 + x2) ** 2
+    return out
+
+
+# Below this a*dt, the moments of exp(-x u) on [0, 1] use their power series (the
+# closed forms lose digits to cancellation as x -> 0).
+_SERIES_BELOW = 0.1
+_SERIES_TERMS = 10
+
+
+def _exp_moments(x, xp=np):
+    """(I0, I1, I2) with I_m = integral of u^m exp(-x u) over u in [0, 1]."""
+    e = xp.exp(-x)
+    one_minus = -xp.expm1(-x)
+    safe = x + (x < _SERIES_BELOW)  # keeps the unused closed form finite near x = 0
+    closed = (
+        one_minus / safe,
+        (one_minus - x * e) / safe**2,
+        (2.0 * one_minus - e * x * (2.0 + x)) / safe**3,
+    )
+    term, series = 1.0 + 0.0 * x, [0.0 * x, 0.0 * x, 0.0 * x]
+    for n in range(_SERIES_TERMS):
+        for m in range(3):
+            series[m] = series[m] + term / (n + m + 1)
+        term = -term * x / (n + 1)
+    if xp is math:
+        return tuple(series) if x < _SERIES_BELOW else closed
+    return tuple(np.where(x < _SERIES_BELOW, s, c) for s, c in zip(series, closed, strict=True))
+
+
+def _transition_terms(a, dt: float, xp=np):
+    """(e, l11, l21, l22): exp(-a dt) and the Cholesky factor of the noise covariance.
+
+    The covariance is q_ij = integral over [0, dt] of exp(-2 a s) s^(i+j) ds. Written
+    once for ``xp = numpy`` (arrays) and ``xp = math`` (floats, cheaper per call
+    inside the periodic update).
+    """
+    i0, i1, i2 = _exp_moments(2.0 * a * dt, xp)
+    q11, q12, q22 = dt * i0, dt * dt * i1, dt * dt * dt * i2
+    l11 = xp.sqrt(q11)
+    l21 = q12 / l11
+    d = q22 - l21 * l21
+    return xp.exp(-a * dt), l11, l21, xp.sqrt(d * (d > 0))
+
+
+def _stationary_terms(a, xp=np):
+    """(s11, s21, s22): Cholesky factor of the stationary covariance of the cascade."""
+    s11 = 1.0 / xp.sqrt(2.0 * a)
+    return s11, s11 / (2.0 * a), 1.0 / xp.sqrt(8.0 * a * a * a)
+
+
+def _output(z1, z2, a, sigma, k, g, xp=np):
+    """Filter output y = sigma sqrt(k a) (z1 + g a z2)."""
+    return sigma * xp.sqrt(k * a) * (z1 + g * a * z2)
+
+
+def _lower(m11, m21, m22) -> np.ndarray:
+    """(..., 2, 2) lower-triangular matrices from their entries."""
+    m11 = np.asarray(m11, float)
+    out = np.zeros(m11.shape + (2, 2))
+    out[..., 0, 0], out[..., 1, 0], out[..., 1, 1] = m11, m21, m22
+    return out
+
+
+def dryden_transition(a, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact discretisation of z' = [[-a, 0], [1, -a]] z + [1, 0] xi over ``dt`` [s].
+
+    ``a`` [1/s] is an array of break frequencies V/L. Returns ``(phi, chol)`` of
+    shape ``a.shape + (2, 2)``: the transition matrix and the lower Cholesky
+    factor of the covariance of the integrated unit-intensity white noise, so
+    ``z[k+1] = phi z[k] + chol n[k]`` with ``n ~ N(0, I)`` is exact.
+    """
+    e, l11, l21, l22 = _transition_terms(np.asarray(a, float), dt)
+    return _lower(e, e * dt, e), _lower(l11, l21, l22)
+
+
+def dryden_stationary_factor(a) -> np.ndarray:
+    """Lower Cholesky factor (..., 2, 2) of the stationary covariance of the cascade."""
+    return _lower(*_stationary_terms(np.asarray(a, float)))
+
+
+def dryden_gust(z, a, sigmas) -> np.ndarray:
+    """Gust components (..., 3) [m/s] from cascade states z (..., 3, 2) and a = V/L (..., 3)."""
+    z = np.asarray(z, float)
+    return _output(z[..., 0], z[..., 1], np.asarray(a, float), np.asarray(sigmas, float),
+                   _GAIN_K, _GAIN_G)
+
+
+@dataclass(frozen=True)
+class DrydenParams:
+    """Parameters of :class:`DrydenWind`.
+
+    Attributes:
+        level: "light", "moderate" or "severe".
+        model: "mil-f-8785c" (altitude-dependent) or "seed" (seed S0 Figure 7 rows).
+        steady_wind_ned: steady wind (N, E, D) [m/s].
+        airspeed: fixed airspeed [m/s] for the filters; None: from ``plant_state``.
+        altitude: fixed altitude [m] for the scales; None: -pD from ``plant_state``.
+        update_period: filter and output sample period [s].
+        min_airspeed: floor on the filter airspeed [m/s] (keeps V/L > 0).
+    """
+
+    level: str = "light"
+    model: str = "mil-f-8785c"
+    steady_wind_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    airspeed: float | None = None
+    altitude: float | None = None
+    update_period: float = 0.01
+    min_airspeed: float = 1.0
+
+    def validate(self) -> DrydenParams:
+        """Raises ValueError naming the first invalid field; returns self."""
+        _check_level(self.level, self.model)
+        wind = np.asarray(self.steady_wind_ned, float)
+        if wind.shape != (3,) or not np.all(np.isfinite(wind)):
+            raise ValueError(f"steady_wind_ned: need 3 finite values, got {self.steady_wind_ned}")
+        if self.airspeed is not None and not (self.airspeed > 0 and math.isfinite(self.airspeed)):
+            raise ValueError(f"airspeed: must be positive and finite, got {self.airspeed}")
+        if self.altitude is not None and not math.isfinite(self.altitude):
+            raise ValueError(f"altitude: must be finite, got {self.altitude}")
+        if not (self.update_period > 0 and math.isfinite(self.update_period)):
+            raise ValueError(f"update_period: must be positive, got {self.update_period}")
+        if not self.min_airspeed > 0:
+            raise ValueError(f"min_airspeed: must be positive, got {self.min_airspeed}")
+        return self
+
+    @property
+    def needs_plant_state(self) -> bool:
+        """True when airspeed or altitude come from the ``plant_state`` input."""
+        return self.airspeed is None or self.altitude is None
+
+
+class DrydenFilter(LeafSystem):
+    """Dryden shaping filters driven by an external unit Gaussian noise input.
+
+    Discrete system sampled every ``params.update_period``; outputs are held
+    between samples and depend on the state only (no direct feedthrough).
+
+    | port (in)     | size | units                                               |
+    |---------------|------|-----------------------------------------------------|
+    | noise         | 6    | N(0, 1) samples, one fresh vector per period        |
+    | plant_state   | 13   | plant state [pN pE pD, qw qx qy qz, u v w, p q r]   |
+
+    | port (out)    | size | units                                               |
+    |---------------|------|-----------------------------------------------------|
+    | wind_ned      | 3    | steady + gust wind, NED [m/s]                       |
+    | gust_body     | 3    | gust (u_g, v_g, w_g), body FRD [m/s]                |
+
+    ``plant_state`` may stay unconnected when ``airspeed`` and ``altitude`` are
+    fixed; the gust is then rotated with the identity attitude (NED = body).
+    The airspeed taken from ``plant_state`` is relative to the steady wind
+    (|v_body - R^T W_steady|), so the gust does not feed back into its own filter.
+    """
+
+    # Discrete state layout: cascade states (z1, z2) per axis, gust, wind, started flag.
+    _Z = slice(0, 6)
+    _GUST = slice(6, 9)
+    _WIND = slice(9, 12)
+    _STARTED = 12
+
+    def __init__(self, params: DrydenParams = DrydenParams()):
+        super().__init__()
+        self._params = params.validate()
+        self._steady = np.asarray(params.steady_wind_ned, float)
+        self._noise = self.DeclareVectorInputPort("noise", 6)
+        self._plant_state = self.DeclareVectorInputPort("plant_state", 13)
+        initial = np.zeros(13)
+        initial[self._WIND] = self._steady
+        self._xd = self.DeclareDiscreteState(initial)
+        self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, 0.0, self._update)
+        deps = {self.xd_ticket()}
+        self.DeclareVectorOutputPort("wind_ned", 3, self._calc_wind, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("gust_body", 3, self._calc_gust, prerequisites_of_calc=deps)
+        self._fixed = None
+        if not params.needs_plant_state:
+            self._fixed = self._coefficients(params.airspeed, params.altitude)
+
+    @property
+    def params(self) -> DrydenParams:
+        """The validated parameters."""
+        return self._params
+
+    def _coefficients(self, airspeed: float, altitude: float) -> list[tuple]:
+        """Per axis (sigma, a, e, l11, l21, l22) at a flight condition (floats)."""
+        p = self._params
+        scales = dryden_scales(p.level, altitude, p.model)
+        speed = max(airspeed, p.min_airspeed)
+        out = []
+        for length, sigma in ((scales.length_u, scales.sigma_u),
+                              (scales.length_v, scales.sigma_v),
+                              (scales.length_w, scales.sigma_w)):
+            a = speed / length
+            out.append((sigma, a, *_transition_terms(a, p.update_period, math)))
+        return out
+
+    def _update(self, context, discrete_state) -> None:
+        p = self._params
+        x = context.get_discrete_state(self._xd).get_value()
+        n = self._noise.Eval(context)
+        rot = None
+        if self._plant_state.HasValue(context):
+            s = self._plant_state.Eval(context)
+            rot = quat_to_rotmat(s[3:7])
+        elif p.needs_plant_state:
+            raise RuntimeError(
+                "DrydenFilter: input 'plant_state' is not connected but DrydenParams "
+                "leaves airspeed or altitude to it"
+            )
+        coefficients = self._fixed
+        if coefficients is None:
+            airspeed = p.airspeed
+            if airspeed is None:
+                airspeed = float(np.linalg.norm(s[7:10] - rot.T @ self._steady))
+            altitude = -float(s[2]) if p.altitude is None else p.altitude
+            coefficients = self._coefficients(airspeed, altitude)
+        started = x[self._STARTED] > 0
+        dt = p.update_period
+        z, gust = [], []
+        for i, (sigma, a, e, l11, l21, l22) in enumerate(coefficients):
+            n1, n2 = n[2 * i], n[2 * i + 1]
+            if started:
+                z1, z2 = x[2 * i], x[2 * i + 1]
+                z1, z2 = e * z1 + l11 * n1, e * (dt * z1 + z2) + l21 * n1 + l22 * n2
+            else:  # first sample: draw from the stationary distribution
+                s11, s21, s22 = _stationary_terms(a, math)
+                z1, z2 = s11 * n1, s21 * n1 + s22 * n2
+            z += (z1, z2)
+            gust.append(_output(z1, z2, a, sigma, _GAIN_K[i], _GAIN_G[i], math))
+        gust = np.array(gust)
+        wind = self._steady + (gust if rot is None else rot @ gust)
+        discrete_state.set_value(np.concatenate([z, gust, wind, (1.0,)]))
+
+    def _calc_wind(self, context, output) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[self._WIND])
+
+    def _calc_gust(self, context, output) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[self._GUST])
+
+
+class DrydenWind(Diagram):
+    """Steady wind plus Dryden turbulence with its own Gaussian noise source.
+
+    A small diagram: a Drake ``RandomSource`` (6 unit Gaussians per period)
+    feeding a :class:`DrydenFilter`. Seed it through the root context with
+    ``diagram.SetRandomContext(context, RandomGenerator(seed))``.
+
+    | port (in)     | size | units                                               |
+    |---------------|------|-----------------------------------------------------|
+    | plant_state   | 13   | plant ``state`` output (no feedthrough: no loop)    |
+
+    | port (out)    | size | units                                               |
+    |---------------|------|-----------------------------------------------------|
+    | wind_ned      | 3    | steady + gust wind, NED [m/s] -> plant ``wind_ned`` |
+    | gust_body     | 3    | gust (u_g, v_g, w_g), body FRD [m/s]                |
+    """
+
+    def __init__(self, params: DrydenParams = DrydenParams()):
+        super().__init__()
+        params.validate()
+        builder = DiagramBuilder()
+        noise = builder.AddNamedSystem(
+            "dryden_noise",
+            RandomSource(RandomDistribution.kGaussian, 6, params.update_period),
+        )
+        self.filter = builder.AddNamedSystem("dryden_filter", DrydenFilter(params))
+        builder.Connect(noise.get_output_port(0), self.filter.GetInputPort("noise"))
+        builder.ExportInput(self.filter.GetInputPort("plant_state"), "plant_state")
+        builder.ExportOutput(self.filter.GetOutputPort("wind_ned"), "wind_ned")
+        builder.ExportOutput(self.filter.GetOutputPort("gust_body"), "gust_body")
+        builder.BuildInto(self)
+
+    @property
+    def params(self) -> DrydenParams:
+        """The validated parameters."""
+        return self.filter.params
