@@ -169,20 +169,23 @@ class MultirotorParams:
     def thrusts_for_wrench(self, wrench, health=None) -> np.ndarray:
         """Motor thrusts [N] producing ``wrench = [F, tau_x, tau_y, tau_z]``.
 
-        Minimum-norm solution of ``A diag(h) f = wrench`` (failed motors get 0).
+        Minimum-norm solution of ``A diag(h) f = wrench``; failed motors get 0.
         When it leaves ``[0, f_max]``, the bounded least-squares solution is
         returned instead (it then matches the wrench only as closely as the
         limits allow). ``wrench`` may be (4,) or (N, 4).
         """
         A = self.effective_allocation(health)
+        active = np.any(A != 0.0, axis=0)
+        A = A[:, active]
         w = np.asarray(wrench, dtype=float)
         targets = np.atleast_2d(w)
         f = targets @ np.linalg.pinv(A).T
         outside = np.any((f < -1e-9) | (f > self.f_max + 1e-9), axis=1)
         for k in np.flatnonzero(outside):
             f[k] = lsq_linear(A, targets[k], bounds=(0.0, self.f_max)).x
-        f = np.clip(f, 0.0, self.f_max)
-        return f if w.ndim == 2 else f[0]
+        thrusts = np.zeros((len(targets), self.num_motors))
+        thrusts[:, active] = np.clip(f, 0.0, self.f_max)
+        return thrusts if w.ndim == 2 else thrusts[0]
 
 
 def _from_seed_azimuths(name: str, seed_azimuths_deg, seed_yaw_signs, **values):
