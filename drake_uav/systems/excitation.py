@@ -1,0 +1,367 @@
+"""Designed excitation inputs for flight-test identification.
+
+Signals (plain functions of a time array and frozen dataclasses that call them):
+
+* :func:`doublet`: +A for ``width`` seconds, then -A for ``width``.
+* :func:`three_two_one_one`: +A, -A, +A, -A for 3, 2, 1, 1 times ``unit_width``.
+* :func:`multisine`: sum of harmonics of 1/period, ``A_k cos(2 pi k t / T + phi_k)``.
+  :func:`schroeder_phases` gives Schroeder's low-peak-factor phases;
+  :func:`low_peak_factor_phases` refines them by iterative clipping (keeping the
+  harmonic amplitudes) and shifts the signal so it starts at zero, as in
+  Morelli's multiple-input design.
+* :func:`orthogonal_multisines`: several surfaces excited at once with disjoint
+  harmonic sets, mutually orthogonal over each period.
+
+:class:`ExcitationSource` adds the signals to the trim controls and holds the
+result at a fixed sample period (the autopilot's output rate).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+__all__ = [
+    "SURFACES",
+    "doublet",
+    "three_two_one_one",
+    "multisine",
+    "schroeder_phases",
+    "low_peak_factor_phases",
+    "relative_peak_factor",
+    "Doublet",
+    "ThreeTwoOneOne",
+    "Multisine",
+    "orthogonal_multisines",
+    "excitation_controls",
+    "ExcitationSource",
+]
+
+SURFACES = ("elevator", "aileron", "rudder", "throttle")
+"""Control channels in the order of the plant's ``controls`` input."""
+
+
+def _positive(name: str, value: float) -> None:
+    if not (value > 0 and math.isfinite(value)):
+        raise ValueError(f"{name}: must be positive and finite, got {value}")
+
+
+def _finite(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ValueError(f"{name}: must be finite, got {value}")
+
+
+def _check_surface(surface: str) -> int:
+    if surface not in SURFACES:
+        raise ValueError(f"surface: unknown control surface {surface!r}; use one of {SURFACES}")
+    return SURFACES.index(surface)
+
+
+def _pulses(t, start: float, widths: Sequence[float], signs: Sequence[float]) -> np.ndarray:
+    """Piecewise-constant train: sign_i on [edge_i, edge_i + width_i), zero elsewhere."""
+    t = np.asarray(t, float)
+    out = np.zeros_like(t)
+    edge = start
+    for width, sign in zip(widths, signs, strict=True):
+        out = np.where((t >= edge) & (t < edge + width), sign, out)
+        edge += width
+    return out
+
+
+def doublet(t, amplitude: float, width: float, start: float = 0.0) -> np.ndarray:
+    """Doublet: ``+amplitude`` on [start, start + width), ``-amplitude`` for the next ``width``."""
+    return amplitude * _pulses(t, start, (width, width), (1.0, -1.0))
+
+
+def three_two_one_one(t, amplitude: float, unit_width: float, start: float = 0.0) -> np.ndarray:
+    """3-2-1-1: alternating pulses of 3, 2, 1 and 1 ``unit_width`` [s], starting positive."""
+    widths = tuple(n * unit_width for n in (3, 2, 1, 1))
+    return amplitude * _pulses(t, start, widths, (1.0, -1.0, 1.0, -1.0))
+
+
+def multisine(t, period: float, harmonics, amplitudes, phases, start: float = 0.0,
+              cycles: float = 1.0) -> np.ndarray:
+    """Sum of ``A_k cos(2 pi k (t - start) / period + phi_k)`` on [start, start + cycles period).
+
+    ``harmonics`` are integers k (frequency k / period [Hz]); zero outside the window.
+    """
+    t = np.asarray(t, float)
+    tau = t - start
+    k = np.asarray(harmonics, float)
+    arg = np.multiply.outer(tau, 2.0 * np.pi * k / period) + np.asarray(phases, float)
+    x = np.cos(arg) @ np.asarray(amplitudes, float)
+    return np.where((tau >= 0) & (tau < cycles * period), x, 0.0)
+
+
+def schroeder_phases(amplitudes) -> np.ndarray:
+    """Schroeder phases ``phi_k = -2 pi sum_{i<k} (k - i) p_i`` (p_i: power fractions)."""
+    a = np.asarray(amplitudes, float)
+    p = a**2 / np.sum(a**2)
+    k = np.arange(a.size)
+    return np.array([-2.0 * np.pi * np.sum((kk - k[:kk]) * p[:kk]) for kk in k])
+
+
+def relative_peak_factor(x) -> float:
+    """(max - min) / (2 sqrt(2) rms): 1 for a single sinusoid."""
+    x = np.asarray(x, float)
+    return float((x.max() - x.min()) / (2.0 * math.sqrt(2.0) * math.sqrt(np.mean(x * x))))
+
+
+def _one_period(harmonics: np.ndarray, amplitudes: np.ndarray, phases, n: int) -> np.ndarray:
+    """One period of the multisine on ``n`` uniform samples (inverse real FFT)."""
+    spectrum = np.zeros(n // 2 + 1, complex)
+    spectrum[harmonics] = 0.5 * n * amplitudes * np.exp(1j * np.asarray(phases))
+    return np.fft.irfft(spectrum, n)
+
+
+def low_peak_factor_phases(harmonics, amplitudes, iterations: int = 300,
+                           samples: int | None = None) -> np.ndarray:
+    """Phases giving a low relative peak factor, with the signal starting at zero.
+
+    Starts from :func:`schroeder_phases`, then repeats: synthesise one period,
+    clip it below its peak (levels cycling through 95, 90 and 80 %), keep the
+    phases of the clipped signal's harmonics and restore the amplitudes. The
+    best phases found are finally shifted in time so that the signal is zero,
+    rising, at t = 0 (a time shift leaves the peak factor unchanged).
+    """
+    k = np.asarray(harmonics, int)
+    a = np.asarray(amplitudes, float)
+    if k.size == 0 or k.size != a.size:
+        raise ValueError("harmonics: need one amplitude per harmonic, at least one harmonic")
+    if np.any(k < 1) or np.unique(k).size != k.size:
+        raise ValueError(f"harmonics: must be distinct positive integers, got {k.tolist()}")
+    n = samples or int(2 ** math.ceil(math.log2(max(256, 32 * int(k.max())))))
+    phases = schroeder_phases(a)
+    best, best_rpf = phases, relative_peak_factor(_one_period(k, a, phases, n))
+    levels = (0.95, 0.9, 0.8)
+    for i in range(iterations):
+        x = _one_period(k, a, phases, n)
+        c = levels[i % len(levels)] * np.max(np.abs(x))
+        phases = np.angle(np.fft.rfft(np.clip(x, -c, c))[k])
+        rpf = relative_peak_factor(_one_period(k, a, phases, n))
+        if rpf < best_rpf:
+            best, best_rpf = phases, rpf
+    return _shift_to_zero_crossing(k, a, best, n)
+
+
+def _shift_to_zero_crossing(k: np.ndarray, a: np.ndarray, phases: np.ndarray,
+                            n: int) -> np.ndarray:
+    """Phases of the same signal delayed so it starts at an upward zero crossing."""
+    x = _one_period(k, a, phases, n)
+    up = np.flatnonzero((x[:-1] <= 0) & (x[1:] > 0))
+    i = int(up[0]) if up.size else int(np.argmin(np.abs(x)))
+    # Linear interpolation of the crossing between samples i and i + 1 (fraction of a period).
+    frac = (i + (-x[i] / (x[i + 1] - x[i]) if up.size else 0.0)) / n
+    shifted = phases + 2.0 * np.pi * k * frac
+    # Newton steps on x(0) = sum a cos(phi) remove the interpolation error.
+    for _ in range(3):
+        value = np.sum(a * np.cos(shifted))
+        slope = -np.sum(a * np.sin(shifted) * 2.0 * np.pi * k)
+        shifted = shifted - 2.0 * np.pi * k * value / slope
+    return np.mod(shifted + np.pi, 2.0 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class Doublet:
+    """A doublet on one surface: amplitude [rad, or throttle fraction], width [s], start [s]."""
+
+    surface: str
+    amplitude: float
+    width: float
+    start: float = 0.0
+
+    def validate(self) -> Doublet:
+        """Raises ValueError naming the first invalid field; returns self."""
+        _check_surface(self.surface)
+        _finite("amplitude", self.amplitude)
+        _positive("width", self.width)
+        _finite("start", self.start)
+        return self
+
+    @property
+    def end(self) -> float:
+        """Time [s] after which the signal is zero."""
+        return self.start + 2.0 * self.width
+
+    def __call__(self, t) -> np.ndarray:
+        return doublet(t, self.amplitude, self.width, self.start)
+
+
+@dataclass(frozen=True)
+class ThreeTwoOneOne:
+    """A 3-2-1-1 on one surface: amplitude, unit_width [s] (total 7 units), start [s]."""
+
+    surface: str
+    amplitude: float
+    unit_width: float
+    start: float = 0.0
+
+    def validate(self) -> ThreeTwoOneOne:
+        """Raises ValueError naming the first invalid field; returns self."""
+        _check_surface(self.surface)
+        _finite("amplitude", self.amplitude)
+        _positive("unit_width", self.unit_width)
+        _finite("start", self.start)
+        return self
+
+    @property
+    def end(self) -> float:
+        """Time [s] after which the signal is zero."""
+        return self.start + 7.0 * self.unit_width
+
+    def __call__(self, t) -> np.ndarray:
+        return three_two_one_one(t, self.amplitude, self.unit_width, self.start)
+
+
+@dataclass(frozen=True)
+class Multisine:
+    """A multisine on one surface (see :func:`multisine`).
+
+    Attributes:
+        surface: control channel name.
+        period: fundamental period T [s]; harmonic k has frequency k / T [Hz].
+        harmonics: harmonic numbers k.
+        amplitudes: amplitude of each harmonic [rad, or throttle fraction].
+        phases: phase of each harmonic [rad].
+        start: time the signal starts [s].
+        cycles: number of periods played.
+    """
+
+    surface: str
+    period: float
+    harmonics: tuple[int, ...]
+    amplitudes: tuple[float, ...]
+    phases: tuple[float, ...]
+    start: float = 0.0
+    cycles: float = 1.0
+
+    def validate(self) -> Multisine:
+        """Raises ValueError naming the first invalid field; returns self."""
+        _check_surface(self.surface)
+        _positive("period", self.period)
+        k = np.asarray(self.harmonics)
+        if k.size == 0 or np.any(k < 1) or np.unique(k).size != k.size:
+            raise ValueError(f"harmonics: need distinct positive integers, got {self.harmonics}")
+        if len(self.amplitudes) != k.size or len(self.phases) != k.size:
+            raise ValueError("amplitudes: need one amplitude and one phase per harmonic")
+        if not np.all(np.isfinite(self.amplitudes)) or np.any(np.asarray(self.amplitudes) < 0):
+            raise ValueError(f"amplitudes: must be finite and >= 0, got {self.amplitudes}")
+        _finite("start", self.start)
+        _positive("cycles", self.cycles)
+        return self
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        """Frequencies of the harmonics [Hz]."""
+        return np.asarray(self.harmonics, float) / self.period
+
+    @property
+    def end(self) -> float:
+        """Time [s] after which the signal is zero."""
+        return self.start + self.cycles * self.period
+
+    def __call__(self, t) -> np.ndarray:
+        return multisine(t, self.period, self.harmonics, self.amplitudes, self.phases,
+                         self.start, self.cycles)
+
+
+Signal = Doublet | ThreeTwoOneOne | Multisine
+
+
+def orthogonal_multisines(surfaces: Sequence[str], period: float, amplitudes,
+                          band: tuple[float, float], start: float = 0.0,
+                          cycles: float = 1.0) -> tuple[Multisine, ...]:
+    """Mutually orthogonal low-peak-factor multisines, one per surface.
+
+    The harmonics k of 1/period inside ``band`` = (f_min, f_max) [Hz] are dealt
+    out in turn (surface i gets the i-th, (i+n)-th, ... harmonic), so the
+    signals share no frequency and are orthogonal over every period. Each
+    signal has a flat amplitude spectrum, phases from
+    :func:`low_peak_factor_phases`, and is scaled so its peak equals its entry
+    of ``amplitudes`` (one value per surface, or a single value for all).
+    """
+    surfaces = tuple(surfaces)
+    for s in surfaces:
+        _check_surface(s)
+    if len(set(surfaces)) != len(surfaces):
+        raise ValueError(f"surfaces: each surface at most once, got {surfaces}")
+    _positive("period", period)
+    peaks = np.broadcast_to(np.asarray(amplitudes, float), (len(surfaces),))
+    if not np.all(np.isfinite(peaks)) or np.any(peaks <= 0):
+        raise ValueError(f"amplitudes: must be positive, got {amplitudes}")
+    f_min, f_max = band
+    if not 0 < f_min < f_max:
+        raise ValueError(f"band: need 0 < f_min < f_max [Hz], got {band}")
+    k_all = np.arange(max(1, math.ceil(f_min * period - 1e-9)),
+                      math.floor(f_max * period + 1e-9) + 1)
+    if k_all.size < len(surfaces):
+        raise ValueError(
+            f"band: {band} Hz holds {k_all.size} harmonics of 1/{period} s, "
+            f"fewer than the {len(surfaces)} surfaces; widen the band or lengthen the period"
+        )
+    out = []
+    for i, surface in enumerate(surfaces):
+        k = k_all[i :: len(surfaces)]
+        unit = np.ones(k.size)
+        phases = low_peak_factor_phases(k, unit)
+        n = int(2 ** math.ceil(math.log2(max(1024, 64 * int(k.max())))))
+        scale = peaks[i] / np.max(np.abs(_one_period(k, unit, phases, n)))
+        out.append(Multisine(surface, period, tuple(int(v) for v in k),
+                             tuple(scale * unit), tuple(phases), start, cycles).validate())
+    return tuple(out)
+
+
+def excitation_controls(t, trim_controls, signals: Sequence[Signal]) -> np.ndarray:
+    """Controls (len(t), 4) = trim + the sum of the signals on their surfaces."""
+    t = np.atleast_1d(np.asarray(t, float))
+    out = np.tile(np.asarray(trim_controls, float), (t.size, 1))
+    for s in signals:
+        out[:, SURFACES.index(s.surface)] += s(t)
+    return out
+
+
+class ExcitationSource(LeafSystem):
+    """Trim controls plus excitation signals, held at a fixed sample period.
+
+    | port (out) | size | units                                                   |
+    |------------|------|---------------------------------------------------------|
+    | controls   | 4    | elevator, aileron, rudder [rad], throttle [0..1]        |
+
+    The output is updated at t_k = k * sample_period with the value at t_k and
+    held until t_(k+1) (no inputs; depends on the discrete state only). Samples
+    are computed in vectorised blocks and memoised, so a periodic update costs a
+    table look-up.
+    """
+
+    _BLOCK = 1024
+
+    def __init__(self, trim_controls, signals: Sequence[Signal] = (),
+                 sample_period: float = 0.01):
+        super().__init__()
+        trim_controls = np.asarray(trim_controls, float)
+        if trim_controls.shape != (4,) or not np.all(np.isfinite(trim_controls)):
+            raise ValueError(f"trim_controls: need 4 finite values, got {trim_controls}")
+        _positive("sample_period", sample_period)
+        self.signals = tuple(s.validate() for s in signals)
+        self.trim_controls = trim_controls
+        self.sample_period = sample_period
+        self._table = np.empty((0, 4))
+        xd = self.DeclareDiscreteState(self.controls_at(np.array([0.0]))[0])
+        self.DeclarePeriodicDiscreteUpdateEvent(sample_period, 0.0, self._update)
+        self.DeclareStateOutputPort("controls", xd)
+
+    def controls_at(self, t) -> np.ndarray:
+        """Controls (len(t), 4) at times ``t`` [s], without the hold."""
+        return excitation_controls(t, self.trim_controls, self.signals)
+
+    def _update(self, context, discrete_state) -> None:
+        k = round(context.get_time() / self.sample_period)
+        while k >= self._table.shape[0]:
+            n0 = self._table.shape[0]
+            t = (n0 + np.arange(self._BLOCK)) * self.sample_period
+            self._table = np.vstack([self._table, self.controls_at(t)])
+        discrete_state.set_value(self._table[k])
