@@ -243,12 +243,13 @@ class YawProfile:
         return out
 
 
-def _heading_step(psi_prev, target, z, dz, dt, weight):
+def _heading_step(psi_prev, target, z, dz, dt, weight, max_step):
     """One step of eq. 2.9: argmin over psi of omega_z(psi)^2 + weight (psi - target)^2.
 
     ``omega_z = a + b (psi - psi_prev) / dt`` is linear in the yaw rate (the
     flat map at ``psi_prev``), so the minimiser is explicit. ``target`` is
-    unwrapped next to ``psi_prev`` first: no 2 pi jumps.
+    unwrapped next to ``psi_prev`` first: no 2 pi jumps. The change is limited
+    to ``max_step`` [rad].
     """
     c, s = math.cos(psi_prev), math.sin(psi_prev)
     xc, yc = np.array([c, s, 0.0]), np.array([-s, c, 0.0])
@@ -259,27 +260,28 @@ def _heading_step(psi_prev, target, z, dz, dt, weight):
     b = -(y @ np.cross(xc, z)) / mu
     error = math.remainder(target - psi_prev, 2.0 * math.pi)
     delta = (weight * error - a * b / dt) / (b * b / dt**2 + weight)
-    return psi_prev + delta
+    return psi_prev + min(max(delta, -max_step), max_step)
 
 
-def velocity_heading(trajectory, *, sample_time: float = 0.02, time_constant: float = 0.5,
-                     median_window: float = 0.3, smoothing: float = 0.15,
-                     min_speed: float = 0.2, gravity: float = 9.80665,
-                     initial_yaw: float | None = None) -> YawProfile:
+def velocity_heading(trajectory, *, sample_time: float = 0.02, time_constant: float = 1.0,
+                     max_yaw_rate: float = 1.0, median_window: float = 0.3,
+                     smoothing: float = 0.3, min_speed: float = 0.2,
+                     gravity: float = 9.80665, initial_yaw: float | None = None) -> YawProfile:
     """Yaw that points the body x axis along the velocity (seed eq. 2.8-2.9, fig. 2.3).
 
     On a grid of ``sample_time`` [s] the target heading is that of the velocity
     projected on the plane normal to the thrust axis; where that speed is below
     ``min_speed`` [m/s] the yaw is held. Each step solves eq. 2.9 with the
     weight ``k = 1 / (time_constant * sample_time)`` [1/s^2], so the yaw lags
-    the heading by about ``time_constant`` [s] whatever the grid. The result is
+    the heading by about ``time_constant`` [s] whatever the grid, and turns no
+    faster than ``max_yaw_rate`` [rad/s] (before smoothing). The result is
     median filtered (``median_window`` [s]), Gaussian smoothed (standard
     deviation ``smoothing`` [s]) and fitted by a quintic spline with zero rate
     and acceleration at both ends. ``initial_yaw`` defaults to the first valid
     heading.
     """
     for name, value in (("sample_time", sample_time), ("time_constant", time_constant),
-                        ("min_speed", min_speed)):
+                        ("max_yaw_rate", max_yaw_rate), ("min_speed", min_speed)):
         if not value > 0:
             raise ValueError(f"{name} must be positive, got {value}")
     t0, t1 = trajectory.start_time(), trajectory.end_time()
@@ -300,7 +302,7 @@ def velocity_heading(trajectory, *, sample_time: float = 0.02, time_constant: fl
     psi[0] = initial_yaw
     for k in range(1, n):
         target = heading[k] if valid[k] else psi[k - 1]
-        psi[k] = _heading_step(psi[k - 1], target, z[k], dz[k], dt, weight)
+        psi[k] = _heading_step(psi[k - 1], target, z[k], dz[k], dt, weight, max_yaw_rate * dt)
     window = max(int(round(median_window / dt)) | 1, 1)
     psi = median_filter(psi, size=window, mode="nearest")
     if smoothing > 0:
