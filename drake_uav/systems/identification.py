@@ -1,0 +1,174 @@
+"""RecursiveIdentifier: on-line identification of a model linear in its parameters.
+
+The system samples a regressor row x (the terms of a coefficient model such as
+1, alpha, q_n, delta_e) and an observation z (the measured coefficient) every ``period`` seconds
+and updates a recursive estimator of ``identification.recursive``: recursive PCA-GTLS
+(``method="tls"``, seed S0 Algorithms 1-2) or RLS (``method="ols"``), with a constant or variable
+forgetting factor. The estimator state lives entirely in the discrete state, so a simulation is
+reproducible from the context alone; outputs only read that state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from drake_uav.identification.recursive import RecursiveOLS, RecursiveTLS, VariableForgetting
+
+__all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams"]
+
+
+@dataclass(frozen=True)
+class RecursiveIdentifierParams:
+    """Settings of :class:`RecursiveIdentifier`.
+
+    Attributes:
+        names: parameter names (n), in the order of the regressor row.
+        error_std: (n+1) noise standard deviations of the regressors and of the observation
+            (units of each column; S0 4.40). Positive: give a small value such as 1e-6 for an
+            exact column like the constant 1. RLS uses the regressor part for its excitation
+            monitor only.
+        method: "tls" (recursive PCA-GTLS) or "ols" (recursive least squares).
+        forgetting: constant forgetting factor in (0, 1] (weight per sample of past squared
+            residuals), used when ``variable_forgetting`` is None.
+        variable_forgetting: VFF settings (S0 4.107-4.115) or None for a constant factor.
+        snr_min: S/n of the excitation test (S0 4.68, typically 1..10).
+        period: update period [s].
+        theta0: initial estimate (n), zeros if None.
+        covariance0: prior covariance (n x n, row-major tuples) of theta0 for a hybrid start
+            (S0 4.4); None starts without prior information.
+    """
+
+    names: tuple[str, ...]
+    error_std: tuple[float, ...]
+    method: str = "tls"
+    forgetting: float = 1.0
+    variable_forgetting: VariableForgetting | None = None
+    snr_min: float = 1.0
+    period: float = 0.01
+    theta0: tuple[float, ...] | None = None
+    covariance0: tuple[tuple[float, ...], ...] | None = None
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first invalid field."""
+        n = len(self.names)
+        if n < 1 or len(set(self.names)) != n:
+            raise ValueError(f"names: need at least one unique name, got {self.names}")
+        if len(self.error_std) != n + 1:
+            raise ValueError(f"error_std: need {n + 1} entries (n regressors + observation)")
+        if not all(math.isfinite(c) and c > 0 for c in self.error_std):
+            raise ValueError(f"error_std: entries must be finite and > 0, got {self.error_std}")
+        if self.method not in ("tls", "ols"):
+            raise ValueError(f"method: must be 'tls' or 'ols', got {self.method!r}")
+        if not 0.0 < self.forgetting <= 1.0:
+            raise ValueError(f"forgetting: must be in (0, 1], got {self.forgetting}")
+        if self.variable_forgetting is not None:
+            self.variable_forgetting.validate()
+        if not self.snr_min >= 0.0:
+            raise ValueError(f"snr_min: must be >= 0, got {self.snr_min}")
+        if not (self.period > 0 and math.isfinite(self.period)):
+            raise ValueError(f"period: must be positive, got {self.period}")
+        if self.theta0 is not None and len(self.theta0) != n:
+            raise ValueError(f"theta0: need {n} entries, got {len(self.theta0)}")
+        if self.covariance0 is not None:
+            P = np.asarray(self.covariance0, dtype=float)
+            if P.shape != (n, n) or not np.allclose(P, P.T) or np.linalg.eigvalsh(P)[0] <= 0:
+                raise ValueError(f"covariance0: must be a symmetric positive definite {n}x{n}")
+
+    def make_estimator(self) -> RecursiveOLS | RecursiveTLS:
+        """A fresh estimator with these settings (validated)."""
+        self.validate()
+        n = len(self.names)
+        forgetting = self.variable_forgetting or self.forgetting
+        if self.method == "ols":
+            return RecursiveOLS(
+                n,
+                forgetting,
+                theta0=self.theta0,
+                covariance0=self.covariance0,
+                noise_std0=self.error_std[-1],
+            )
+        return RecursiveTLS(
+            n,
+            self.error_std,
+            forgetting=forgetting,
+            snr_min=self.snr_min,
+            theta0=self.theta0,
+            covariance0=self.covariance0,
+        )
+
+
+class RecursiveIdentifier(LeafSystem):
+    """On-line parameter identification, updated periodically (discrete state only).
+
+    ============  ======  ====================================================================
+    port          size    meaning [units]
+    ============  ======  ====================================================================
+    regressors    n       input: regressor row x (units of each term, e.g. rad, -, 1)
+    observation   1       input: observed z (e.g. a measured aerodynamic coefficient, -)
+    estimate      n       output: parameters theta (units of z per unit of each regressor)
+    sigma         n       output: one-sigma uncertainty of theta (inf: not identifiable)
+    excitation    n       output: 1 if the data excite the parameter enough, else 0 (S0 4.68)
+    forgetting    1       output: forgetting factor used at the last update (-)
+    ============  ======  ====================================================================
+
+    Inputs are sampled at t = 0, period, 2 period, ...; outputs depend only on the discrete
+    state (no direct feedthrough).
+    """
+
+    def __init__(self, params: RecursiveIdentifierParams):
+        super().__init__()
+        self._est = params.make_estimator()
+        self._params = params
+        self._regressor_std = np.asarray(params.error_std[:-1], dtype=float)
+        n = len(params.names)
+        self.n = n
+        self._x = self.DeclareVectorInputPort("regressors", n)
+        self._z = self.DeclareVectorInputPort("observation", 1)
+        self.DeclareDiscreteState(self._est.state.copy())
+        self.DeclarePeriodicDiscreteUpdateEvent(params.period, 0.0, self._update)
+        state_only = {self.xd_ticket()}
+        self.DeclareVectorOutputPort("estimate", n, self._calc_estimate, state_only)
+        self.DeclareVectorOutputPort("sigma", n, self._calc_sigma, state_only)
+        self.DeclareVectorOutputPort("excitation", n, self._calc_excitation, state_only)
+        self.DeclareVectorOutputPort("forgetting", 1, self._calc_forgetting, state_only)
+
+    @property
+    def params(self) -> RecursiveIdentifierParams:
+        """The settings this system was built with."""
+        return self._params
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Parameter names, in the order of the estimate output."""
+        return self._params.names
+
+    def _load(self, context):
+        self._est.set_state(context.get_discrete_state_vector().get_value())
+        return self._est
+
+    def _update(self, context, discrete_state) -> None:
+        est = self._load(context)
+        est.update(self._x.Eval(context), float(self._z.Eval(context)[0]))
+        discrete_state.set_value(est.state)
+
+    def _calc_estimate(self, context, output) -> None:
+        output.SetFromVector(context.get_discrete_state_vector().get_value()[: self.n])
+
+    def _calc_sigma(self, context, output) -> None:
+        output.SetFromVector(self._load(context).sigma())
+
+    def _status(self, context):
+        est = self._load(context)
+        if isinstance(est, RecursiveTLS):
+            return est.excitation()
+        return est.excitation(self._regressor_std, self._params.snr_min)
+
+    def _calc_excitation(self, context, output) -> None:
+        output.SetFromVector(self._status(context).identifiable.astype(float))
+
+    def _calc_forgetting(self, context, output) -> None:
+        output.SetFromVector([self._load(context).forgetting_factor])
