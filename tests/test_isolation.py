@@ -53,15 +53,14 @@ def test_isolation_recovers_the_simulator_coefficients(smooth_flight):
                                    d["air_data"], d["controls"])
     truth = d["aero_coefficients"]
     CL, CD = body_to_lift_drag(truth[:, 0], truth[:, 2], d["air_data"][:, 1])
-    np.testing.assert_allclose(samples.coefficients["CL"], CL, atol=1e-9)
-    np.testing.assert_allclose(samples.coefficients["CD"], CD, atol=1e-9)
-    np.testing.assert_allclose(samples.coefficients["CY"], truth[:, 1], atol=1e-9)
-    # Moments need angular accelerations: differentiation accuracy (0.2 s cubic
-    # Savitzky-Golay against a 0.09 s roll mode) bounds the agreement.
-    for k, name in ((3, "Cl"), (4, "Cm"), (5, "Cn")):
-        err = samples.coefficients[name] - truth[:, k]
-        rms = np.sqrt(np.mean(truth[:, k] ** 2))
-        assert np.sqrt(np.mean(err**2)) < 0.01 * rms, name
+    # The 0.2 s Savitzky-Golay smoothing (and, for moments, differentiation against
+    # a 0.09 s roll mode) bounds the agreement with the unfiltered truth.
+    expected = {"CL": CL, "CD": CD, "CY": truth[:, 1], "Cl": truth[:, 3], "Cm": truth[:, 4],
+                "Cn": truth[:, 5]}
+    for name, value in expected.items():
+        err = samples.coefficients[name] - value
+        variation = np.std(value)
+        assert np.sqrt(np.mean(err**2)) < 0.01 * variation, name
 
 
 def test_differentiate_is_exact_for_cubics_and_rejects_bad_time():

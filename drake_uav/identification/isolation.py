@@ -12,7 +12,11 @@ Angular accelerations come from a Savitzky-Golay differentiating filter: a
 local cubic least-squares fit over a window of about 0.2 s. It has zero phase
 lag (centred window), passes the rigid-body band below ~5 Hz almost
 unattenuated, and suppresses gyro noise far better than finite differences;
-the window is a parameter.
+the window is a parameter. Every other signal (specific force, rates, air
+data, controls) goes through the same Savitzky-Golay smoothing, so that the
+measured coefficients and their regressors see one and the same filter: the
+filter's distortion then cancels in the regression instead of showing up as a
+spurious rate effect.
 
 :func:`monte_carlo_sigma` is the uncertainty propagation of sec. 5.6 (uniform
 marginals joined by a Gaussian copula, Gaussian errors, 95% coverage interval
@@ -25,7 +29,7 @@ import dataclasses
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 from scipy.stats import norm
 
 from drake_uav.systems.aerodynamics import (
@@ -40,6 +44,7 @@ __all__ = [
     "AeroSamples",
     "differentiate",
     "isolate_coefficients",
+    "smoothed_noise_variance",
     "monte_carlo_sigma",
 ]
 
@@ -66,6 +71,9 @@ class AeroSamples:
     """(N, 3) accelerometer [m/s^2]."""
     signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
     """Any other logged signals (altitude, attitude, ...), by name, same length."""
+    noise_variance: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    """Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r``
+    (units squared), for errors-in-variables corrections."""
 
     def __len__(self) -> int:
         return len(self.time)
@@ -87,15 +95,17 @@ class AeroSamples:
             rate_derivatives=pick(self.rate_derivatives),
             specific_force=pick(self.specific_force),
             signals={k: pick(v) for k, v in self.signals.items()},
+            noise_variance=dict(self.noise_variance),
         )
 
 
 def differentiate(time: np.ndarray, values: np.ndarray, window: float = 0.2,
-                  polyorder: int = 3) -> np.ndarray:
+                  polyorder: int = 3, deriv: int = 1) -> np.ndarray:
     """Time derivative of uniformly sampled ``values`` (along axis 0) by Savitzky-Golay.
 
-    ``window`` is the filter length [s]; raises ``ValueError`` for non-uniform
-    sampling or a window shorter than the polynomial needs.
+    ``window`` is the filter length [s]; ``deriv=0`` gives the smoothed signal
+    itself. Raises ``ValueError`` for non-uniform sampling or a window shorter
+    than the polynomial needs.
     """
     time = np.asarray(time, dtype=float)
     dt = np.diff(time)
@@ -109,7 +119,28 @@ def differentiate(time: np.ndarray, values: np.ndarray, window: float = 0.2,
         raise ValueError(
             f"differentiate: window {window} s holds {length} samples, needs > {polyorder}")
     length = min(length, len(time) - (1 - len(time) % 2))
-    return savgol_filter(values, length, polyorder, deriv=1, delta=step, axis=0, mode="interp")
+    return savgol_filter(values, length, polyorder, deriv=deriv, delta=step, axis=0,
+                         mode="interp")
+
+
+def _smoothing_coefficients(time: np.ndarray, window: float, polyorder: int) -> np.ndarray:
+    step = float(np.median(np.diff(time)))
+    length = min(int(round(window / step)) | 1, len(time) - (1 - len(time) % 2))
+    return savgol_coeffs(length, polyorder)
+
+
+def smoothed_noise_variance(time: np.ndarray, raw: np.ndarray, window: float = 0.2,
+                            polyorder: int = 3) -> np.ndarray:
+    """White-noise variance left in the Savitzky-Golay smoothed ``raw`` (per column).
+
+    The raw noise variance is read from ``raw - smooth(raw)``, which removes the
+    (smooth) flight signal and keeps ``(1 - 2 h0 + sum h^2)`` of white noise; the
+    smoothed signal keeps ``sum h^2`` of it (``h`` the filter coefficients).
+    """
+    h = _smoothing_coefficients(time, window, polyorder)
+    detail = raw - differentiate(time, raw, window, polyorder, deriv=0)
+    raw_variance = np.var(detail, axis=0) / (1.0 - 2.0 * h[len(h) // 2] + h @ h)
+    return raw_variance * (h @ h)
 
 
 def isolate_coefficients(
@@ -124,6 +155,9 @@ def isolate_coefficients(
     derivative_window: float = 0.2,
 ) -> AeroSamples:
     """Measured coefficients (seed S0 eq. 5.41) from uniformly sampled flight data.
+
+    All signals are smoothed by the Savitzky-Golay filter of length
+    ``derivative_window`` [s] that also differentiates the rates.
 
     Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
     ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` (N, 4)
@@ -144,19 +178,23 @@ def isolate_coefficients(
             bad = int(np.argwhere(~np.isfinite(value))[0, 0])
             raise ValueError(f"isolate_coefficients: {name} is not finite at sample {bad}")
         arrays[name] = value
-    f, w, air, u = arrays["specific_force"], arrays["rates"], arrays["air_data"], arrays["controls"]
+    def smooth(values):
+        return differentiate(time, values, derivative_window, deriv=0)
+
+    raw_rates = arrays["rates"]
+    f, w, air, u = (smooth(arrays[k]) for k in ("specific_force", "rates", "air_data",
+                                                 "controls"))
     airspeed, alpha, beta = air[:, 0], air[:, 1], air[:, 2]
     if np.any(airspeed <= 1.0):
         bad = int(np.argmax(airspeed <= 1.0))
         raise ValueError(f"isolate_coefficients: airspeed {airspeed[bad]:.3g} m/s at sample "
                          f"{bad} is too low to normalise the forces")
-    model = FixedWingModel(params)
-    if thrust is None:
-        thrust, torque = model.thrust(airspeed, u[:, 3])
-    else:
-        thrust = np.asarray(thrust, dtype=float)
-        torque = model.thrust(airspeed, u[:, 3])[1]
-    torque = np.broadcast_to(torque, (n,))
+    # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
+    # samples, then smooth the result like every other signal.
+    raw_thrust, raw_torque = FixedWingModel(params).thrust(arrays["air_data"][:, 0],
+                                                           arrays["controls"][:, 3])
+    thrust = smooth(raw_thrust if thrust is None else np.asarray(thrust, dtype=float))
+    torque = smooth(np.broadcast_to(raw_torque, (n,)).astype(float))
     q_bar = 0.5 * params.rho * airspeed**2
     q_bar_s = q_bar * params.S
     m = params.mass
@@ -164,7 +202,7 @@ def isolate_coefficients(
     CY = m * f[:, 1] / q_bar_s
     CZ = m * f[:, 2] / q_bar_s
     CL, CD = body_to_lift_drag(CX, CZ, alpha)
-    w_dot = differentiate(time, w, derivative_window)
+    w_dot = differentiate(time, raw_rates, derivative_window)
     J = params.inertia
     moment = w_dot @ J.T + np.cross(w, w @ J.T)
     moment[:, 0] -= torque
@@ -180,6 +218,10 @@ def isolate_coefficients(
         elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
         alphadot=alpha_dot, thrust_coefficient=thrust / q_bar_s,
     )
+    air_noise = smoothed_noise_variance(time, arrays["air_data"], derivative_window)
+    rate_noise = smoothed_noise_variance(time, raw_rates, derivative_window)
+    noise_variance = dict(zip(("airspeed", "alpha", "beta", "p", "q", "r"),
+                              (*air_noise.tolist(), *rate_noise.tolist()), strict=True))
     extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
     for name, value in extra.items():
         if value.shape != (n,):
@@ -187,7 +229,7 @@ def isolate_coefficients(
     return AeroSamples(
         time=time, condition=condition, coefficients=coefficients, dynamic_pressure=q_bar,
         throttle=u[:, 3], thrust=np.asarray(thrust, dtype=float), rate_derivatives=w_dot,
-        specific_force=f, signals=extra,
+        specific_force=f, signals=extra, noise_variance=noise_variance,
     )
 
 

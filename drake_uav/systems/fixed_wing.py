@@ -122,6 +122,32 @@ class FixedWingModel:
             g7 * p * q - g1 * q * r + g4 * l + g8 * n,
         ]
 
+    @staticmethod
+    def _rotation(x) -> tuple:
+        """Body->NED rotation of the normalised quaternion x[3:7] (seed S2 eq. A.55)."""
+        qw, qx, qy, qz = x[3], x[4], x[5], x[6]
+        k = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+        return (
+            ((qw * qw + qx * qx - qy * qy - qz * qz) * k,
+             2 * (qx * qy - qw * qz) * k, 2 * (qx * qz + qw * qy) * k),
+            (2 * (qx * qy + qw * qz) * k, (qw * qw - qx * qx + qy * qy - qz * qz) * k,
+             2 * (qy * qz - qw * qx) * k),
+            (2 * (qx * qz - qw * qy) * k, 2 * (qy * qz + qw * qx) * k,
+             (qw * qw - qx * qx - qy * qy + qz * qz) * k),
+        )
+
+    @staticmethod
+    def _relative_velocity(x, R, wind_ned) -> tuple:
+        """Air-relative body velocity v - R^T W [m/s]."""
+        wn, we, wd = wind_ned[0], wind_ned[1], wind_ned[2]
+        return tuple(x[7 + i] - (R[0][i] * wn + R[1][i] * we + R[2][i] * wd) for i in range(3))
+
+    def air_data(self, x, wind_ned=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """[Va (m/s), alpha (rad), beta (rad)] of state ``x`` in the wind ``wind_ned``."""
+        x, wind_ned = as_list(x), as_list(wind_ned)
+        return np.array(air_data_from_velocity(
+            *self._relative_velocity(x, self._rotation(x), wind_ned)))
+
     def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None) -> FixedWingEvaluation:
         """Evaluates the model at state ``x`` (13) and controls (4).
 
@@ -131,22 +157,10 @@ class FixedWingModel:
         prm = self.params
         x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
         qw, qx, qy, qz = x[3], x[4], x[5], x[6]
-        inv_norm2 = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
-        # Body->NED rotation of the normalised quaternion (seed S2 eq. A.55).
-        R = (
-            ((qw * qw + qx * qx - qy * qy - qz * qz) * inv_norm2,
-             2 * (qx * qy - qw * qz) * inv_norm2, 2 * (qx * qz + qw * qy) * inv_norm2),
-            (2 * (qx * qy + qw * qz) * inv_norm2,
-             (qw * qw - qx * qx + qy * qy - qz * qz) * inv_norm2,
-             2 * (qy * qz - qw * qx) * inv_norm2),
-            (2 * (qx * qz - qw * qy) * inv_norm2, 2 * (qy * qz + qw * qx) * inv_norm2,
-             (qw * qw - qx * qx - qy * qy + qz * qz) * inv_norm2),
-        )
+        R = self._rotation(x)
         u, v, w = x[7], x[8], x[9]
         omega = (x[10], x[11], x[12])
-        wn, we, wd = wind_ned[0], wind_ned[1], wind_ned[2]
-        wind_body = [R[0][i] * wn + R[1][i] * we + R[2][i] * wd for i in range(3)]
-        u_r, v_r, w_r = u - wind_body[0], v - wind_body[1], w - wind_body[2]
+        u_r, v_r, w_r = self._relative_velocity(x, R, wind_ned)
         airspeed, alpha, beta = air_data_from_velocity(u_r, v_r, w_r)
         elevator, aileron, rudder, throttle = self.saturate(controls)
 
@@ -262,7 +276,9 @@ def FixedWingPlant_(T):
         ======================  =====  ===========================================
 
         Controls saturate at the limits of the params. ``state`` and ``euler``
-        have no direct feedthrough.
+        have no direct feedthrough; ``air_data`` depends on ``wind_ned`` only and
+        ``aero_coefficients`` on ``wind_ned`` and ``controls``, so a wrench computed
+        from them may close the loop through ``external_wrench``.
         """
 
         def _construct(self, params: FixedWingParams, model: FixedWingModel | None = None,
@@ -271,30 +287,37 @@ def FixedWingPlant_(T):
             self.params = params
             self.model = model if model is not None else FixedWingModel(params)
             self.DeclareContinuousState(13)
-            self.DeclareVectorInputPort("controls", 4)
-            self.DeclareVectorInputPort("wind_ned", 3)
+            controls = self.DeclareVectorInputPort("controls", 4)
+            wind = self.DeclareVectorInputPort("wind_ned", 3)
             self.DeclareVectorInputPort("external_wrench", 6)
             state_only = {self.all_state_ticket()}
+            air_inputs = {self.all_state_ticket(), self.input_port_ticket(wind.get_index())}
+            aero_inputs = air_inputs | {self.input_port_ticket(controls.get_index())}
             self.DeclareVectorOutputPort("state", 13, self._calc_state,
                                          prerequisites_of_calc=state_only)
-            self.DeclareVectorOutputPort("air_data", 3, self._calc_air_data)
+            self.DeclareVectorOutputPort("air_data", 3, self._calc_air_data,
+                                         prerequisites_of_calc=air_inputs)
             self.DeclareVectorOutputPort("euler", 3, self._calc_euler,
                                          prerequisites_of_calc=state_only)
             self.DeclareVectorOutputPort("specific_force", 3, self._calc_specific_force)
-            self.DeclareVectorOutputPort("aero_coefficients", 6, self._calc_coefficients)
+            self.DeclareVectorOutputPort("aero_coefficients", 6, self._calc_coefficients,
+                                         prerequisites_of_calc=aero_inputs)
             self.DeclareVectorOutputPort("forces_moments", 6, self._calc_forces_moments)
 
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, other.params, other.model, converter=converter)
 
-        def _evaluate(self, context) -> FixedWingEvaluation:
+        def _wind(self, context):
+            wind_port = self.get_input_port(1)
+            return wind_port.Eval(context) if wind_port.HasValue(context) else (0.0, 0.0, 0.0)
+
+        def _evaluate(self, context, with_wrench: bool = True) -> FixedWingEvaluation:
             x = context.get_continuous_state_vector().CopyToVector()
             controls = self.get_input_port(0).Eval(context)
-            wind_port = self.get_input_port(1)
-            wind = wind_port.Eval(context) if wind_port.HasValue(context) else (0.0, 0.0, 0.0)
             wrench_port = self.get_input_port(2)
-            wrench = wrench_port.Eval(context) if wrench_port.HasValue(context) else None
-            return self.model.evaluate(x, controls, wind, wrench)
+            wrench = (wrench_port.Eval(context)
+                      if with_wrench and wrench_port.HasValue(context) else None)
+            return self.model.evaluate(x, controls, self._wind(context), wrench)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
             derivatives.get_mutable_vector().SetFromVector(
@@ -304,7 +327,8 @@ def FixedWingPlant_(T):
             output.SetFromVector(context.get_continuous_state_vector().CopyToVector())
 
         def _calc_air_data(self, context, output):
-            output.SetFromVector(self._evaluate(context).air_data)
+            x = context.get_continuous_state_vector().CopyToVector()
+            output.SetFromVector(self.model.air_data(x, self._wind(context)))
 
         def _calc_euler(self, context, output):
             x = context.get_continuous_state_vector().CopyToVector()
@@ -314,7 +338,7 @@ def FixedWingPlant_(T):
             output.SetFromVector(self._evaluate(context).specific_force)
 
         def _calc_coefficients(self, context, output):
-            output.SetFromVector(self._evaluate(context).coefficients)
+            output.SetFromVector(self._evaluate(context, with_wrench=False).coefficients)
 
         def _calc_forces_moments(self, context, output):
             output.SetFromVector(self._evaluate(context).forces_moments)

@@ -1,0 +1,69 @@
+"""Aerodynamic effects the plant's model lacks, applied as an external wrench.
+
+:class:`AerodynamicIncrement` turns coefficient increments into a body wrench
+for the plant's ``external_wrench`` port. It lets a test, a what-if study or a
+regression campaign put a physical effect into a simulated flight (stall onset,
+propwash drag, rate coupling, ...) without touching the plant's coefficient
+model, so that identification has to find it in the data.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from drake_uav.systems.aerodynamics import AeroCondition, lift_drag_to_body
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["AerodynamicIncrement"]
+
+IncrementFunction = Callable[[AeroCondition], tuple]
+"""``f(condition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``; condition fields are floats."""
+
+
+class AerodynamicIncrement(LeafSystem):
+    """Coefficient increments as a body wrench.
+
+    ============  =====  =================================================
+    Input port    size   content [unit]
+    ============  =====  =================================================
+    ``air_data``  3      Va [m/s], alpha, beta [rad] (plant ``air_data``)
+    ``state``     13     plant state (body rates are read from it)
+    ``controls``  4      elevator, aileron, rudder [rad], throttle [0..1]
+    ============  =====  =================================================
+
+    ==========  =====  ==============================================
+    Output      size   content [unit]
+    ==========  =====  ==============================================
+    ``wrench``  6      body force [N], body moment [N m]
+    ==========  =====  ==============================================
+
+    ``increment(condition)`` returns ``(dCL, dCD, dCY, dCl, dCm, dCn)``; the
+    condition carries the air data, body rates, surfaces and the thrust
+    coefficient of the params' propulsion model.
+    """
+
+    def __init__(self, params: FixedWingParams, increment: IncrementFunction):
+        super().__init__()
+        self._params = params
+        self._increment = increment
+        self._air = self.DeclareVectorInputPort("air_data", 3)
+        self._state = self.DeclareVectorInputPort("state", 13)
+        self._controls = self.DeclareVectorInputPort("controls", 4)
+        self.DeclareVectorOutputPort("wrench", 6, self._calc_wrench)
+
+    def _calc_wrench(self, context, output: BasicVector) -> None:
+        prm = self._params
+        Va, alpha, beta = self._air.Eval(context).tolist()
+        x = self._state.Eval(context)
+        u = self._controls.Eval(context).tolist()
+        thrust, _ = prm.propulsion.thrust_torque(Va, u[3], prm.rho)
+        q_bar_s = 0.5 * prm.rho * Va * Va * prm.S
+        cond = AeroCondition(Va, alpha, beta, float(x[10]), float(x[11]), float(x[12]),
+                             u[0], u[1], u[2], 0.0, 0.0, thrust / max(q_bar_s, 1e-9))
+        dCL, dCD, dCY, dCl, dCm, dCn = self._increment(cond)
+        dCX, dCZ = lift_drag_to_body(dCL, dCD, alpha)
+        output.SetFromVector(q_bar_s * np.array(
+            [dCX, dCY, dCZ, prm.b * dCl, prm.c * dCm, prm.b * dCn]))
