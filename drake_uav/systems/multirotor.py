@@ -55,31 +55,38 @@ BODY_RATES = slice(10, 13)
 """Body rates (p, q, r) in FRD [rad/s]."""
 
 
-def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> list:
+def _limit(values, low: float, high: float) -> np.ndarray:
+    """Entry-wise clamp to ``[low, high]``; float arrays take numpy's vectorised path."""
+    a = np.asarray(values)
+    if a.dtype == float:
+        return np.minimum(np.maximum(a, low), high)
+    return np.array([clamp(v, low, high) for v in a])
+
+
+def produced_thrusts(x, commands, params: MultirotorParams, health=None) -> np.ndarray:
     """Thrust each motor produces [N]: saturated command (or lag state) times health.
 
     ``x`` is the plant state (13, or 13 + n with motor lag, whose last n entries
     are the produced thrusts of healthy motors); ``commands`` the n thrust
     commands [N]; ``health`` n values in [0, 1] (None: all healthy).
     """
-    n = params.num_motors
     if params.motor_time_constant > 0:
-        thrust = as_list(x[STATE_SIZE:STATE_SIZE + n])
+        thrust = np.asarray(x)[STATE_SIZE:STATE_SIZE + params.num_motors]
     else:
-        f_max = params.f_max
-        thrust = [clamp(c, 0.0, f_max) for c in as_list(commands)]
+        thrust = _limit(commands, 0.0, params.f_max)
     if health is not None:
-        thrust = [f * clamp(h, 0.0, 1.0) for f, h in zip(thrust, as_list(health), strict=True)]
+        thrust = thrust * _limit(health, 0.0, 1.0)
     return thrust
 
 
-def motor_wrench(thrusts, params: MultirotorParams) -> list:
+def motor_wrench(thrusts, params: MultirotorParams) -> np.ndarray:
     """``[F, tau_x, tau_y, tau_z]`` [N, N m] of produced motor thrusts (allocation A f)."""
-    F = tx = ty = tz = 0.0
-    for (a0, a1, a2, a3), fi in zip(params.allocation_matrix.T.tolist(), as_list(thrusts),
-                                    strict=True):
-        F, tx, ty, tz = F + a0 * fi, tx + a1 * fi, ty + a2 * fi, tz + a3 * fi
-    return [F, tx, ty, tz]
+    f = np.asarray(thrusts)
+    A = params.allocation_matrix
+    if f.dtype == float:
+        return A @ f
+    # numpy's object matmul raises floating-point flags on symbolic entries.
+    return np.array([sum(a * fi for a, fi in zip(row, f, strict=True)) for row in A.tolist()])
 
 
 def _rotation(q) -> tuple[list, object]:
@@ -91,9 +98,6 @@ def _rotation(q) -> tuple[list, object]:
 def _body_force(R, scale, v, thrust, params: MultirotorParams) -> list:
     """Thrust plus rotor drag in body FRD [N] (``R``, ``scale`` from :func:`_rotation`)."""
     dx, dy, dz = params.rotor_drag
-    zero = thrust * 0.0
-    if dx == 0.0 and dy == 0.0 and dz == 0.0:
-        return [zero, zero, -thrust]
     vb = [(R[0][k] * v[0] + R[1][k] * v[1] + R[2][k] * v[2]) * scale for k in range(3)]
     return [-dx * vb[0], -dy * vb[1], -thrust - dz * vb[2]]
 
@@ -117,9 +121,12 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     F, tx, ty, tz = as_list(wrench)
     q, v, w = x[3:7], x[7:10], x[10:13]
     R, scale = _rotation(q)
-    acc = _matvec(R, _body_force(R, scale, v, F, params))
     k = scale / params.mass
-    acc = [acc[0] * k, acc[1] * k, acc[2] * k + params.gravity]
+    if params.rotor_drag == (0.0, 0.0, 0.0):  # thrust only: -F times the body z axis
+        acc = [-F * k * R[0][2], -F * k * R[1][2], params.gravity - F * k * R[2][2]]
+    else:
+        acc = _matvec(R, _body_force(R, scale, v, F, params))
+        acc = [acc[0] * k, acc[1] * k, acc[2] * k + params.gravity]
     inv_m = 1.0 / params.mass
     if external_wrench is not None:
         e = as_list(external_wrench)
@@ -146,10 +153,9 @@ def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,
     xdot = multirotor_dynamics(x, wrench, params, external_wrench, quaternion_stabilization)
     if params.motor_time_constant <= 0:
         return xdot
-    f_max, inv_tau = params.f_max, 1.0 / params.motor_time_constant
-    lag = [(clamp(c, 0.0, f_max) - f) * inv_tau
-           for c, f in zip(as_list(commands), as_list(x[STATE_SIZE:]), strict=True)]
-    return np.concatenate([xdot, np.array(lag)])
+    lag = (_limit(commands, 0.0, params.f_max) - np.asarray(x)[STATE_SIZE:]) \
+        / params.motor_time_constant
+    return np.concatenate([xdot, lag])
 
 
 def specific_force(x, wrench, params: MultirotorParams, external_wrench=None) -> np.ndarray:
@@ -265,10 +271,10 @@ def MultirotorPlant_(T):
             output.SetFromVector(specific_force(x, wrench, self.params, external))
 
         def _calc_wrench(self, context, output):
-            output.SetFromVector(np.array(motor_wrench(self._produced(context), self.params)))
+            output.SetFromVector(motor_wrench(self._produced(context), self.params))
 
         def _calc_rotor_thrusts(self, context, output):
-            output.SetFromVector(np.array(self._produced(context)))
+            output.SetFromVector(self._produced(context))
 
     return Impl
 
