@@ -181,6 +181,15 @@ def test_max_lag_summary_and_json():
     assert "Ljung-Box" in text and "N_eff" in text and "candidate a" in text
 
 
+def test_autocorrelation_direct_and_fft_agree_with_the_definition():
+    x = np.random.default_rng(13).standard_normal(400).cumsum()
+    xc = x - x.mean()
+    expected = np.correlate(xc, xc, mode="full")[x.size - 1 :] / (xc @ xc)
+    np.testing.assert_allclose(autocorrelation(x), expected, atol=1e-12)
+    np.testing.assert_allclose(autocorrelation(x, max_lag=10), expected[:11], atol=1e-12)
+    np.testing.assert_allclose(autocorrelation(x, max_lag=150), expected[:151], atol=1e-12)
+
+
 def test_same_input_same_result():
     x = np.random.default_rng(12).standard_normal(3000)
     a, b = diagnose(x, FS), diagnose(x, FS)

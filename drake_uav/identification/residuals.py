@@ -59,6 +59,9 @@ __all__ = [
 #: Shortest residual :func:`diagnose` accepts [samples].
 MIN_SAMPLES = 64
 
+#: Autocorrelations up to this lag are computed by direct dot products instead of an FFT.
+DIRECT_LAGS = 32
+
 #: Number of equal segments of the segment-variance test.
 N_SEGMENTS = 8
 
@@ -311,20 +314,24 @@ class ResidualDiagnosis:
 # ----------------------------------------------------------------------------- helpers
 
 
-def autocorrelation(x: np.ndarray) -> np.ndarray:
-    """Biased sample autocorrelation of ``x`` at lags 0..N-1 (r_0 = 1), by FFT.
+def autocorrelation(x: np.ndarray, max_lag: int | None = None) -> np.ndarray:
+    """Biased sample autocorrelation of ``x`` at lags 0..max_lag (default N-1), r_0 = 1.
 
-    ``r_k = sum_t (x_t - m)(x_{t+k} - m) / sum_t (x_t - m)^2``. Raises ValueError when ``x``
-    is constant.
+    ``r_k = sum_t (x_t - m)(x_{t+k} - m) / sum_t (x_t - m)^2``, by FFT of length >= N + max_lag
+    (direct dot products for a few lags). Raises ValueError when ``x`` is constant.
     """
     x = np.asarray(x, dtype=float)
+    n = x.size
+    max_lag = n - 1 if max_lag is None else int(min(max_lag, n - 1))
     xc = x - x.mean()
-    nfft = sp_fft.next_fast_len(2 * x.size - 1, real=True)
-    spec = sp_fft.rfft(xc, nfft)
-    acov = sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[: x.size]
-    if not acov[0] > 0.0:
+    energy = float(xc @ xc)
+    if not energy > 0.0:
         raise ValueError("series is constant (zero variance): autocorrelation undefined")
-    return acov / acov[0]
+    if max_lag <= DIRECT_LAGS:
+        return np.array([1.0] + [float(xc[:-k] @ xc[k:]) / energy for k in range(1, max_lag + 1)])
+    nfft = sp_fft.next_fast_len(n + max_lag, real=True)
+    spec = sp_fft.rfft(xc, nfft)
+    return sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_lag + 1] / energy
 
 
 def _geyer_tau(rho: np.ndarray) -> tuple[float, int]:
@@ -496,7 +503,7 @@ def _candidate_correlations(x, rho_x, lag, cols, alpha):
             n_eff.append(float(n))
             continue
         r.append(float(np.clip(xc @ cc / norm, -1.0, 1.0)))
-        rho_c = autocorrelation(c)
+        rho_c = autocorrelation(c, max_lag=lag - 1)
         factor = 1.0 + 2.0 * float(rho_x[1:lag] @ rho_c[1:lag])
         n_eff.append(float(np.clip(n / max(factor, 1e-12), 3.0, n)))
     if not names:
