@@ -37,7 +37,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import RandomSource
 
-from drake_uav.rotations import quat_to_rotmat
+from drake_uav.rotations import quat_normalize, quat_to_rotmat
 
 __all__ = [
     "ChannelErrors",
@@ -377,7 +377,7 @@ class SampledSensors(LeafSystem):
             truth[18] = -x[2]
             truth[3:6] = x[10:13]
             if need["velocity"]:
-                truth[9:12] = quat_to_rotmat(x[3:7]) @ x[7:10]
+                truth[9:12] = quat_to_rotmat(quat_normalize(x[3:7])) @ x[7:10]
         if need["specific_force"]:
             truth[0:3] = self._force.Eval(context)
         if need["dynamic_pressure"] or need["air_angles"]:

@@ -33,7 +33,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import RandomSource
 
-from drake_uav.rotations import quat_to_rotmat
+from drake_uav.rotations import quat_normalize, quat_to_rotmat
 
 __all__ = [
     "TURBULENCE_LEVELS",
@@ -179,30 +179,39 @@ def dryden_psd(omega, scales: TurbulenceScales, airspeed: float) -> np.ndarray:
     return out
 
 
-# Below this a*dt, the moments of exp(-x u) on [0, 1] use their power series (the
-# closed forms lose digits to cancellation as x -> 0).
-_SERIES_BELOW = 0.1
-_SERIES_TERMS = 10
+# Below this x = 2 a dt the moments of exp(-x u) on [0, 1] come from their power series
+# (relative error < 1e-13); above it the closed forms have lost fewer than 4 digits.
+_SERIES_BELOW = 0.02
+_SERIES = tuple(
+    tuple((-1) ** n / (math.factorial(n) * (n + m + 1)) for n in reversed(range(6)))
+    for m in range(3)
+)
 
 
 def _exp_moments(x, xp=np):
     """(I0, I1, I2) with I_m = integral of u^m exp(-x u) over u in [0, 1]."""
-    e = xp.exp(-x)
-    one_minus = -xp.expm1(-x)
-    safe = x + (x < _SERIES_BELOW)  # keeps the unused closed form finite near x = 0
+    if xp is math and x < _SERIES_BELOW:
+        return tuple(_horner(c, x) for c in _SERIES)
+    safe = xp.maximum(x, _SERIES_BELOW) if xp is np else x
+    e = xp.exp(-safe)
+    one_minus = -xp.expm1(-safe)
     closed = (
         one_minus / safe,
-        (one_minus - x * e) / safe**2,
-        (2.0 * one_minus - e * x * (2.0 + x)) / safe**3,
+        (one_minus - safe * e) / safe**2,
+        (2.0 * one_minus - e * safe * (2.0 + safe)) / safe**3,
     )
-    term, series = 1.0 + 0.0 * x, [0.0 * x, 0.0 * x, 0.0 * x]
-    for n in range(_SERIES_TERMS):
-        for m in range(3):
-            series[m] = series[m] + term / (n + m + 1)
-        term = -term * x / (n + 1)
     if xp is math:
-        return tuple(series) if x < _SERIES_BELOW else closed
-    return tuple(np.where(x < _SERIES_BELOW, s, c) for s, c in zip(series, closed, strict=True))
+        return closed
+    return tuple(np.where(x < _SERIES_BELOW, _horner(c, x), m)
+                 for c, m in zip(_SERIES, closed, strict=True))
+
+
+def _horner(coefficients, x):
+    """Polynomial with ``coefficients`` (highest power first) at ``x``."""
+    out = 0.0 * x
+    for c in coefficients:
+        out = out * x + c
+    return out
 
 
 def _transition_terms(a, dt: float, xp=np):
@@ -339,6 +348,7 @@ class DrydenFilter(LeafSystem):
         super().__init__()
         self._params = params.validate()
         self._steady = np.asarray(params.steady_wind_ned, float)
+        self._has_steady = bool(np.any(self._steady))
         self._noise = self.DeclareVectorInputPort("noise", 6)
         self._plant_state = self.DeclareVectorInputPort("plant_state", 13)
         initial = np.zeros(13)
@@ -377,7 +387,7 @@ class DrydenFilter(LeafSystem):
         rot = None
         if self._plant_state.HasValue(context):
             s = self._plant_state.Eval(context)
-            rot = quat_to_rotmat(s[3:7])
+            rot = quat_to_rotmat(quat_normalize(s[3:7]))
         elif p.needs_plant_state:
             raise RuntimeError(
                 "DrydenFilter: input 'plant_state' is not connected but DrydenParams "
@@ -387,7 +397,8 @@ class DrydenFilter(LeafSystem):
         if coefficients is None:
             airspeed = p.airspeed
             if airspeed is None:
-                airspeed = float(np.linalg.norm(s[7:10] - rot.T @ self._steady))
+                v = s[7:10] - rot.T @ self._steady if self._has_steady else s[7:10]
+                airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
             altitude = -float(s[2]) if p.altitude is None else p.altitude
             coefficients = self._coefficients(airspeed, altitude)
         started = x[self._STARTED] > 0

@@ -1,0 +1,400 @@
+"""An identification flight: plant, Dryden wind, sensors and designed excitation.
+
+:func:`build_identification_flight` wires
+
+    ExcitationSource (trim + excitation) --+--> Adder --> FixedWingPlant --> SensorSuite
+    SafetyPilot (weak attitude hold) ------+                |   ^
+                                                            v   | wind_ned
+                                                         DrydenWind
+
+and adds loggers for every measured and truth signal. :func:`fly` builds and
+simulates it and returns a :class:`~drake_uav.io.flight_log.FlightLog`.
+
+Timing: everything runs at the sensor suite's base rate (default 100 Hz). Row k
+of the log holds the sensor samples taken at t_k, the command issued at t_k, and
+the truth at t_k just before the events at t_k (so truth coefficients, forces
+and controls belong together: the controls and wind in effect over the step
+that ends at t_k).
+
+The safety pilot is a weak attitude/altitude/heading/airspeed hold added on top
+of trim + excitation so that long flights stay near the trim condition; it can
+be switched off (``stabilize=False``) for open-loop excitation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from pydrake.common import RandomGenerator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import Adder, ConstantVectorSource, LogVectorOutput
+
+from drake_uav.io.flight_log import FlightLog
+from drake_uav.optimization.trim import TrimResult, trim
+from drake_uav.rotations import quat_to_euler, quat_to_rotmat
+from drake_uav.systems.excitation import (
+    SURFACES,
+    Doublet,
+    ExcitationSource,
+    ThreeTwoOneOne,
+    orthogonal_multisines,
+)
+from drake_uav.systems.fixed_wing import FixedWingPlant
+from drake_uav.systems.sensors import SensorSuite, SensorSuiteParams
+from drake_uav.systems.wind import DrydenParams, DrydenWind
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+from drake_uav.vehicles.loading import load_fixed_wing
+
+__all__ = [
+    "SafetyPilotGains",
+    "SafetyPilot",
+    "IdentificationFlight",
+    "default_excitation",
+    "build_identification_flight",
+    "fly",
+]
+
+# Truth channels: logger name -> (channel names, units).
+_TRUTH = {
+    "state": (("pn", "pe", "pd", "qw", "qx", "qy", "qz", "u", "v", "w", "p", "q", "r"),
+              ("m",) * 3 + ("1",) * 4 + ("m/s",) * 3 + ("rad/s",) * 3),
+    "euler": (("roll", "pitch", "yaw"), ("rad",) * 3),
+    "air_data": (("airspeed", "alpha", "beta"), ("m/s", "rad", "rad")),
+    "wind_ned": (("wind_n", "wind_e", "wind_d"), ("m/s",) * 3),
+    "gust_body": (("gust_u", "gust_v", "gust_w"), ("m/s",) * 3),
+    "aero_coefficients": (("CX", "CY", "CZ", "Cl", "Cm", "Cn"), ("1",) * 6),
+    "forces_moments": (("Fx", "Fy", "Fz", "Mx", "My", "Mz"), ("N",) * 3 + ("N m",) * 3),
+    "specific_force": (("ax", "ay", "az"), ("m/s^2",) * 3),
+    "controls": (SURFACES, ("rad", "rad", "rad", "1")),
+}
+_PLANT_TRUTH = ("state", "euler", "air_data", "aero_coefficients", "forces_moments",
+                "specific_force")
+
+
+@dataclasses.dataclass(frozen=True)
+class SafetyPilotGains:
+    """Gains of the weak hold loops (Aerosonde-sized defaults).
+
+    Attributes:
+        pitch: elevator per pitch error [rad/rad] (positive elevator: nose down).
+        pitch_rate: elevator per pitch rate [rad/(rad/s)].
+        altitude: pitch reference per altitude error [rad/m], limited to +-max_pitch.
+        roll: aileron per roll error [rad/rad].
+        roll_rate: aileron per roll rate [rad/(rad/s)].
+        heading: roll reference per heading error [rad/rad], limited to +-max_roll.
+        yaw_rate: rudder per yaw rate [rad/(rad/s)] (yaw damper).
+        airspeed: throttle per airspeed error [1/(m/s)].
+        max_pitch: limit of the pitch reference offset [rad].
+        max_roll: limit of the roll reference [rad].
+    """
+
+    pitch: float = 0.8
+    pitch_rate: float = 0.1
+    altitude: float = 0.005
+    roll: float = 0.5
+    roll_rate: float = 0.05
+    heading: float = 0.5
+    yaw_rate: float = 0.2
+    airspeed: float = 0.05
+    max_pitch: float = 0.15
+    max_roll: float = 0.3
+
+    def validate(self) -> SafetyPilotGains:
+        """Raises ValueError naming the first negative or non-finite gain; returns self."""
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if not (value >= 0 and math.isfinite(value)):
+                raise ValueError(f"{f.name}: gain must be finite and >= 0, got {value}")
+        return self
+
+
+class SafetyPilot(LeafSystem):
+    """Weak attitude, altitude, heading and airspeed hold around a trim condition.
+
+    Discrete (sample-and-hold at ``period``), so the output depends on its state
+    only and closes no algebraic loop.
+
+    | port (in)  | size | units                                              |
+    |------------|------|----------------------------------------------------|
+    | state      | 13   | plant ``state``                                    |
+    | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
+
+    | port (out) | size | units                                              |
+    |------------|------|----------------------------------------------------|
+    | correction | 4    | added elevator, aileron, rudder [rad], throttle    |
+    """
+
+    def __init__(self, gains: SafetyPilotGains, pitch_ref: float, altitude_ref: float,
+                 heading_ref: float, airspeed_ref: float, period: float):
+        super().__init__()
+        self.gains = gains.validate()
+        self._refs = (pitch_ref, altitude_ref, heading_ref, airspeed_ref)
+        self._state = self.DeclareVectorInputPort("state", 13)
+        self._air = self.DeclareVectorInputPort("air_data", 3)
+        xd = self.DeclareDiscreteState(4)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareStateOutputPort("correction", xd)
+
+    def _update(self, context, discrete_state) -> None:
+        g = self.gains
+        pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
+        x = self._state.Eval(context)
+        roll, pitch, yaw = quat_to_euler(x[3:7])
+        p, q, r = x[10:13]
+        climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
+        heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
+        roll_ref = max(-g.max_roll, min(g.max_roll, g.heading * heading_error))
+        airspeed = self._air.Eval(context)[0]
+        discrete_state.set_value([
+            g.pitch * (pitch - pitch_ref - climb_to) + g.pitch_rate * q,
+            -g.roll * (roll - roll_ref) - g.roll_rate * p,
+            g.yaw_rate * r,
+            g.airspeed * (airspeed_ref - airspeed),
+        ])
+
+
+@dataclasses.dataclass(frozen=True)
+class IdentificationFlight:
+    """A built identification flight; :meth:`simulate` runs it and returns the log."""
+
+    diagram: Diagram
+    plant: FixedWingPlant
+    wind: DrydenWind | None
+    sensors: SensorSuite
+    excitation: ExcitationSource
+    pilot: SafetyPilot | None
+    loggers: Mapping[str, object]
+    """VectorLogSink per signal: "measurements", "commands" and the truth names."""
+    aircraft: FixedWingParams
+    trim: TrimResult
+    initial_state: np.ndarray
+    seed: int
+    duration: float
+    sample_period: float
+    simulator_config: SimulatorConfig
+    metadata: Mapping[str, object]
+
+    def simulate(self, seed: int | None = None) -> FlightLog:
+        """Flies ``duration`` seconds from the trim state; the same seed gives the same log."""
+        seed = self.seed if seed is None else _check_seed(seed)
+        simulator = Simulator(self.diagram)
+        ApplySimulatorConfig(self.simulator_config, simulator)
+        context = simulator.get_mutable_context()
+        self.diagram.SetRandomContext(context, RandomGenerator(seed))
+        self.plant.set_state(self.plant.GetMyMutableContextFromRoot(context), self.initial_state)
+        simulator.Initialize()
+        dt = self.sample_period
+        n = int(round(self.duration / dt)) + 1
+        # One extra period: the samples taken at t_k are logged at t_(k+1).
+        simulator.AdvanceTo((n + 0.5) * dt)
+        return self._flight_log(context, n, seed)
+
+    def _flight_log(self, context, n: int, seed: int) -> FlightLog:
+        logs = {name: logger.FindLog(context) for name, logger in self.loggers.items()}
+        time = logs["measurements"].sample_times()[:n]
+        measured, truth, units = {}, {}, {}
+        data = logs["measurements"].data()[:, 1:n + 1]
+        for name, row in zip(self.sensors.channel_names, data, strict=True):
+            measured[name], units[name] = row, self.sensors.channel_units[name]
+        commands = logs["commands"].data()[:, 1:n + 1]
+        for i, surface in enumerate(SURFACES):
+            name = f"cmd_{surface}"
+            measured[name], units[name] = commands[i], _TRUTH["controls"][1][i]
+        limits = self.aircraft.limits
+        for key, (names, channel_units) in _TRUTH.items():
+            if key == "controls":
+                values = np.clip(logs["commands"].data()[:, :n].T, limits.lower(),
+                                 limits.upper()).T
+            elif key in logs:
+                values = logs[key].data()[:, :n]
+            else:  # no turbulence: no gust
+                values = np.zeros((len(names), n))
+            for name, unit, row in zip(names, channel_units, values, strict=True):
+                truth[name], units[name] = row, unit
+        return FlightLog(time, measured, truth, units, {**self.metadata, "seed": seed})
+
+
+def _check_seed(seed) -> int:
+    if not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
+def default_excitation(kind: str, duration: float, start: float = 1.0) -> tuple:
+    """Excitation of elevator, aileron and rudder for ``kind``.
+
+    "multisine": mutually orthogonal low-peak-factor multisines, 0.1-1.5 Hz,
+    period 20 s (or the flight, if shorter), peaks 2, 3, 3 deg, repeated;
+    "doublet": 1 s doublets of 3 deg, one surface after another every 8 s;
+    "3211": 3-2-1-1 of 3 deg with a 0.3 s unit, one surface after another;
+    "none": no excitation (trim only).
+    """
+    surfaces = ("elevator", "aileron", "rudder")
+    amplitude = math.radians(3.0)
+    if kind == "multisine":
+        period = min(20.0, duration - start)
+        cycles = max(1, math.floor((duration - start) / period))
+        return orthogonal_multisines(surfaces, period, np.radians([2.0, 3.0, 3.0]),
+                                     band=(0.1, 1.5), start=start, cycles=cycles)
+    if kind == "doublet":
+        return tuple(Doublet(s, amplitude, 0.5, start + 8.0 * i) for i, s in enumerate(surfaces))
+    if kind == "3211":
+        return tuple(ThreeTwoOneOne(s, amplitude, 0.3, start + 8.0 * i)
+                     for i, s in enumerate(surfaces))
+    if kind == "none":
+        return ()
+    raise ValueError(
+        f"excitation: unknown kind {kind!r}; use 'multisine', 'doublet', '3211', 'none' "
+        "or a sequence of signals"
+    )
+
+
+def _turbulence_params(turbulence, steady_wind, sample_period: float) -> DrydenParams | None:
+    if turbulence is None:
+        return None
+    if isinstance(turbulence, DrydenParams):
+        if steady_wind is not None:
+            turbulence = dataclasses.replace(turbulence, steady_wind_ned=tuple(steady_wind))
+        return turbulence.validate()
+    if not isinstance(turbulence, str):
+        raise ValueError(f"turbulence: use a level name, DrydenParams or None, got {turbulence!r}")
+    wind = (0.0, 0.0, 0.0) if steady_wind is None else tuple(float(w) for w in steady_wind)
+    return DrydenParams(level=turbulence, steady_wind_ned=wind,
+                        update_period=sample_period).validate()
+
+
+def build_identification_flight(
+    aircraft: str | FixedWingParams = "aerosonde",
+    turbulence: str | DrydenParams | None = "light",
+    steady_wind: Sequence[float] | None = None,
+    excitation: str | Sequence = "multisine",
+    sensors: SensorSuiteParams | None = None,
+    seed: int = 0,
+    duration: float = 60.0,
+    *,
+    airspeed: float = 25.0,
+    altitude: float = 100.0,
+    stabilize: bool = True,
+    pilot_gains: SafetyPilotGains = SafetyPilotGains(),
+    integrator: str = "runge_kutta2",
+) -> IdentificationFlight:
+    """Builds the identification-flight diagram with its loggers.
+
+    Args:
+        aircraft: catalog name or parameters.
+        turbulence: "light" / "moderate" / "severe" (MIL-F-8785C, updated at the
+            sensor base rate), a :class:`DrydenParams`, or None (steady wind only).
+        steady_wind: steady wind NED [m/s] (overrides the DrydenParams' value).
+        excitation: a kind for :func:`default_excitation` or a sequence of signals.
+        sensors: sensor suite; default seed Table 7 with the aircraft's air density.
+        seed: default random seed of :meth:`IdentificationFlight.simulate`.
+        duration: flight time [s].
+        airspeed: trim airspeed [m/s]; altitude: initial altitude [m].
+        stabilize: add the :class:`SafetyPilot` (weak hold loops).
+        integrator: Drake integration scheme; fixed step = sensor base period.
+    """
+    params = load_fixed_wing(aircraft) if isinstance(aircraft, str) else aircraft
+    if not (duration > 0 and math.isfinite(duration)):
+        raise ValueError(f"duration: must be positive, got {duration}")
+    seed = _check_seed(seed)
+    sensors = (SensorSuiteParams.seed_table7(air_density=params.rho) if sensors is None
+               else sensors.validate())
+    dt = 1.0 / sensors.base_rate_hz
+    wind_params = _turbulence_params(turbulence, steady_wind, dt)
+    steady = np.asarray(wind_params.steady_wind_ned if wind_params else
+                        (steady_wind if steady_wind is not None else (0.0, 0.0, 0.0)), float)
+    if steady.shape != (3,) or not np.all(np.isfinite(steady)):
+        raise ValueError(f"steady_wind: need 3 finite values, got {steady_wind}")
+    signals = (default_excitation(excitation, duration) if isinstance(excitation, str)
+               else tuple(excitation))
+
+    trimmed = trim(params, airspeed, altitude=altitude)
+    x0 = trimmed.state.copy()
+    # Trim is in still air: keep the air-relative velocity, add the wind to the ground speed.
+    x0[7:10] += quat_to_rotmat(x0[3:7]).T @ steady
+
+    builder = DiagramBuilder()
+    plant = builder.AddNamedSystem("plant", FixedWingPlant(params))
+    source = builder.AddNamedSystem("excitation",
+                                    ExcitationSource(trimmed.controls, signals, dt))
+    commands = source.GetOutputPort("controls")
+    pilot = None
+    if stabilize:
+        roll, pitch, yaw = quat_to_euler(x0[3:7])
+        pilot = builder.AddNamedSystem(
+            "safety_pilot", SafetyPilot(pilot_gains, pitch, altitude, yaw, airspeed, dt))
+        adder = builder.AddNamedSystem("command_sum", Adder(2, 4))
+        builder.Connect(commands, adder.get_input_port(0))
+        builder.Connect(pilot.GetOutputPort("correction"), adder.get_input_port(1))
+        builder.Connect(plant.GetOutputPort("state"), pilot.GetInputPort("state"))
+        builder.Connect(plant.GetOutputPort("air_data"), pilot.GetInputPort("air_data"))
+        commands = adder.get_output_port(0)
+    builder.Connect(commands, plant.GetInputPort("controls"))
+
+    wind = None
+    if wind_params is not None:
+        wind = builder.AddNamedSystem("wind", DrydenWind(wind_params))
+        builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
+        wind_port = wind.GetOutputPort("wind_ned")
+    else:
+        wind_port = builder.AddNamedSystem("steady_wind",
+                                           ConstantVectorSource(steady)).get_output_port(0)
+    builder.Connect(wind_port, plant.GetInputPort("wind_ned"))
+
+    suite = builder.AddNamedSystem("sensors", SensorSuite(sensors))
+    for name in ("state", "euler", "air_data", "specific_force"):
+        builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
+
+    loggers = {
+        "measurements": LogVectorOutput(suite.GetOutputPort("measurements"), builder, dt),
+        "commands": LogVectorOutput(commands, builder, dt),
+        "wind_ned": LogVectorOutput(wind_port, builder, dt),
+    }
+    if wind is not None:
+        loggers["gust_body"] = LogVectorOutput(wind.GetOutputPort("gust_body"), builder, dt)
+    for name in _PLANT_TRUTH:
+        loggers[name] = LogVectorOutput(plant.GetOutputPort(name), builder, dt)
+    diagram = builder.Build()
+
+    metadata = {
+        "aircraft": params.name,
+        "airspeed": airspeed,
+        "altitude": altitude,
+        "turbulence": wind_params.level if wind_params else "none",
+        "turbulence_model": wind_params.model if wind_params else "none",
+        "steady_wind_ned": steady.tolist(),
+        "excitation": [f"{type(s).__name__}({s.surface})" for s in signals],
+        "sample_rate_hz": sensors.base_rate_hz,
+        "stabilized": stabilize,
+        "duration": duration,
+    }
+    config = SimulatorConfig(integration_scheme=integrator, max_step_size=dt,
+                             use_error_control=False)
+    return IdentificationFlight(
+        diagram=diagram, plant=plant, wind=wind, sensors=suite, excitation=source, pilot=pilot,
+        loggers=loggers, aircraft=params, trim=trimmed, initial_state=x0, seed=seed,
+        duration=duration, sample_period=dt, simulator_config=config, metadata=metadata,
+    )
+
+
+def fly(
+    aircraft: str | FixedWingParams = "aerosonde",
+    turbulence: str | DrydenParams | None = "light",
+    steady_wind: Sequence[float] | None = None,
+    excitation: str | Sequence = "multisine",
+    sensors: SensorSuiteParams | None = None,
+    seed: int = 0,
+    duration: float = 60.0,
+    **options,
+) -> FlightLog:
+    """Builds and flies an identification flight; returns measured + truth channels.
+
+    Same arguments as :func:`build_identification_flight` (``options`` are its
+    keyword-only ones).
+    """
+    return build_identification_flight(aircraft, turbulence, steady_wind, excitation, sensors,
+                                       seed, duration, **options).simulate()

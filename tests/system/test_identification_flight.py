@@ -1,0 +1,124 @@
+"""Identification flight: seeding, sensor statistics in flight, wind coupling, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from drake_uav.diagrams.identification_flight import build_identification_flight, fly
+from drake_uav.io.flight_log import FlightLog
+from drake_uav.rotations import quat_to_rotmat
+from drake_uav.systems.sensors import ChannelErrors, GpsParams, ImuParams, SensorSuiteParams
+
+STEADY = (2.0, -1.5, 0.0)
+
+
+@pytest.fixture(scope="module")
+def flight():
+    return build_identification_flight("aerosonde", "moderate", STEADY, "multisine", seed=1,
+                                       duration=20.0)
+
+
+@pytest.fixture(scope="module")
+def log(flight):
+    return flight.simulate()
+
+
+def _quats(log: FlightLog) -> np.ndarray:
+    q = log.stack(["qw", "qx", "qy", "qz"])
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def test_same_seed_bit_identical_and_new_seed_new_noise(flight, log):
+    again = flight.simulate(seed=1)
+    assert again.equals(log)
+    other = flight.simulate(seed=2)
+    assert not np.array_equal(other["imu_p"] - other["p"], log["imu_p"] - log["p"])
+    assert not np.array_equal(other["gust_w"], log["gust_w"])
+    # The trim start and the excitation do not depend on the seed.
+    np.testing.assert_array_equal(other["cmd_aileron"][:1], log["cmd_aileron"][:1])
+
+
+def test_log_layout_and_units(log):
+    assert len(log) == 2001 and log.time[-1] == pytest.approx(20.0)
+    log.require("imu_ax", "gps_vn", "pitot_airspeed", "vane_alpha", "att_yaw", "baro_alt",
+                "cmd_elevator", "CX", "Cm", "Fx", "Mz", "wind_n", "gust_w", "alpha", "elevator")
+    assert log.is_truth("alpha") and not log.is_truth("vane_alpha")
+    assert log.unit("Mz") == "N m" and log.unit("gps_pd") == "m" and log.unit("CZ") == "1"
+    assert log.metadata["turbulence"] == "moderate" and log.metadata["seed"] == 1
+
+
+def test_sensor_errors_in_flight_match_table7(log):
+    p = SensorSuiteParams.seed_table7()
+    n = len(log)
+    pairs = [("imu_q", "q", p.imu.gyro.noise_std), ("imu_az", "az", p.imu.accel.noise_std),
+             ("vane_alpha", "alpha", p.vanes.angles.noise_std),
+             ("att_pitch", "pitch", p.attitude.angles.noise_std)]
+    for measured, true, sigma in pairs:
+        error = log[measured] - log[true]
+        assert abs(error.mean()) < 4.5 * sigma / math.sqrt(n), measured
+        assert abs(error.std() / sigma - 1.0) < 4.5 / math.sqrt(2 * n), measured
+    qbar = 0.5 * 1.2682 * log["airspeed"] ** 2
+    error = log["pitot_qbar"] - qbar
+    assert abs(error.std() / p.pitot.dynamic_pressure.noise_std - 1) < 4.5 / math.sqrt(2 * n)
+
+
+def test_gps_rate_and_latency_in_flight(log):
+    every, lag = 5, 10  # 20 Hz and 0.1 s at 100 Hz
+    pn = log["gps_pn"]
+    changes = np.flatnonzero(np.diff(pn) != 0) + 1
+    assert np.all((changes - lag) % every == 0)
+    assert changes.size == (len(log) - 1 - lag) // every + 1
+    # Released at t_k, sampled at t_k - 0.1 s: the error to the delayed truth is white noise.
+    error = pn[changes] - log["pn"][changes - lag]
+    sigma = 1.0
+    assert abs(error.mean()) < 4.5 * sigma / math.sqrt(changes.size)
+    assert abs(error.std() / sigma - 1) < 4.5 / math.sqrt(2 * changes.size)
+    # Against the undelayed truth the error grows by the distance flown in 0.1 s (~2.5 m).
+    assert np.abs(pn[changes] - log["pn"][changes]).mean() > 2.0
+
+
+def test_wind_truth_and_air_data_are_consistent(log):
+    q = _quats(log)
+    gust = log.stack(["gust_u", "gust_v", "gust_w"])
+    wind = log.stack(["wind_n", "wind_e", "wind_d"])
+    # The wind held over (t_(k-1), t_k] was rotated with the attitude at t_(k-1).
+    for k in range(1, len(log), 97):
+        np.testing.assert_allclose(wind[k], STEADY + quat_to_rotmat(q[k - 1]) @ gust[k],
+                                   atol=1e-12)
+    # The plant's airspeed is the norm of ground velocity minus that wind, in body axes.
+    for k in range(0, len(log), 89):
+        R = quat_to_rotmat(q[k])
+        v = log.stack(["u", "v", "w"])[k] - R.T @ wind[k]
+        assert log["airspeed"][k] == pytest.approx(np.linalg.norm(v), rel=1e-12)
+    assert 0.5 < np.std(log["gust_w"]) < 3.0
+    # Commands are issued at t_k and act from t_k on.
+    np.testing.assert_array_equal(log["cmd_aileron"][:-1], log["aileron"][1:])
+
+
+def test_flight_stays_near_trim(log):
+    assert np.abs(np.degrees(log["roll"])).max() < 30.0
+    assert np.abs(log["airspeed"] - 25.0).max() < 6.0
+    assert np.abs(-log["pd"] - 100.0).max() < 30.0
+
+
+def test_log_round_trip(log, tmp_path):
+    assert FlightLog.load(log.save(tmp_path / "flight.parquet")).equals(log)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"turbulence": "extreme"}, "level"),
+        ({"sensors": SensorSuiteParams(imu=ImuParams(gyro=ChannelErrors(-0.01)))},
+         "imu.gyro.noise_std"),
+        ({"sensors": SensorSuiteParams(gps=GpsParams(rate_hz=400.0))}, "gps.rate_hz"),
+        ({"excitation": "sweep"}, "excitation"),
+        ({"duration": -1.0}, "duration"),
+        ({"seed": -3}, "seed"),
+        ({"turbulence": None, "steady_wind": (1.0, 2.0)}, "steady_wind"),
+    ],
+)
+def test_bad_input_names_the_field(kwargs, field):
+    with pytest.raises(ValueError, match=f"^{field}:"):
+        fly(**{"duration": 1.0, **kwargs})
