@@ -43,6 +43,7 @@ from drake_uav.identification.regression import (
     tls_covariance,
     tls_solution,
     unidentifiable_loading,
+    weight_matrix,
 )
 
 _EPS = float(np.finfo(float).eps)
@@ -491,7 +492,9 @@ class RecursiveTLS(_Recursive):
         self.C = normalization_matrix(error_std, error_cov, n1)
         self.C_inv = np.linalg.inv(self.C)
         self.snr_min = float(snr_min)
-        self.weights = weights
+        self.weights = weight_matrix(weights)
+        if self.weights is not None and self.weights.shape != (n, n):
+            raise ValueError(f"weights must be ({n},) or ({n}, {n}), got {self.weights.shape}")
         self.scale_from_data = bool(scale_from_data)
         self.s = self.state[n : n + n1]
         self.V = self.state[n + n1 : n + n1 + n1 * n1].reshape(n1, n1)
@@ -515,6 +518,7 @@ class RecursiveTLS(_Recursive):
         self._pi = np.empty(n1)
         self._Vtmp = np.empty((n1, n1))
         self._v = np.empty(n1)
+        self._lev = np.empty(n)
         self._M0 = np.zeros((n1 + 1, n1))
         self._M0_diag = self._M0.reshape(-1)[: n1 * n1 : n1 + 1]  # writable view of the diagonal
 
@@ -554,7 +558,9 @@ class RecursiveTLS(_Recursive):
             lam = self._lam_const
         else:
             # leverage of the new row in the retained directions (x P x^T of RLS)
-            q = float(np.sum((pi[:n] / s[:n]) ** 2))
+            lev = self._lev
+            np.divide(pi[:n], s[:n], out=lev)
+            q = float(np.dot(lev, lev))
             lam = self._forgetting(nu, q)
         M0 = self._M0
         np.multiply(s, math.sqrt(lam), out=self._M0_diag)
@@ -582,7 +588,9 @@ class RecursiveTLS(_Recursive):
                 np.multiply(v[:n], -1.0 / vn, out=self.theta)
                 self._scalars[self._RANK] = n
                 return
-        theta, k, _ = tls_solution(self.s, self.V, self.C_inv, k, self.weights)
+        theta, k, _ = tls_solution(
+            self.s, self.V, self.C_inv, k, self.weights, with_directions=False
+        )
         self.theta[:] = theta
         self._scalars[self._RANK] = k
 

@@ -34,6 +34,7 @@ of OLS.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -52,6 +53,7 @@ __all__ = [
     "tls_covariance",
     "tls_solution",
     "unidentifiable_loading",
+    "weight_matrix",
 ]
 
 #: A parameter whose unit vector has a squared projection above this on the unidentifiable
@@ -376,7 +378,25 @@ def _finish(
 # ----------------------------------------------------------------------------- TLS core
 
 
-def tls_solution(s, V, C_inv, k: int, weights=None):
+def weight_matrix(weights) -> np.ndarray | None:
+    """W (n, n) of the minimum-norm choice from a matrix, a diagonal (n,) or None (identity)."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=float)
+    return np.diag(w) if w.ndim == 1 else w
+
+
+def _null_basis(g: np.ndarray, g_norm: float) -> np.ndarray:
+    """Orthonormal basis (m, m-1) of {mu : g^T mu = 0}, from a Householder reflector of g."""
+    if g.size == 2:
+        return np.array([[-g[1]], [g[0]]]) / g_norm
+    v = g.copy()
+    v[0] += math.copysign(g_norm, g[0])
+    H = np.eye(g.size) - (2.0 / float(v @ v)) * np.outer(v, v)
+    return H[:, 1:]
+
+
+def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = True):
     """Weighted minimum-norm TLS solution from the SVD of the normalised augmented matrix.
 
     Args:
@@ -384,6 +404,7 @@ def tls_solution(s, V, C_inv, k: int, weights=None):
             columns. C_inv: inverse error std matrix (n+1, n+1).
         k: number of excited directions (<= n); k = n is plain TLS/GTLS (S0 4.61).
         weights: W (n, n) or its diagonal (n,) for min ||W theta|| (S0 4.76); None = identity.
+        with_directions: also return the unidentifiable directions (else None, faster).
 
     Returns:
         (theta, k_used, directions): estimate (n,), the number of directions actually kept
@@ -391,27 +412,29 @@ def tls_solution(s, V, C_inv, k: int, weights=None):
         and the orthonormal parameter-space directions (rows) the data do not determine.
     """
     n = V.shape[0] - 1
-    if weights is None:
-        Wm = None
-    else:
-        w = np.asarray(weights, dtype=float)
-        Wm = np.diag(w) if w.ndim == 1 else w
+    Wm = weight_matrix(weights)
     while k >= 0:
         G = C_inv @ V[:, k:]  # solution space of [theta; -1] (S0 4.75)
         G_theta, g = G[:n], G[n]
-        g_norm = np.linalg.norm(g)
-        if g_norm > 1e-12 * np.linalg.norm(G):
+        g_norm = math.sqrt(float(g @ g))
+        if g_norm > 1e-12 * math.sqrt(float(np.vdot(G, G))):
             if G.shape[1] == 1:
                 return -G_theta[:, 0] / g[0], k, np.zeros((0, n))
             # min ||W G_theta mu|| subject to g^T mu = -1 (S0 4.76-4.79 without the big number):
             # mu = mu_p + N nu, mu_p = -g / |g|^2, N an orthonormal basis of {mu : g^T mu = 0}.
-            _, _, gt = np.linalg.svd(g[None, :])
-            N = gt[1:].T
+            N = _null_basis(g, g_norm)
             mu_p = -g / g_norm**2
             A = G_theta if Wm is None else Wm @ G_theta
-            nu = np.linalg.lstsq(A @ N, -(A @ mu_p), rcond=None)[0]
-            directions = _orthonormal_columns(G_theta @ N).T
-            return G_theta @ (mu_p + N @ nu), k, directions
+            AN = A @ N
+            b = A @ mu_p
+            if AN.shape[1] == 1:
+                a2 = float(AN[:, 0] @ AN[:, 0])
+                nu = np.array([-float(AN[:, 0] @ b) / a2 if a2 > 0.0 else 0.0])
+            else:
+                nu = np.linalg.lstsq(AN, -b, rcond=None)[0]
+            theta = G_theta @ (mu_p + N @ nu)
+            directions = _orthonormal_columns(G_theta @ N).T if with_directions else None
+            return theta, k, directions
         k -= 1
     return np.zeros(n), 0, np.eye(n)
 
@@ -451,6 +474,9 @@ def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_
     names = _names(names, n)
     if snr_min < 0:
         raise ValueError(f"snr_min must be >= 0, got {snr_min}")
+    Wm = weight_matrix(weights)
+    if Wm is not None and Wm.shape != (n, n):
+        raise ValueError(f"weights must be ({n},) or ({n}, {n}), got {np.shape(weights)}")
     D = np.column_stack([X, z])
     if error_std is not None:
         c = np.asarray(error_std, dtype=float).copy()
@@ -473,7 +499,7 @@ def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_
     threshold = excitation_threshold(N, n, snr_min, scale)
     floor = (n + 1) * np.finfo(float).eps * s[0]
     k = int(np.sum(s[:n] > max(threshold, floor)))
-    theta, k, directions = tls_solution(s, V, C_inv, k, weights)
+    theta, k, directions = tls_solution(s, V, C_inv, k, Wm)
     if k < n:
         method = "PCA-TLS"
         if warn:
