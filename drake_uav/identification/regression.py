@@ -24,12 +24,13 @@ unidentifiable direction.
 Covariance of TLS/GTLS. S0 (4.62) gives ``s^2 (X0^T X0)^-1`` with ``s^2 = [theta; -1]^T W_T
 [theta; -1]``; that is the Cramer-Rao bound of the errors-in-variables model (see
 ``crlb.py``). The estimator's asymptotic covariance adds a second term of order (regressor
-noise / regressor signal)^2 (Fuller, *Measurement Error Models*, 1987, Thm 2.3.2); both are
+noise / regressor signal)^2 (Fuller, *Measurement Error Models*, 1987, Thm 2.3.2); the sum is
 returned, so the reported sigma stays honest when the regressor noise is large. ``X0^T X0`` is
 estimated as ``X^T X`` minus the noise energy ``s_min^2`` along every retained singular
 direction (as in S0 4.63), and the error covariance is known up to a scale factor estimated
 from the smallest singular value (``scale_from_data``), the TLS analogue of the residual variance
-of OLS.
+of OLS; the excitation threshold then reads ``(1 + S/n) s_min``, equal to S0 (4.68) when the
+given error covariance is right.
 """
 
 from __future__ import annotations
