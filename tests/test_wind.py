@@ -250,7 +250,7 @@ def test_coupling_reads_airspeed_altitude_and_attitude():
     state = np.concatenate([[0.0, 0.0, -120.0], q, [25.0, 1.0, 2.0], np.zeros(3)])
     dryden.GetInputPort("plant_state").FixValue(context, state)
     update = dryden.EvalUniquePeriodicDiscreteUpdate(context)
-    context.SetDiscreteState(update.value())
+    context.get_mutable_discrete_state().SetFrom(update)
     gust = dryden.GetOutputPort("gust_body").Eval(context)
     wind = dryden.GetOutputPort("wind_ned").Eval(context)
     R = quat_to_rotmat(q)

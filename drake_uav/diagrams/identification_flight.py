@@ -121,6 +121,7 @@ class SafetyPilot(LeafSystem):
     | port (in)  | size | units                                              |
     |------------|------|----------------------------------------------------|
     | state      | 13   | plant ``state``                                    |
+    | euler      | 3    | plant ``euler``: roll, pitch, yaw [rad]            |
     | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
 
     | port (out) | size | units                                              |
@@ -134,6 +135,7 @@ class SafetyPilot(LeafSystem):
         self.gains = gains.validate()
         self._refs = (pitch_ref, altitude_ref, heading_ref, airspeed_ref)
         self._state = self.DeclareVectorInputPort("state", 13)
+        self._euler = self.DeclareVectorInputPort("euler", 3)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         xd = self.DeclareDiscreteState(4)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
@@ -143,7 +145,7 @@ class SafetyPilot(LeafSystem):
         g = self.gains
         pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
         x = self._state.Eval(context)
-        roll, pitch, yaw = quat_to_euler(x[3:7])
+        roll, pitch, yaw = self._euler.Eval(context)
         p, q, r = x[10:13]
         climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
         heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
@@ -330,8 +332,8 @@ def build_identification_flight(
         adder = builder.AddNamedSystem("command_sum", Adder(2, 4))
         builder.Connect(commands, adder.get_input_port(0))
         builder.Connect(pilot.GetOutputPort("correction"), adder.get_input_port(1))
-        builder.Connect(plant.GetOutputPort("state"), pilot.GetInputPort("state"))
-        builder.Connect(plant.GetOutputPort("air_data"), pilot.GetInputPort("air_data"))
+        for name in ("state", "euler", "air_data"):
+            builder.Connect(plant.GetOutputPort(name), pilot.GetInputPort(name))
         commands = adder.get_output_port(0)
     builder.Connect(commands, plant.GetInputPort("controls"))
 

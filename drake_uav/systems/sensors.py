@@ -37,7 +37,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import RandomSource
 
-from drake_uav.rotations import quat_normalize, quat_to_rotmat
+from drake_uav.rotations import quat_to_rotmat
 
 __all__ = [
     "ChannelErrors",
@@ -358,6 +358,12 @@ class SampledSensors(LeafSystem):
         )
         self._depth = int(self._lag.max()) + 1
         self._columns = np.arange(self._n)
+        # Which channels sample at a tick repeats with the lcm of the decimations once
+        # every latency has passed: precompute that pattern.
+        period = math.lcm(*self._decim.tolist())
+        ticks = self._depth + np.arange(period)[:, None]
+        self._due_pattern = (ticks - self._lag) % self._decim == 0
+        self._due_offset = self._depth % period
         yaw = [i for i, n in enumerate(self.channel_names) if n == "att_yaw"]
         self._yaw = yaw[0] if yaw else None
         needed = set(self._truth_idx.tolist())
@@ -377,7 +383,8 @@ class SampledSensors(LeafSystem):
             truth[18] = -x[2]
             truth[3:6] = x[10:13]
             if need["velocity"]:
-                truth[9:12] = quat_to_rotmat(quat_normalize(x[3:7])) @ x[7:10]
+                q = x[3:7]
+                truth[9:12] = quat_to_rotmat(q) @ x[7:10] / (q @ q)
         if need["specific_force"]:
             truth[0:3] = self._force.Eval(context)
         if need["dynamic_pressure"] or need["air_angles"]:
@@ -400,9 +407,10 @@ class SampledSensors(LeafSystem):
         else:
             line[tick % self._depth] = truth
         delayed = line[(tick - self._lag) % self._depth, self._columns]
-        due = (tick >= self._lag) & ((tick - self._lag) % self._decim == 0)
-        if tick == 0:
-            due[:] = True
+        if tick >= self._depth:
+            due = self._due_pattern[(tick - self._due_offset) % len(self._due_pattern)]
+        else:
+            due = (tick == 0) | ((tick >= self._lag) & ((tick - self._lag) % self._decim == 0))
         noise = self._noise.Eval(context)
         walk = x[self._walk]
         measured = self._scale * delayed + self._bias + walk + self._sigma * noise[n:]

@@ -33,7 +33,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import RandomSource
 
-from drake_uav.rotations import quat_normalize, quat_to_rotmat
+from drake_uav.rotations import quat_to_rotmat
 
 __all__ = [
     "TURBULENCE_LEVELS",
@@ -143,10 +143,15 @@ def dryden_scales(level: str, altitude: float, model: str = "mil-f-8785c") -> Tu
     _check_level(level, model)
     if not math.isfinite(altitude):
         raise ValueError(f"altitude: must be finite, got {altitude}")
+    return TurbulenceScales(*_scale_values(level, altitude, model))
+
+
+def _scale_values(level: str, altitude: float, model: str) -> tuple[float, ...]:
+    """(L_u, L_v, L_w, sigma_u, sigma_v, sigma_w) [m, m/s] of validated arguments."""
     if model == "seed":
         band = "low" if altitude < _SEED_ROW_SPLIT else "medium"
         _, l_uv, l_w, s_uv, s_w = _SEED_TABLE[(band, level)]
-        return TurbulenceScales(l_uv, l_uv, l_w, s_uv, s_uv, s_w)
+        return l_uv, l_uv, l_w, s_uv, s_uv, s_w
     h_ft = max(altitude / _FT, 10.0)
     if h_ft <= 1000.0:
         values = _mil_low_altitude(level, h_ft)
@@ -158,7 +163,7 @@ def dryden_scales(level: str, altitude: float, model: str = "mil-f-8785c") -> Tu
         high = _mil_high_altitude(level, 2000.0)
         values = tuple((1.0 - f) * lo + f * hi for lo, hi in zip(low, high, strict=True))
     l_uv, l_w, s_uv, s_w = (v * _FT for v in values)
-    return TurbulenceScales(l_uv, l_uv, l_w, s_uv, s_uv, s_w)
+    return l_uv, l_uv, l_w, s_uv, s_uv, s_w
 
 
 def dryden_psd(omega, scales: TurbulenceScales, airspeed: float) -> np.ndarray:
@@ -338,12 +343,6 @@ class DrydenFilter(LeafSystem):
     (|v_body - R^T W_steady|), so the gust does not feed back into its own filter.
     """
 
-    # Discrete state layout: cascade states (z1, z2) per axis, gust, wind, started flag.
-    _Z = slice(0, 6)
-    _GUST = slice(6, 9)
-    _WIND = slice(9, 12)
-    _STARTED = 12
-
     def __init__(self, params: DrydenParams = DrydenParams()):
         super().__init__()
         self._params = params.validate()
@@ -351,13 +350,14 @@ class DrydenFilter(LeafSystem):
         self._has_steady = bool(np.any(self._steady))
         self._noise = self.DeclareVectorInputPort("noise", 6)
         self._plant_state = self.DeclareVectorInputPort("plant_state", 13)
-        initial = np.zeros(13)
-        initial[self._WIND] = self._steady
-        self._xd = self.DeclareDiscreteState(initial)
+        # Discrete state groups: cascade states (z1, z2) per axis plus a started flag;
+        # the held gust; the held wind. The outputs are the last two groups as they are.
+        self._filter = self.DeclareDiscreteState(7)
+        gust = self.DeclareDiscreteState(3)
+        wind = self.DeclareDiscreteState(self._steady)
         self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, 0.0, self._update)
-        deps = {self.xd_ticket()}
-        self.DeclareVectorOutputPort("wind_ned", 3, self._calc_wind, prerequisites_of_calc=deps)
-        self.DeclareVectorOutputPort("gust_body", 3, self._calc_gust, prerequisites_of_calc=deps)
+        self.DeclareStateOutputPort("wind_ned", wind)
+        self.DeclareStateOutputPort("gust_body", gust)
         self._fixed = None
         if not params.needs_plant_state:
             self._fixed = self._coefficients(params.airspeed, params.altitude)
@@ -368,26 +368,26 @@ class DrydenFilter(LeafSystem):
         return self._params
 
     def _coefficients(self, airspeed: float, altitude: float) -> list[tuple]:
-        """Per axis (sigma, a, e, l11, l21, l22) at a flight condition (floats)."""
+        """Per axis (sigma, a, e, l11, l21, l22, k, g) at a flight condition (floats)."""
         p = self._params
-        scales = dryden_scales(p.level, altitude, p.model)
+        l_u, l_v, l_w, s_u, s_v, s_w = _scale_values(p.level, altitude, p.model)
         speed = max(airspeed, p.min_airspeed)
         out = []
-        for length, sigma in ((scales.length_u, scales.sigma_u),
-                              (scales.length_v, scales.sigma_v),
-                              (scales.length_w, scales.sigma_w)):
+        for i, (length, sigma) in enumerate(((l_u, s_u), (l_v, s_v), (l_w, s_w))):
             a = speed / length
-            out.append((sigma, a, *_transition_terms(a, p.update_period, math)))
+            out.append((sigma, a, *_transition_terms(a, p.update_period, math),
+                        float(_GAIN_K[i]), float(_GAIN_G[i])))
         return out
 
     def _update(self, context, discrete_state) -> None:
         p = self._params
-        x = context.get_discrete_state(self._xd).get_value()
-        n = self._noise.Eval(context)
+        x = context.get_discrete_state(self._filter).get_value().tolist()
+        n = self._noise.Eval(context).tolist()
         rot = None
         if self._plant_state.HasValue(context):
             s = self._plant_state.Eval(context)
-            rot = quat_to_rotmat(quat_normalize(s[3:7]))
+            q = s[3:7]
+            rot = quat_to_rotmat(q) / (q @ q)  # rotation of the normalised quaternion
         elif p.needs_plant_state:
             raise RuntimeError(
                 "DrydenFilter: input 'plant_state' is not connected but DrydenParams "
@@ -397,14 +397,14 @@ class DrydenFilter(LeafSystem):
         if coefficients is None:
             airspeed = p.airspeed
             if airspeed is None:
-                v = s[7:10] - rot.T @ self._steady if self._has_steady else s[7:10]
+                v = (s[7:10] - rot.T @ self._steady if self._has_steady else s[7:10]).tolist()
                 airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
             altitude = -float(s[2]) if p.altitude is None else p.altitude
             coefficients = self._coefficients(airspeed, altitude)
-        started = x[self._STARTED] > 0
+        started = x[6] > 0
         dt = p.update_period
         z, gust = [], []
-        for i, (sigma, a, e, l11, l21, l22) in enumerate(coefficients):
+        for i, (sigma, a, e, l11, l21, l22, k, g) in enumerate(coefficients):
             n1, n2 = n[2 * i], n[2 * i + 1]
             if started:
                 z1, z2 = x[2 * i], x[2 * i + 1]
@@ -413,16 +413,13 @@ class DrydenFilter(LeafSystem):
                 s11, s21, s22 = _stationary_terms(a, math)
                 z1, z2 = s11 * n1, s21 * n1 + s22 * n2
             z += (z1, z2)
-            gust.append(_output(z1, z2, a, sigma, _GAIN_K[i], _GAIN_G[i], math))
+            gust.append(_output(z1, z2, a, sigma, k, g, math))
+        z.append(1.0)
         gust = np.array(gust)
-        wind = self._steady + (gust if rot is None else rot @ gust)
-        discrete_state.set_value(np.concatenate([z, gust, wind, (1.0,)]))
-
-    def _calc_wind(self, context, output) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[self._WIND])
-
-    def _calc_gust(self, context, output) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[self._GUST])
+        discrete_state.get_mutable_vector(0).SetFromVector(z)
+        discrete_state.get_mutable_vector(1).SetFromVector(gust)
+        discrete_state.get_mutable_vector(2).SetFromVector(
+            self._steady + (gust if rot is None else rot @ gust))
 
 
 class DrydenWind(Diagram):
