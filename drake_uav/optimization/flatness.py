@@ -190,6 +190,8 @@ def reference_from_flat_outputs(time, position, velocity, acceleration, jerk, sn
     residual = 0.0
     accel_rows = np.r_[VELOCITY, BODY_RATES]
     unit = np.eye(4)
+    # The plant dynamics are affine in the wrench: evaluate the drift and the four input
+    # columns, then solve for the wrench that gives the reference accelerations.
     for k in range(N):
         drift = multirotor_dynamics(state[k], np.zeros(4), params)[accel_rows]
         B = np.column_stack([multirotor_dynamics(state[k], unit[i], params)[accel_rows] - drift

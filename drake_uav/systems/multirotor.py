@@ -127,16 +127,20 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     else:
         acc = _matvec(R, _body_force(R, scale, v, F, params))
         acc = [acc[0] * k, acc[1] * k, acc[2] * k + params.gravity]
-    inv_m = 1.0 / params.mass
     if external_wrench is not None:
         e = as_list(external_wrench)
+        inv_m = 1.0 / params.mass
         acc = [acc[0] + e[0] * inv_m, acc[1] + e[1] * inv_m, acc[2] + e[2] * inv_m]
         tx, ty, tz = tx + e[3], ty + e[4], tz + e[5]
-    Jw = _matvec(params.inertia_matrix.tolist(), w)
+    Jx, Jy, Jz = params.inertia
+    principal = params.inertia_products == (0.0, 0.0, 0.0)
+    Jw = [Jx * w[0], Jy * w[1], Jz * w[2]] if principal else \
+        _matvec(params.inertia_matrix.tolist(), w)
     net = [tx - (w[1] * Jw[2] - w[2] * Jw[1]),
            ty - (w[2] * Jw[0] - w[0] * Jw[2]),
            tz - (w[0] * Jw[1] - w[1] * Jw[0])]
-    w_dot = _matvec(params.inertia_inverse.tolist(), net)
+    w_dot = [net[0] / Jx, net[1] / Jy, net[2] / Jz] if principal else \
+        _matvec(params.inertia_inverse.tolist(), net)
     q_dot = quat_derivative(q, w, quaternion_stabilization).tolist()
     return np.array(v + q_dot + acc + w_dot)
 
@@ -197,7 +201,8 @@ def MultirotorPlant_(T):
         ========================  ======  =========================================
 
         The continuous state is the 13 rigid-body states, followed by the n
-        produced thrusts when ``params.motor_time_constant > 0``. The default
+        produced thrusts when ``params.motor_time_constant > 0`` (the ``state``
+        output always holds the first 13). The default
         state is at rest at the origin, level, with the motors at hover thrust.
         """
 
@@ -212,7 +217,7 @@ def MultirotorPlant_(T):
             x0 = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
             if self._has_lag:
                 x0 += list(params.thrusts_for_wrench([params.weight, 0.0, 0.0, 0.0]))
-            self.DeclareContinuousState(BasicVector_[T](x0))
+            state_index = self.DeclareContinuousState(BasicVector_[T](x0))
             self._commands = self.DeclareVectorInputPort("motor_thrusts", n)
             self._health = self.DeclareVectorInputPort("motor_health", n)
             self._external = self.DeclareVectorInputPort("external_wrench", 6)
@@ -221,8 +226,11 @@ def MultirotorPlant_(T):
                 {self.all_state_ticket(), self._health.ticket()} if self._has_lag else
                 {self._commands.ticket(), self._health.ticket()}
             )
-            self.DeclareVectorOutputPort("state", STATE_SIZE, self._calc_state,
-                                         prerequisites_of_calc=state_only)
+            if self._has_lag:
+                self.DeclareVectorOutputPort("state", STATE_SIZE, self._calc_state,
+                                             prerequisites_of_calc=state_only)
+            else:  # the whole continuous state, served without a Python call
+                self.DeclareStateOutputPort("state", state_index)
             self.DeclareVectorOutputPort("euler", 3, self._calc_euler,
                                          prerequisites_of_calc=state_only)
             self.DeclareVectorOutputPort(
@@ -251,10 +259,13 @@ def MultirotorPlant_(T):
             return produced_thrusts(x, commands, self.params, health)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
-            x, commands, health, external = self._inputs(context, True)
-            xdot = multirotor_derivatives(x, commands, self.params, health, external,
-                                          self.quaternion_stabilization)
-            derivatives.get_mutable_vector().SetFromVector(xdot)
+            health, external = self._health, self._external
+            derivatives.SetFromVector(multirotor_derivatives(
+                context.get_continuous_state_vector().CopyToVector(),
+                self._commands.Eval(context), self.params,
+                health.Eval(context) if health.HasValue(context) else None,
+                external.Eval(context) if external.HasValue(context) else None,
+                self.quaternion_stabilization))
 
         def _calc_state(self, context, output):
             x = context.get_continuous_state_vector().CopyToVector()
