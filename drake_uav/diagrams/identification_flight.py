@@ -230,7 +230,7 @@ def default_excitation(kind: str, duration: float, start: float = 1.0) -> tuple:
     """Excitation of elevator, aileron and rudder for ``kind``.
 
     "multisine": mutually orthogonal low-peak-factor multisines, 0.1-1.5 Hz,
-    period 20 s (or the flight, if shorter), peaks 2, 3, 3 deg, repeated;
+    period 20 s (or the flight, if shorter), peaks 2, 3, 3 deg, repeated to the end;
     "doublet": 1 s doublets of 3 deg, one surface after another every 8 s;
     "3211": 3-2-1-1 of 3 deg with a 0.3 s unit, one surface after another;
     "none": no excitation (trim only).
@@ -238,10 +238,15 @@ def default_excitation(kind: str, duration: float, start: float = 1.0) -> tuple:
     surfaces = ("elevator", "aileron", "rudder")
     amplitude = math.radians(3.0)
     if kind == "multisine":
+        if duration - start < 3.0:
+            raise ValueError(
+                f"duration: the default multisine needs at least {start + 3.0:g} s of flight "
+                f"(3 harmonics up to 1.5 Hz after {start:g} s), got {duration:g} s"
+            )
         period = min(20.0, duration - start)
-        cycles = max(1, math.floor((duration - start) / period))
         return orthogonal_multisines(surfaces, period, np.radians([2.0, 3.0, 3.0]),
-                                     band=(0.1, 1.5), start=start, cycles=cycles)
+                                     band=(0.1, 1.5), start=start,
+                                     cycles=(duration - start) / period)
     if kind == "doublet":
         return tuple(Doublet(s, amplitude, 0.5, start + 8.0 * i) for i, s in enumerate(surfaces))
     if kind == "3211":

@@ -115,6 +115,7 @@ def test_log_round_trip(log, tmp_path):
         ({"sensors": SensorSuiteParams(gps=GpsParams(rate_hz=400.0))}, "gps.rate_hz"),
         ({"excitation": "sweep"}, "excitation"),
         ({"duration": -1.0}, "duration"),
+        ({"excitation": "multisine"}, "duration"),  # too short for the default multisine
         ({"seed": -3}, "seed"),
         ({"turbulence": None, "steady_wind": (1.0, 2.0)}, "steady_wind"),
     ],
