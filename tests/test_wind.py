@@ -172,9 +172,9 @@ def _log_average_ratio(x: np.ndarray, dt: float, scales, airspeed: float,
 @pytest.mark.parametrize("level, altitude", [("light", 50.0), ("moderate", 450.0),
                                              ("severe", 1500.0)])
 def test_long_run_psd_and_variance_of_exact_recursion(level, altitude):
-    """100 runs of 330 s per level, at a low, a transition-band and a medium altitude."""
-    airspeed, dt = 25.0, 0.02
-    x = _ensemble(level, airspeed, altitude, dt, steps=2**14, runs=100, seed=7)
+    """160 runs of 820 s per level, at a low, a transition-band and a medium altitude."""
+    airspeed, dt = 25.0, 0.05
+    x = _ensemble(level, airspeed, altitude, dt, steps=2**14, runs=160, seed=7)
     scales = dryden_scales(level, altitude)
     ratio = _log_average_ratio(x, dt, scales, airspeed, nperseg=2**13)
     np.testing.assert_allclose(ratio, 1.0, atol=0.25)
