@@ -63,7 +63,8 @@ _TRUTH = {
     "euler": slice(15, 18),
     "altitude": slice(18, 19),
 }
-_TRUTH_SIZE = 19
+_ZERO3 = np.zeros(3)
+_ZERO13 = np.zeros(13)
 
 
 @dataclass(frozen=True)
@@ -369,31 +370,35 @@ class SampledSensors(LeafSystem):
         needed = set(self._truth_idx.tolist())
         self._needs = {key: bool(needed & set(range(s.start, s.stop))) for key, s in
                        _TRUTH.items()}
+        self._needs["state"] = any(self._needs[k] for k in ("position", "velocity", "rates",
+                                                            "altitude"))
+        self._needs["air"] = self._needs["dynamic_pressure"] or self._needs["air_angles"]
+        self._density = p.pitot.air_density if p.pitot is not None else 0.0
 
     def _held(self, context) -> np.ndarray:
         return context.get_discrete_state(self._xd).get_value()[self._out]
 
     def _truth(self, context) -> np.ndarray:
-        """True values of every quantity some fitted sensor measures (19)."""
+        """True values of every quantity some fitted sensor measures (N).
+
+        Assembled in the ``_TRUTH`` layout from the inputs the fitted sensors need
+        (zeros for the others), then reduced to the fitted channels.
+        """
         need = self._needs
-        truth = np.zeros(_TRUTH_SIZE)
-        if need["position"] or need["velocity"] or need["rates"] or need["altitude"]:
-            x = self._state.Eval(context)
-            truth[6:9] = x[0:3]
-            truth[18] = -x[2]
-            truth[3:6] = x[10:13]
-            if need["velocity"]:
-                q = x[3:7]
-                truth[9:12] = quat_to_rotmat(q) @ x[7:10] / (q @ q)
-        if need["specific_force"]:
-            truth[0:3] = self._force.Eval(context)
-        if need["dynamic_pressure"] or need["air_angles"]:
-            air = self._air.Eval(context)
-            if self.params.pitot is not None:
-                truth[12] = 0.5 * self.params.pitot.air_density * air[0] ** 2
-            truth[13:15] = air[1:3]
-        if need["euler"]:
-            truth[15:18] = self._euler.Eval(context)
+        zero = _ZERO3
+        x = self._state.Eval(context) if need["state"] else _ZERO13
+        velocity = zero
+        if need["velocity"]:
+            q = x[3:7]
+            velocity = quat_to_rotmat(q) @ x[7:10] / (q @ q)
+        air = self._air.Eval(context) if need["air"] else zero
+        truth = np.concatenate((
+            self._force.Eval(context) if need["specific_force"] else zero,
+            x[10:13], x[0:3], velocity,
+            (0.5 * self._density * air[0] * air[0],), air[1:3],
+            self._euler.Eval(context) if need["euler"] else zero,
+            (-x[2],),
+        ))
         return truth[self._truth_idx]
 
     def _update(self, context, discrete_state) -> None:
