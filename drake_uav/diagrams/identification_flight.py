@@ -31,11 +31,17 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import Adder, ConstantVectorSource, LogVectorOutput
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    DiscreteTimeDelay,
+    LogVectorOutput,
+)
 
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.optimization.trim import TrimResult, trim
 from drake_uav.rotations import quat_to_euler, quat_to_rotmat
+from drake_uav.systems.disturbances import AerodynamicIncrement
 from drake_uav.systems.excitation import (
     SURFACES,
     Doublet,
@@ -202,14 +208,15 @@ class IdentificationFlight:
         data = logs["measurements"].data()[:, 1:n + 1]
         for name, row in zip(self.sensors.channel_names, data, strict=True):
             measured[name], units[name] = row, self.sensors.channel_units[name]
-        commands = logs["commands"].data()[:, 1:n + 1]
+        # Commands are read by the plant at t_k directly (no sample-and-hold in between).
+        commands = logs["commands"].data()[:, :n]
         for i, surface in enumerate(SURFACES):
             name = f"cmd_{surface}"
             measured[name], units[name] = commands[i], _TRUTH["controls"][1][i]
         limits = self.aircraft.limits
         for key, (names, channel_units) in _TRUTH.items():
             if key == "controls":
-                values = np.clip(logs["commands"].data()[:, :n].T, limits.lower(),
+                values = np.clip(logs["surfaces"].data()[:, :n].T, limits.lower(),
                                  limits.upper()).T
             elif key in logs:
                 values = logs[key].data()[:, :n]
@@ -274,6 +281,24 @@ def _turbulence_params(turbulence, steady_wind, sample_period: float) -> DrydenP
                         update_period=sample_period).validate()
 
 
+def _connect_disturbance(builder, plant, params, disturbance, commands) -> None:
+    """Feeds an effect the model lacks into the plant's ``external_wrench``."""
+    if callable(disturbance):
+        effect = builder.AddNamedSystem("disturbance",
+                                        AerodynamicIncrement(params, disturbance))
+        builder.Connect(plant.GetOutputPort("air_data"), effect.GetInputPort("air_data"))
+        builder.Connect(plant.GetOutputPort("state"), effect.GetInputPort("state"))
+        builder.Connect(commands, effect.GetInputPort("controls"))
+        wrench = effect.GetOutputPort("wrench")
+    else:
+        value = np.asarray(disturbance, dtype=float)
+        if value.shape != (6,) or not np.all(np.isfinite(value)):
+            raise ValueError(f"disturbance: need a function or 6 finite values, got {value}")
+        wrench = builder.AddNamedSystem("disturbance", ConstantVectorSource(value)
+                                        ).get_output_port(0)
+    builder.Connect(wrench, plant.GetInputPort("external_wrench"))
+
+
 def build_identification_flight(
     aircraft: str | FixedWingParams = "aerosonde",
     turbulence: str | DrydenParams | None = "light",
@@ -288,6 +313,8 @@ def build_identification_flight(
     stabilize: bool = True,
     pilot_gains: SafetyPilotGains = SafetyPilotGains(),
     integrator: str = "runge_kutta2",
+    disturbance=None,
+    actuator_delay: float = 0.0,
 ) -> IdentificationFlight:
     """Builds the identification-flight diagram with its loggers.
 
@@ -303,6 +330,11 @@ def build_identification_flight(
         airspeed: trim airspeed [m/s]; altitude: initial altitude [m].
         stabilize: add the :class:`SafetyPilot` (weak hold loops).
         integrator: Drake integration scheme; fixed step = sensor base period.
+        disturbance: an effect the aircraft model lacks, put into the physics: a
+            function ``f(AeroCondition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``
+            (:class:`AerodynamicIncrement`) or a constant body wrench (6: N, N m).
+        actuator_delay: pure delay [s] between the logged commands and the
+            surfaces (rounded to whole sample periods, at least two).
     """
     params = load_fixed_wing(aircraft) if isinstance(aircraft, str) else aircraft
     if not (duration > 0 and math.isfinite(duration)):
@@ -340,7 +372,20 @@ def build_identification_flight(
         for name in ("state", "euler", "air_data"):
             builder.Connect(plant.GetOutputPort(name), pilot.GetInputPort(name))
         commands = adder.get_output_port(0)
-    builder.Connect(commands, plant.GetInputPort("controls"))
+    plant_commands = commands
+    if actuator_delay > 0.0:
+        steps = int(round(actuator_delay / dt))
+        if steps < 2:
+            raise ValueError(f"actuator_delay: {actuator_delay} s is shorter than two sample "
+                             f"periods ({2 * dt} s), the shortest delay the flight can model")
+        # The delay samples the held command one period late: steps - 1 buffer slots.
+        delay = builder.AddNamedSystem("actuator_delay",
+                                       DiscreteTimeDelay(dt, steps - 1, 4))
+        builder.Connect(commands, delay.get_input_port())
+        plant_commands = delay.get_output_port()
+    builder.Connect(plant_commands, plant.GetInputPort("controls"))
+    if disturbance is not None:
+        _connect_disturbance(builder, plant, params, disturbance, plant_commands)
 
     wind = None
     if wind_params is not None:
@@ -359,6 +404,7 @@ def build_identification_flight(
     loggers = {
         "measurements": LogVectorOutput(suite.GetOutputPort("measurements"), builder, dt),
         "commands": LogVectorOutput(commands, builder, dt),
+        "surfaces": LogVectorOutput(plant_commands, builder, dt),
         "wind_ned": LogVectorOutput(wind_port, builder, dt),
     }
     if wind is not None:
