@@ -72,11 +72,50 @@ class AeroSamples:
     signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
     """Any other logged signals (altitude, attitude, ...), by name, same length."""
     noise_variance: Mapping[str, float] = dataclasses.field(default_factory=dict)
-    """Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r``
-    (units squared), for errors-in-variables corrections."""
+    """Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r, ax,
+    ay, az`` (units squared), for errors-in-variables corrections."""
+    thrust_airspeed_slope: np.ndarray | None = None
+    """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured)."""
+    reference_area: float = 1.0
+    """Wing area S [m^2] the coefficients refer to."""
 
     def __len__(self) -> int:
         return len(self.time)
+
+    def observation_sensitivity(self, coefficient: str) -> dict[str, np.ndarray]:
+        """d(measured coefficient)/d(air-data signal) per sample, for noise propagation.
+
+        Every coefficient divides by qbar, so d/dVa = -2 C / Va; the wind-axis
+        rotation gives d C_L / d alpha = -C_D and d C_D / d alpha = C_L.
+        """
+        value = self.coefficients[coefficient]
+        out = {"airspeed": -2.0 * value / self.condition.airspeed}
+        if coefficient in ("CL", "CD") and self.thrust_airspeed_slope is not None:
+            # C_X = (m a_x - T) / (qbar S) also moves with the modelled thrust.
+            dcx = -self.thrust_airspeed_slope / (self.dynamic_pressure * self.reference_area)
+            alpha = self.condition.alpha
+            rotate = np.sin(alpha) if coefficient == "CL" else -np.cos(alpha)
+            out["airspeed"] = out["airspeed"] + rotate * dcx
+        if coefficient == "CL":
+            out["alpha"] = -self.coefficients["CD"]
+        elif coefficient == "CD":
+            out["alpha"] = self.coefficients["CL"]
+        return out
+
+    def perturbed(self, signal: str, delta: float) -> AeroSamples:
+        """A copy with ``delta`` added to one air-data signal (``airspeed``, ``alpha``, ``beta``);
+        the dynamic pressure follows the airspeed."""
+        value = getattr(self.condition, signal) + delta
+        condition = self.condition._replace(**{signal: value})
+        if signal != "airspeed":
+            return dataclasses.replace(self, condition=condition)
+        q_bar = self.dynamic_pressure * (value / self.condition.airspeed) ** 2
+        thrust = self.thrust
+        if self.thrust_airspeed_slope is not None:
+            thrust = thrust + self.thrust_airspeed_slope * delta
+        condition = condition._replace(thrust_coefficient=thrust / (q_bar * self.reference_area))
+        return dataclasses.replace(self, condition=condition, dynamic_pressure=q_bar,
+                                   thrust=thrust)
 
     def subset(self, index) -> AeroSamples:
         """The samples selected by a boolean mask or an index array."""
@@ -96,6 +135,9 @@ class AeroSamples:
             specific_force=pick(self.specific_force),
             signals={k: pick(v) for k, v in self.signals.items()},
             noise_variance=dict(self.noise_variance),
+            thrust_airspeed_slope=(None if self.thrust_airspeed_slope is None
+                                   else pick(self.thrust_airspeed_slope)),
+            reference_area=self.reference_area,
         )
 
 
@@ -191,8 +233,14 @@ def isolate_coefficients(
                          f"{bad} is too low to normalise the forces")
     # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
     # samples, then smooth the result like every other signal.
-    raw_thrust, raw_torque = FixedWingModel(params).thrust(arrays["air_data"][:, 0],
-                                                           arrays["controls"][:, 3])
+    model = FixedWingModel(params)
+    raw_thrust, raw_torque = model.thrust(arrays["air_data"][:, 0], arrays["controls"][:, 3])
+    slope = None
+    if thrust is None:
+        step = 0.01
+        slope = smooth((model.thrust(arrays["air_data"][:, 0] + step, arrays["controls"][:, 3])[0]
+                        - model.thrust(arrays["air_data"][:, 0] - step,
+                                       arrays["controls"][:, 3])[0]) / (2 * step))
     thrust = smooth(raw_thrust if thrust is None else np.asarray(thrust, dtype=float))
     torque = smooth(np.broadcast_to(raw_torque, (n,)).astype(float))
     q_bar = 0.5 * params.rho * airspeed**2
@@ -218,10 +266,10 @@ def isolate_coefficients(
         elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
         alphadot=alpha_dot, thrust_coefficient=thrust / q_bar_s,
     )
-    air_noise = smoothed_noise_variance(time, arrays["air_data"], derivative_window)
-    rate_noise = smoothed_noise_variance(time, raw_rates, derivative_window)
-    noise_variance = dict(zip(("airspeed", "alpha", "beta", "p", "q", "r"),
-                              (*air_noise.tolist(), *rate_noise.tolist()), strict=True))
+    noise = np.concatenate([smoothed_noise_variance(time, arrays[k], derivative_window)
+                            for k in ("air_data", "rates", "specific_force")])
+    noise_variance = dict(zip(("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az"),
+                              noise.tolist(), strict=True))
     extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
     for name, value in extra.items():
         if value.shape != (n,):
@@ -230,6 +278,7 @@ def isolate_coefficients(
         time=time, condition=condition, coefficients=coefficients, dynamic_pressure=q_bar,
         throttle=u[:, 3], thrust=np.asarray(thrust, dtype=float), rate_derivatives=w_dot,
         specific_force=f, signals=extra, noise_variance=noise_variance,
+        thrust_airspeed_slope=slope, reference_area=params.S,
     )
 
 

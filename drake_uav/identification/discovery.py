@@ -1,0 +1,485 @@
+"""Close the loop with measured data: residual -> missing effect -> updated model.
+
+The loop (:func:`discover`):
+
+1. fit the baseline structure (the aircraft's derivative names) to each
+   measured coefficient by OLS on the training part of the flight;
+2. diagnose each residual (whiteness, spectrum, drift, correlation with the
+   candidate columns: :mod:`drake_uav.identification.residuals`);
+3. score every named effect of :mod:`drake_uav.identification.effects` on every
+   coefficient it can enter, by evidence on data the fit did not see:
+   blocked K-fold cross-validation (held-out prediction error, PSE), a partial
+   F-test whose degrees of freedom use the residual's effective sample size
+   (correlated residuals carry less information than their sample count), and
+   the change in BIC;
+
+Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
+beta) are noisy and enter both the measured coefficients and the regressors;
+ordinary least squares then attenuates the derivatives (seed S0 Table 5) and
+leaves a systematic residual that any column correlated with the air data
+would "explain". The noise variances estimated by the isolation are propagated
+to every column and to the observation by finite-difference Jacobians, and the
+normal equations are corrected by the expected noise moments (bias-compensated
+least squares, the moment form of the seed's GTLS).
+4. accept the best candidate that passes every test of :class:`EvidenceRule`,
+   add its columns, and repeat until nothing passes (or the residuals are
+   white); when no named effect passes, try the data-driven fallback (products
+   of signals), which reports the signals involved;
+5. refit, and report the equation-error RMS before and after on the held-out
+   tail of the flight.
+
+The rule is strict on purpose: it must not invent effects. With no effect in
+the data it answers "no missing effect found".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+from scipy import stats
+
+from drake_uav.identification.effects import Effect, effect_library, product_candidates
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.regression import RegressionResult, _finish
+from drake_uav.identification.residuals import (
+    ResidualDiagnosis,
+    diagnose,
+    effective_sample_size,
+)
+from drake_uav.systems.aerodynamics import COEFFICIENTS, regressor_matrix
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = [
+    "EvidenceRule",
+    "Evidence",
+    "FoundEffect",
+    "CoefficientFit",
+    "DiscoveryResult",
+    "discover",
+    "baseline_names",
+]
+
+NO_EFFECT_MESSAGE = "no missing effect found"
+
+
+@dataclasses.dataclass(frozen=True)
+class EvidenceRule:
+    """Thresholds a candidate must pass to be added (all of them).
+
+    ``p_value`` is the family-wise level: it is divided by the number of
+    candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
+    smallest held-out prediction-error reduction worth a new term (fraction of
+    the baseline PSE); ``min_folds`` how many of the ``folds`` must improve.
+    """
+
+    p_value: float = 1e-3
+    min_pse_reduction: float = 0.02
+    folds: int = 5
+    min_folds: int = 5
+    holdout_fraction: float = 0.3
+    max_rounds: int = 6
+
+
+@dataclasses.dataclass(frozen=True)
+class Evidence:
+    """Statistics of one candidate (an effect on one coefficient)."""
+
+    effect: str
+    coefficient: str
+    columns: tuple[str, ...]
+    pse_reduction: float
+    """Mean relative reduction of the held-out prediction error over the folds."""
+    folds_improved: int
+    f_statistic: float
+    p_value: float
+    """Partial F-test p-value with the effective sample size."""
+    delta_bic: float
+    """BIC(with) - BIC(without), effective sample size; negative favours the effect."""
+    passed: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class FoundEffect:
+    """An effect the loop added, with its evidence and identified parameters."""
+
+    name: str
+    explanation: str
+    kind: str
+    coefficients: tuple[str, ...]
+    evidence: tuple[Evidence, ...]
+    parameters: Mapping[str, tuple[float, float]]
+    """``"<coefficient>:<column>" -> (estimate, sigma)``."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CoefficientFit:
+    """A fitted coefficient model: structure, OLS result and held-out error."""
+
+    coefficient: str
+    names: tuple[str, ...]
+    result: RegressionResult
+    rms_train: float
+    rms_holdout: float
+    holdout_residual: np.ndarray
+    holdout_design: np.ndarray
+    """(N_holdout, n) regressor columns on the held-out samples, in ``names`` order."""
+    diagnosis: ResidualDiagnosis
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscoveryResult:
+    """Everything the loop found, before and after."""
+
+    baseline: Mapping[str, CoefficientFit]
+    final: Mapping[str, CoefficientFit]
+    found: tuple[FoundEffect, ...]
+    rounds: tuple[tuple[Evidence, ...], ...]
+    """Ranked evidence of every round."""
+    holdout_start: float
+    """Time [s] where the held-out tail begins."""
+
+    @property
+    def message(self) -> str:
+        """One line: the effects found, or that none was."""
+        if not self.found:
+            return NO_EFFECT_MESSAGE
+        return "missing effect(s) found: " + ", ".join(
+            f"{f.name} ({', '.join(f.coefficients)})" for f in self.found)
+
+    def rms_change(self) -> dict[str, tuple[float, float]]:
+        """Held-out equation-error RMS (before, after) per coefficient."""
+        return {k: (self.baseline[k].rms_holdout, self.final[k].rms_holdout)
+                for k in self.baseline}
+
+
+NOISY_SIGNALS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5}
+"""Air-data signals whose noise is propagated, with their finite-difference steps."""
+
+ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
+
+
+def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples, variance):
+    """Columns of ``function(samples)`` and their derivatives w.r.t. the noisy signals."""
+    columns = dict(function(samples))
+    jac = {}
+    for signal, step in NOISY_SIGNALS.items():
+        if variance.get(signal, 0.0) <= 0.0:
+            continue
+        up = function(samples.perturbed(signal, step))
+        down = function(samples.perturbed(signal, -step))
+        jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
+    return columns, jac
+
+
+@dataclasses.dataclass
+class _Design:
+    """One coefficient's regression on some samples, with its noise model."""
+
+    names: list[str]
+    X: np.ndarray
+    jac: dict[str, np.ndarray]
+    """signal -> (N, m) derivatives of the columns."""
+    z: np.ndarray
+    z_jac: dict[str, np.ndarray]
+    variance: Mapping[str, float]
+
+    def extended(self, columns: Mapping[str, np.ndarray], jac, prefix: str = "") -> _Design:
+        names = [f"{prefix}{k}" for k in columns]
+        X = np.column_stack([self.X, *columns.values()])
+        new_jac = {s: np.column_stack([J, *(jac[s][k] for k in columns)]) if s in jac
+                   else np.column_stack([J, np.zeros((len(self.z), len(columns)))])
+                   for s, J in self.jac.items()}
+        return _Design(self.names + names, X, new_jac, self.z, self.z_jac, self.variance)
+
+    def noise_moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """Expected ``(dX^T dX, dX^T dz)`` of the propagated noise over ``rows``."""
+        m = self.X.shape[1]
+        C_xx, c_xz = np.zeros((m, m)), np.zeros(m)
+        for signal, J in self.jac.items():
+            Jr = J if rows is None else J[rows]
+            var = self.variance[signal]
+            C_xx += var * (Jr.T @ Jr)
+            jz = self.z_jac.get(signal)
+            if jz is not None:
+                c_xz += var * (Jr.T @ (jz if rows is None else jz[rows]))
+        return C_xx, c_xz
+
+    def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
+        X = self.X if rows is None else self.X[rows]
+        z = self.z if rows is None else self.z[rows]
+        C_xx, c_xz = self.noise_moments(rows)
+        return X.T @ X - C_xx, X.T @ z - c_xz
+
+    def errors(self, theta: np.ndarray, rows=None) -> tuple[float, float]:
+        """Observed squared error over ``rows`` and the same without its regressor-noise part.
+
+        The observed ``|z - X theta|^2`` contains ``theta^T C_xx theta -
+        2 theta^T c_xz`` of regressor noise. Comparing models by the error
+        without it scores how well they predict the true coefficient, so a
+        column that merely stands in for a noisy regressor (a cleaner proxy)
+        gains nothing.
+        """
+        X = self.X if rows is None else self.X[rows]
+        z = self.z if rows is None else self.z[rows]
+        r = z - X @ theta
+        C_xx, c_xz = self.noise_moments(rows)
+        observed = float(r @ r)
+        return observed, observed - float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
+
+    def solve(self, rows=None) -> np.ndarray:
+        A, b = self.moments(rows)
+        scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+        try:
+            return np.linalg.solve(A / np.outer(scale, scale), b / scale) / scale
+        except np.linalg.LinAlgError:
+            return np.linalg.lstsq(A, b, rcond=None)[0]
+
+    def fold_errors(self, folds: Sequence[np.ndarray]) -> np.ndarray:
+        """(2, K): observed and noise-corrected held-out squared error of each blocked fold
+        (fit on the others)."""
+        out = np.empty((2, len(folds)))
+        mask = np.ones(len(self.z), dtype=bool)
+        for i, idx in enumerate(folds):
+            mask[:] = True
+            mask[idx] = False
+            out[:, i] = self.errors(self.solve(mask), idx)
+        return out
+
+    def result(self, confidence: float = 0.95) -> RegressionResult:
+        """Bias-compensated estimate with a sandwich covariance (method "BCLS")."""
+        theta = self.solve()
+        residual = self.z - self.X @ theta
+        n, p = self.X.shape
+        A, _ = self.moments()
+        A_inv = np.linalg.pinv(A)
+        sigma2 = float(residual @ residual) / max(n - p, 1)
+        covariance = sigma2 * A_inv @ (self.X.T @ self.X) @ A_inv
+        s = np.linalg.svd(self.X / np.maximum(np.linalg.norm(self.X, axis=0), 1e-300),
+                          compute_uv=False)
+        return _finish(method="BCLS", names=tuple(self.names), theta=theta,
+                       covariance=covariance, noise_std=np.sqrt(sigma2), residual=residual,
+                       z=self.z, dof=n - p, rank=p, singular_values=s, threshold=0.0,
+                       condition=s[0] / max(s[-1], 1e-300), directions=np.zeros((0, p)),
+                       confidence=confidence)
+
+
+def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
+    """The aircraft's derivative names for ``coefficient`` (a constant term always)."""
+    names = [n for n in params.derivatives if n.split("_", 1)[0] == coefficient]
+    if f"{coefficient}_0" not in names:
+        names.insert(0, f"{coefficient}_0")
+    return names
+
+
+def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: str) -> _Design:
+    names = baseline_names(params, coefficient)
+
+    def columns(smp):
+        X = regressor_matrix(names, smp.condition, params.b, params.c)
+        return dict(zip(names, X.T, strict=True))
+
+    variance = samples.noise_variance
+    cols, jac = _columns_and_jacobians(columns, samples, variance)
+    return _Design(
+        names=list(names), X=np.column_stack(list(cols.values())),
+        jac={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
+        z=np.asarray(samples.coefficients[coefficient], dtype=float),
+        z_jac={s: v for s, v in samples.observation_sensitivity(coefficient).items()
+               if s in jac},
+        variance={s: float(variance[s]) for s in jac},
+    )
+
+
+def _folds(n: int, k: int) -> list[np.ndarray]:
+    edges = np.linspace(0, n, k + 1).astype(int)
+    return [np.arange(edges[i], edges[i + 1]) for i in range(k)]
+
+
+def _is_redundant(X: np.ndarray, column: np.ndarray) -> bool:
+    """True when ``column`` is (nearly) a combination of the columns of X, or zero."""
+    norm = np.linalg.norm(column)
+    if norm == 0.0 or not np.isfinite(norm):
+        return True
+    r = column - X @ np.linalg.lstsq(X, column, rcond=None)[0]
+    return np.linalg.norm(r) < 1e-3 * norm
+
+
+@dataclasses.dataclass
+class _RoundBase:
+    """The current design of one coefficient and its statistics, shared by the candidates."""
+
+    design: _Design
+    n_eff: float
+    fold_errors: np.ndarray
+    """(2, K) observed and noise-corrected held-out errors."""
+    sse: tuple[float, float]
+    """Observed and noise-corrected training error."""
+
+
+def _round_base(design: _Design, folds) -> _RoundBase:
+    theta = design.solve()
+    residual = design.z - design.X @ theta
+    return _RoundBase(design, float(effective_sample_size(residual)),
+                      design.fold_errors(folds), design.errors(theta))
+
+
+def _score(name: str, coefficient: str, base: _RoundBase, function: ColumnFunction,
+           samples: AeroSamples, folds, rule: EvidenceRule, n_tests: int) -> Evidence | None:
+    columns, jac = _columns_and_jacobians(function, samples, base.design.variance)
+    columns = {k: v for k, v in columns.items() if not _is_redundant(base.design.X, v)}
+    if not columns:
+        return None
+    candidate = base.design.extended(columns, jac)
+    errors = candidate.fold_errors(folds)
+    # Improvement in the noise-corrected error, relative to the observed error.
+    gain = base.fold_errors[1] - errors[1]
+    reduction = float(np.mean(gain / base.fold_errors[0]))
+    improved = int(np.sum(gain > 0))
+    n, p = base.design.X.shape
+    q = len(columns)
+    observed1, corrected1 = candidate.errors(candidate.solve())
+    drop = max(base.sse[1] - corrected1, 0.0)
+    dof = max(base.n_eff - p - q, 1.0)
+    f_stat = drop / q / (observed1 / dof)
+    p_value = float(stats.f.sf(f_stat, q, dof))
+    delta_bic = base.n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) + q * np.log(
+        base.n_eff)
+    passed = (p_value < rule.p_value / max(n_tests, 1)
+              and reduction >= rule.min_pse_reduction
+              and improved >= rule.min_folds
+              and delta_bic < 0)
+    return Evidence(name, coefficient, tuple(columns), reduction, improved, float(f_stat),
+                    p_value, float(delta_bic), passed)
+
+
+def _fit(coefficient: str, train: _Design, test: _Design, rate: float) -> CoefficientFit:
+    result = train.result()
+    residual_test = test.z - test.X @ result.estimate
+    return CoefficientFit(
+        coefficient=coefficient, names=tuple(train.names), result=result,
+        rms_train=float(np.sqrt(np.mean(result.residual**2))),
+        rms_holdout=float(np.sqrt(np.mean(residual_test**2))),
+        holdout_residual=residual_test, holdout_design=test.X,
+        diagnosis=diagnose(result.residual, rate),
+    )
+
+
+def _effect_function(effect: Effect, params: FixedWingParams, coefficient: str):
+    return lambda smp: effect.columns(smp, params, coefficient)
+
+
+def _product_function(params: FixedWingParams, names: Sequence[str] | None = None):
+    def products(smp):
+        out = {_product_name(k): v for k, v in product_candidates(smp, params).items()}
+        return out if names is None else {k: out[k] for k in names}
+    return products
+
+
+def _product_name(signals: tuple[str, ...]) -> str:
+    return "*".join(signals)
+
+
+def discover(samples: AeroSamples, params: FixedWingParams,
+             effects: Sequence[Effect] | None = None, rule: EvidenceRule | None = None,
+             coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
+             progress=None) -> DiscoveryResult:
+    """Runs the residual -> effect -> refit loop on ``samples``.
+
+    ``effects`` defaults to :func:`effect_library`; ``progress(message)`` is
+    called at each round. Raises ``ValueError`` when the samples are too few.
+    """
+    rule = rule or EvidenceRule()
+    effects = [e for e in (effects or effect_library()) if e.available(samples)]
+    n = len(samples)
+    n_train = int(round(n * (1.0 - rule.holdout_fraction)))
+    if n_train < 20 * rule.folds or n - n_train < 20:
+        raise ValueError(f"discover: {n} samples are too few for the evidence tests")
+    rate = 1.0 / float(np.median(np.diff(samples.time)))
+    train = samples.subset(slice(0, n_train))
+    test = samples.subset(slice(n_train, n))
+    folds = _folds(n_train, rule.folds)
+    designs = {k: _baseline_design(train, params, k) for k in coefficients}
+    tests = {k: _baseline_design(test, params, k) for k in coefficients}
+    baseline = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
+
+    found: list[FoundEffect] = []
+    rounds: list[tuple[Evidence, ...]] = []
+    used: set[str] = set()
+    for round_index in range(rule.max_rounds):
+        if progress:
+            progress(f"discovery round {round_index + 1}: scoring candidate effects")
+        bases = {k: _round_base(designs[k], folds) for k in coefficients}
+        pairs = [(e, k) for e in effects if e.name not in used for k in e.coefficients
+                 if k in coefficients]
+        evidence = [ev for e, k in pairs if (ev := _score(
+            e.name, k, bases[k], _effect_function(e, params, k), train, folds, rule,
+            len(pairs))) is not None]
+        if fallback and not any(e.passed for e in evidence):
+            evidence += _score_products(bases, train, params, folds, rule, used)
+        evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
+        rounds.append(tuple(evidence))
+        winners = [e for e in evidence if e.passed]
+        if not winners:
+            break
+        best = winners[0].effect
+        accepted = [e for e in winners if e.effect == best]
+        used.add(best)
+        effect = next((e for e in effects if e.name == best), None)
+        for ev in accepted:
+            k = ev.coefficient
+            function = (_effect_function(effect, params, k) if effect is not None
+                        else _product_function(params, ev.columns))
+            for design, smp in ((designs, train), (tests, test)):
+                columns, jac = _columns_and_jacobians(function, smp, design[k].variance)
+                design[k] = design[k].extended({c: columns[c] for c in ev.columns}, jac,
+                                               prefix=f"{best}:")
+        found.append(_found(best, effect, accepted))
+
+    final = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
+    found = [_with_parameters(f, final) for f in found]
+    return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
+                           rounds=tuple(rounds), holdout_start=float(test.time[0]))
+
+
+def _score_products(bases, train, params, folds, rule, used) -> list[Evidence]:
+    names = [_product_name(k) for k in product_candidates(train, params)]
+    n_tests = len(names) * len(bases)
+    out = []
+    for k, base in bases.items():
+        for name in names:
+            effect_name = f"data_driven:{name}"
+            if effect_name in used:
+                continue
+            ev = _score(effect_name, k, base, _product_function(params, [name]), train, folds,
+                        rule, n_tests)
+            if ev is not None:
+                out.append(ev)
+    return out
+
+
+def _found(name: str, effect: Effect | None, accepted: list[Evidence]) -> FoundEffect:
+    if effect is None:
+        signals = name.split(":", 1)[1].replace("*", " x ")
+        explanation = (f"no named effect explains the residual; a data-driven term in the "
+                       f"product of the logged signals {signals} does")
+        kind = "aerodynamic"
+    else:
+        explanation, kind = effect.explanation, effect.kind
+    return FoundEffect(name, explanation, kind, tuple(e.coefficient for e in accepted),
+                       tuple(accepted), {})
+
+
+def _with_parameters(found: FoundEffect, final: Mapping[str, CoefficientFit]) -> FoundEffect:
+    parameters = {}
+    for k in found.coefficients:
+        fit = final[k]
+        prefix = found.name + ":"
+        for i, name in enumerate(fit.names):
+            if name.startswith(prefix):
+                column = name[len(prefix):]
+                parameters[f"{k}:{column}"] = (float(fit.result.estimate[i]),
+                                               float(fit.result.sigma[i]))
+    return dataclasses.replace(found, parameters=parameters)

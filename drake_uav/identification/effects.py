@@ -1,0 +1,279 @@
+"""Named physical effects a baseline aerodynamic model may lack.
+
+Each :class:`Effect` turns flight samples (:class:`AeroSamples`) into extra
+regressor columns for the coefficients it can enter, and says in one line what
+it is physically. The discovery loop (:mod:`drake_uav.identification.discovery`)
+tries them against the residual of the baseline fit; :func:`product_candidates`
+is the data-driven fallback (products of available signals) used when no named
+effect explains the residual.
+
+Accelerometer scale-factor and misalignment errors are not in the library:
+their columns are built from the measured specific force, the very data the
+force coefficients are computed from, so in equation error they would
+"explain" any residual. They are identifiable only in output error.
+
+Kinds: ``"aerodynamic"`` effects change the forces and moments the aircraft
+feels (they enter the reconstruction); ``"sensor"`` effects only corrupt the
+measured coefficients (they are removed from the data, not added to the
+dynamics).
+
+Signals some effects read from ``AeroSamples.signals``: ``height`` (height above
+ground [m]), ``roll``, ``pitch``, ``yaw`` [rad].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from drake_uav.identification.isolation import AeroSamples, differentiate
+from drake_uav.systems.aerodynamics import body_to_lift_drag
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = [
+    "Effect",
+    "effect_library",
+    "product_candidates",
+    "base_signals",
+    "LONGITUDINAL",
+    "LATERAL",
+    "FORCES",
+]
+
+LONGITUDINAL = ("CL", "CD", "Cm")
+LATERAL = ("CY", "Cl", "Cn")
+FORCES = ("CL", "CD", "CY")
+
+ColumnFunction = Callable[[AeroSamples, FixedWingParams], Mapping[str, np.ndarray]]
+
+
+@dataclasses.dataclass(frozen=True)
+class Effect:
+    """A physical effect: its regressor columns per coefficient and what it means."""
+
+    name: str
+    explanation: str
+    coefficients: tuple[str, ...]
+    """Coefficients the effect may enter."""
+    columns: Callable[[AeroSamples, FixedWingParams, str], Mapping[str, np.ndarray]]
+    """``columns(samples, params, coefficient) -> {column name: values}``."""
+    kind: str = "aerodynamic"
+    """``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data)."""
+    signals: tuple[str, ...] = ()
+    """``AeroSamples.signals`` entries the effect needs."""
+    condition: Callable[[AeroSamples], bool] | None = None
+    """Extra requirement on the data for the effect to be testable."""
+
+    def available(self, samples: AeroSamples) -> bool:
+        """True when the samples carry every signal the effect needs (and meet its condition)."""
+        if not all(s in samples.signals for s in self.signals):
+            return False
+        return self.condition is None or bool(self.condition(samples))
+
+
+def _same_for_all(function: ColumnFunction):
+    def columns(samples, params, coefficient):
+        return function(samples, params)
+    return columns
+
+
+def _stall(samples, params):
+    a = samples.condition.alpha
+    return {"alpha3": a**3, "alpha4": a**4}
+
+
+def _alphadot(samples, params):
+    c = samples.condition
+    return {"alphadot": params.c * c.alphadot / (2 * c.airspeed)}
+
+
+def _propwash(samples, params):
+    return {"Tc": samples.condition.thrust_coefficient}
+
+
+def _control_nonlinearity(samples, params):
+    c = samples.condition
+    return {"elevator2": c.elevator**2, "alpha_elevator": c.alpha * c.elevator,
+            "aileron_abs_aileron": c.aileron * np.abs(c.aileron),
+            "rudder_abs_rudder": c.rudder * np.abs(c.rudder)}
+
+
+def _cross_coupling(samples, params, coefficient):
+    c = samples.condition
+    if coefficient in LONGITUDINAL:
+        return {"aileron_abs": np.abs(c.aileron), "rudder_abs": np.abs(c.rudder)}
+    return {"elevator": c.elevator}
+
+
+def _rate_coupling(samples, params):
+    c = samples.condition
+    half = 0.5 / c.airspeed
+    pn, qn, rn = params.b * c.p * half, params.c * c.q * half, params.b * c.r * half
+    return {"p_r": pn * rn, "p_q": pn * qn, "q_r": qn * rn}
+
+
+def _to_coefficient(force_x, force_y, force_z, samples, coefficient):
+    """Maps body-axis force-coefficient columns to the CL / CD / CY column."""
+    if coefficient == "CY":
+        return force_y
+    # (CL, CD) are linear in (C_X, C_Z), so columns map like coefficients.
+    lift, drag = body_to_lift_drag(force_x, force_z, samples.condition.alpha)
+    return lift if coefficient == "CL" else drag
+
+
+def _force_columns(vectors: Mapping[str, np.ndarray], samples, coefficient):
+    """Columns of body-axis force directions (N, 3), as coefficient columns."""
+    return {name: _to_coefficient(v[:, 0], v[:, 1], v[:, 2], samples, coefficient)
+            for name, v in vectors.items()}
+
+
+def _per_unit_force(samples, params):
+    # Divides by the same measured qbar as the coefficients: the errors-in-variables
+    # correction of the discovery loop accounts for the shared airspeed noise.
+    return params.mass / (samples.dynamic_pressure * params.S)
+
+
+def _body_force(samples, params, coefficient):
+    k = _per_unit_force(samples, params)[:, None]
+    axes = np.eye(3)
+    return _force_columns({f"force_{a}": k * axes[i] for i, a in enumerate("xyz")},
+                          samples, coefficient)
+
+
+def _ned_force(samples, params, coefficient):
+    roll, pitch, yaw = (samples.signals[s] for s in ("roll", "pitch", "yaw"))
+    k = _per_unit_force(samples, params)
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))
+    # Rows of R^T (NED -> body) for the north, east and down unit vectors.
+    north = np.column_stack([cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy])
+    east = np.column_stack([cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy])
+    down = np.column_stack([-sp, sr * cp, cr * cp])
+    return _force_columns({"force_north": k[:, None] * north, "force_east": k[:, None] * east,
+                           "force_down": k[:, None] * down}, samples, coefficient)
+
+
+def _lever_arm(samples, params, coefficient):
+    k = _per_unit_force(samples, params)[:, None]
+    c = samples.condition
+    w = np.column_stack([c.p, c.q, c.r])
+    w_dot = samples.rate_derivatives
+    columns = {}
+    # An accelerometer at r from the CG reads w_dot x r + w x (w x r) more.
+    for i, axis in enumerate("xyz"):
+        r = np.zeros(3)
+        r[i] = 1.0
+        extra = np.cross(w_dot, r) + np.cross(w, np.cross(w, r))
+        columns[f"lever_arm_{axis}"] = k * extra
+    return _force_columns(columns, samples, coefficient)
+
+
+MIN_HEADING_SPREAD = 0.5
+"""Smallest circular spread 1 - |mean(exp(i psi))| of the heading for the steady-wind test:
+on a straight leg the wind columns equal a constant force and cannot be told apart."""
+
+
+def _heading_varies(samples) -> bool:
+    yaw = samples.signals["yaw"]
+    return 1.0 - abs(np.mean(np.exp(1j * yaw))) >= MIN_HEADING_SPREAD
+
+
+def _wind_left(samples, params, coefficient):
+    c = samples.condition
+    yaw = samples.signals["yaw"]
+    # A steady wind W left in the air data errs Va by -(W_N cos psi + W_E sin psi) and
+    # beta by (W_N sin psi - W_E cos psi) / Va (level flight): regress on both shapes.
+    if coefficient in LATERAL:
+        return {"wind_cos_yaw": np.cos(yaw) / c.airspeed, "wind_sin_yaw": np.sin(yaw) / c.airspeed}
+    return {"wind_cos_yaw": np.cos(yaw) / c.airspeed**2,
+            "wind_sin_yaw": np.sin(yaw) / c.airspeed**2}
+
+
+_SURFACE_COEFFICIENTS = {"elevator": LONGITUDINAL, "aileron": LATERAL, "rudder": LATERAL}
+
+
+def _actuator_delay(samples, params, coefficient):
+    # delta(t - tau) ~ delta(t) - tau * d(delta)/dt: the column is -d(delta)/dt.
+    columns = {}
+    for surface, affected in _SURFACE_COEFFICIENTS.items():
+        if coefficient in affected:
+            rate = differentiate(samples.time, getattr(samples.condition, surface))
+            columns[f"{surface}_rate"] = -rate
+    return columns
+
+
+def _ground_effect(samples, params, coefficient):
+    h = np.maximum(samples.signals["height"], 0.0)
+    # McCormick's induced-drag factor: fraction of free-air induced drag lost near ground.
+    x = (16.0 * h / params.b) ** 2
+    phi = 1.0 / (1.0 + x)
+    return {"ground": phi, "ground_alpha": phi * samples.condition.alpha}
+
+
+def effect_library() -> list[Effect]:
+    """The named effects, in the order they are reported."""
+    return [
+        Effect("stall_onset", "lift and drag bend away from linear at high angle of attack "
+               "(flow separation): higher powers of alpha", LONGITUDINAL,
+               _same_for_all(_stall)),
+        Effect("unsteady_alphadot", "unsteady aerodynamics: downwash lag at the tail makes "
+               "lift and pitching moment depend on the rate of change of alpha",
+               LONGITUDINAL, _same_for_all(_alphadot)),
+        Effect("thrust_propwash", "propeller slipstream over wing and tail: forces and moments "
+               "grow with the thrust coefficient (the seed's C_D_Tc)",
+               ("CL", "CD", "Cm", "Cn"), _same_for_all(_propwash)),
+        Effect("control_nonlinearity", "control-surface effectiveness is not linear: squared "
+               "deflections and deflection-alpha products", ("CL", "CD", "Cm", "Cl", "Cn", "CY"),
+               _same_for_all(_control_nonlinearity)),
+        Effect("control_cross_coupling", "a surface acts on the other axis (e.g. elevator "
+               "rolling moment, aileron drag)", ("CL", "CD", "Cm", "Cl", "Cn", "CY"),
+               _cross_coupling),
+        Effect("rate_coupling", "aerodynamic or gyroscopic coupling of body rates "
+               "(products of normalised rates)", ("Cl", "Cm", "Cn"),
+               _same_for_all(_rate_coupling)),
+        Effect("constant_body_force", "a constant body-axis force the model lacks (tow, "
+               "payload drag), or equivalently in equation error an accelerometer bias",
+               FORCES, _body_force),
+        Effect("ned_force", "a force fixed in the NED frame (weight or mass error, tether "
+               "along a fixed direction)", FORCES, _ned_force,
+               signals=("roll", "pitch", "yaw")),
+        Effect("accelerometer_lever_arm", "accelerometer away from the centre of gravity: it "
+               "also reads angular and centripetal acceleration", FORCES, _lever_arm,
+               kind="sensor"),
+        Effect("steady_wind_in_air_data", "a steady wind left in the air data: airspeed and "
+               "sideslip errors that follow the heading", ("CL", "CD", "CY", "Cl", "Cn", "Cm"),
+               _wind_left, kind="sensor", signals=("yaw",), condition=_heading_varies),
+        Effect("actuator_time_delay", "the surfaces lag the logged commands (servo delay): "
+               "the command rate enters with the delay as coefficient",
+               ("CL", "CD", "Cm", "CY", "Cl", "Cn"), _actuator_delay),
+        Effect("ground_effect", "the ground reduces downwash near the runway: more lift, "
+               "less induced drag below about one span", ("CL", "CD", "Cm"), _ground_effect,
+               signals=("height",)),
+    ]
+
+
+def base_signals(samples: AeroSamples, params: FixedWingParams) -> dict[str, np.ndarray]:
+    """Signals whose products form the data-driven fallback candidates."""
+    c = samples.condition
+    half = 0.5 / c.airspeed
+    return {
+        "alpha": c.alpha, "beta": c.beta,
+        "p_hat": params.b * c.p * half, "q_hat": params.c * c.q * half,
+        "r_hat": params.b * c.r * half,
+        "elevator": c.elevator, "aileron": c.aileron, "rudder": c.rudder,
+        "Tc": c.thrust_coefficient,
+    }
+
+
+def product_candidates(samples: AeroSamples, params: FixedWingParams
+                       ) -> dict[tuple[str, ...], np.ndarray]:
+    """Squares and pairwise products of :func:`base_signals`, keyed by the signal names."""
+    signals = base_signals(samples, params)
+    names = list(signals)
+    out: dict[tuple[str, ...], np.ndarray] = {}
+    for a, b in itertools.combinations_with_replacement(names, 2):
+        out[(a, b)] = signals[a] * signals[b]
+    return out

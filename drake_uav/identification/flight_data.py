@@ -1,0 +1,81 @@
+"""From a FlightLog to regression-ready samples (the first step of the main job).
+
+The log must use the canonical measured channels below (the readers in
+:mod:`drake_uav.io` map ArduPilot, PX4 and CSV logs onto them):
+
+==================  ===========================================  ========
+purpose             channels                                     unit
+==================  ===========================================  ========
+specific force      ``imu_ax imu_ay imu_az``                     m/s^2
+body rates          ``imu_p imu_q imu_r``                        rad/s
+attitude            ``att_roll att_pitch att_yaw``               rad
+airspeed            ``pitot_airspeed``                           m/s
+flow angles         ``vane_alpha vane_beta``                     rad
+surfaces, throttle  ``cmd_elevator cmd_aileron cmd_rudder``      rad
+                    ``cmd_throttle``                             1
+height (optional)   ``baro_alt``                                 m
+==================  ===========================================  ========
+
+The channels are resampled to a uniform rate, checked (no NaN, no gap longer
+than ``max_gap``), and passed to the coefficient isolation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_uav.identification.isolation import AeroSamples, isolate_coefficients
+from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps"]
+
+SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
+RATES = ("imu_p", "imu_q", "imu_r")
+ATTITUDE = ("att_roll", "att_pitch", "att_yaw")
+AIR_DATA = ("pitot_airspeed", "vane_alpha", "vane_beta")
+CONTROLS = ("cmd_elevator", "cmd_aileron", "cmd_rudder", "cmd_throttle")
+HEIGHT = "baro_alt"
+
+REQUIRED_CHANNELS = SPECIFIC_FORCE + RATES + ATTITUDE + AIR_DATA + CONTROLS
+"""Measured channels the main job needs."""
+
+
+def check_gaps(log: FlightLog, max_gap: float) -> None:
+    """Raises :class:`FlightLogError` at the first time step longer than ``max_gap`` [s]."""
+    step = np.diff(log.time)
+    bad = np.flatnonzero(step > max_gap)
+    if bad.size:
+        i = int(bad[0])
+        raise FlightLogError(
+            f"time: gap of {step[i]:.3g} s between samples {i} and {i + 1} "
+            f"(t = {log.time[i]:.6g} s), longer than the allowed {max_gap:g} s")
+
+
+def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
+                     max_gap: float = 0.5, min_airspeed: float = 5.0) -> AeroSamples:
+    """Regression samples (measured coefficients and regressors) from a flight log.
+
+    Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
+    take-off roll) are cut from the ends of the log. Raises
+    :class:`FlightLogError` naming a missing channel, a non-finite sample or a gap.
+    """
+    log.require(*REQUIRED_CHANNELS)
+    check_gaps(log, max_gap)
+    airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
+    if airborne.size < 2:
+        raise FlightLogError(
+            f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
+    log = log.slice(log.time[airborne[0]], log.time[airborne[-1]])
+    uniform = log.resample(rate_hz=rate_hz)
+    yaw = np.unwrap(log["att_yaw"])
+    yaw_uniform = np.interp(uniform.time, log.time, yaw)
+    signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
+    if HEIGHT in uniform:
+        signals["height"] = uniform[HEIGHT]
+    try:
+        return isolate_coefficients(
+            params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
+            uniform.stack(AIR_DATA), uniform.stack(CONTROLS), signals=signals)
+    except ValueError as err:
+        raise FlightLogError(str(err)) from None
