@@ -229,6 +229,17 @@ class _Design:
         observed = float(r @ r)
         return observed, observed - float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
 
+    def well_posed(self, tolerance: float = 1e-8) -> bool:
+        """True when the noise-corrected normal matrix is safely positive definite.
+
+        Removing the noise moments can make a nearly collinear design indefinite:
+        its columns are then not separable from the regressor noise.
+        """
+        A, _ = self.moments()
+        scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+        return bool(np.min(np.diag(A)) > 0 and
+                    np.linalg.eigvalsh(A / np.outer(scale, scale))[0] > tolerance)
+
     def solve(self, rows=None) -> np.ndarray:
         A, b = self.moments(rows)
         scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
@@ -333,6 +344,8 @@ def _score(name: str, coefficient: str, base: _RoundBase, function: ColumnFuncti
     if not columns:
         return None
     candidate = base.design.extended(columns, jac)
+    if not candidate.well_posed():
+        return None
     errors = candidate.fold_errors(folds)
     # Improvement in the noise-corrected error, relative to the observed error.
     gain = base.fold_errors[1] - errors[1]

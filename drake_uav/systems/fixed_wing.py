@@ -17,7 +17,8 @@ import dataclasses
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem_
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_uav.rotations import quat_derivative, quat_to_euler
@@ -303,6 +304,11 @@ def FixedWingPlant_(T):
             self.DeclareVectorOutputPort("aero_coefficients", 6, self._calc_coefficients,
                                          prerequisites_of_calc=aero_inputs)
             self.DeclareVectorOutputPort("forces_moments", 6, self._calc_forces_moments)
+            self._evaluation = self.DeclareCacheEntry(
+                description="model evaluation",
+                value_producer=ValueProducer(allocate=lambda: AbstractValue.Make(object()),
+                                             calc=self._calc_evaluation),
+                prerequisites_of_calc={self.all_sources_ticket()})
 
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, other.params, other.model, converter=converter)
@@ -311,13 +317,20 @@ def FixedWingPlant_(T):
             wind_port = self.get_input_port(1)
             return wind_port.Eval(context) if wind_port.HasValue(context) else (0.0, 0.0, 0.0)
 
-        def _evaluate(self, context, with_wrench: bool = True) -> FixedWingEvaluation:
+        def _compute(self, context, with_wrench: bool) -> FixedWingEvaluation:
             x = context.get_continuous_state_vector().CopyToVector()
             controls = self.get_input_port(0).Eval(context)
             wrench_port = self.get_input_port(2)
             wrench = (wrench_port.Eval(context)
                       if with_wrench and wrench_port.HasValue(context) else None)
             return self.model.evaluate(x, controls, self._wind(context), wrench)
+
+        def _calc_evaluation(self, context, value) -> None:
+            value.set_value(self._compute(context, with_wrench=True))
+
+        def _evaluate(self, context) -> FixedWingEvaluation:
+            """The model at the context, computed once per state/input change (cached)."""
+            return self._evaluation.Eval(context)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
             derivatives.get_mutable_vector().SetFromVector(
@@ -338,7 +351,13 @@ def FixedWingPlant_(T):
             output.SetFromVector(self._evaluate(context).specific_force)
 
         def _calc_coefficients(self, context, output):
-            output.SetFromVector(self._evaluate(context, with_wrench=False).coefficients)
+            # Without a wrench the cached evaluation is the same; with one, the
+            # coefficients are computed without reading it (no feedthrough).
+            if self.get_input_port(2).HasValue(context):
+                evaluation = self._compute(context, with_wrench=False)
+            else:
+                evaluation = self._evaluate(context)
+            output.SetFromVector(evaluation.coefficients)
 
         def _calc_forces_moments(self, context, output):
             output.SetFromVector(self._evaluate(context).forces_moments)
