@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 
@@ -33,6 +35,61 @@ def _cmd_trim(args: argparse.Namespace) -> int:
     return 0
 
 
+SAMPLE_FLIGHT = "sample_flight.csv.gz"
+"""Bundled flight (drake_uav/data/): a simulated Aerosonde identification flight with an
+effect its catalog model lacks."""
+
+
+class _Progress:
+    """Prints a step's message, and its duration when it took more than a second."""
+
+    def __init__(self):
+        self._start = None
+        self._message = None
+
+    def __call__(self, message: str) -> None:
+        self.finish()
+        self._start, self._message = time.perf_counter(), message
+        print(f"... {message}", flush=True)
+
+    def finish(self) -> None:
+        if self._start is not None:
+            elapsed = time.perf_counter() - self._start
+            if elapsed > 1.0:
+                print(f"    ({self._message}: {elapsed:.1f} s)", flush=True)
+        self._start = None
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from drake_uav.identification.main_job import identify, write_report
+    from drake_uav.io.readers import read_log
+    from drake_uav.vehicles.loading import load_fixed_wing
+
+    if args.log is None:
+        path = Path(__file__).parent / "data" / SAMPLE_FLIGHT
+        print(f"no log given: using the bundled sample flight {path.name}")
+    else:
+        path = Path(args.log)
+    params = load_fixed_wing(args.aircraft)
+    progress = _Progress()
+    progress(f"reading {path}")
+    log = read_log(path, format=args.format)
+    run = identify(log, params, progress=progress, source=str(path), seed=args.seed)
+    progress("writing the report")
+    out = write_report(run, args.out)
+    progress.finish()
+    print(run.discovery.message)
+    for k, (before, after) in run.discovery.rms_change().items():
+        print(f"  {k}: equation-error RMS {before:.4g} -> {after:.4g} (held-out)")
+    names = ("Va [m/s]", "alpha [deg]", "beta [deg]", "p [deg/s]", "q [deg/s]", "r [deg/s]")
+    scale = (1.0, *[np.degrees(1.0)] * 5)
+    for name, b, a, s in zip(names, run.reconstruction_before.mae,
+                             run.reconstruction_after.mae, scale, strict=True):
+        print(f"  reconstruction MAE {name}: {b * s:.3g} -> {a * s:.3g}")
+    print(f"report: {out / 'report.html'}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-uav",
@@ -48,6 +105,21 @@ def _parser() -> argparse.ArgumentParser:
     trim.add_argument("--gamma", type=float, default=0.0, help="flight path angle [deg]")
     trim.add_argument("--turn-rate", type=float, default=0.0, help="turn rate [rad/s]")
     trim.set_defaults(handler=_cmd_trim)
+
+    ident = sub.add_parser(
+        "identify", help="fit the model to a flight log, find the missing effect, report",
+        description="Fit the aerodynamic model to a flight log, study the residual, trace it "
+                    "to the physical effect the model lacks, add it, and write a report with "
+                    "the errors before and after. Without LOG, runs on a bundled sample flight.")
+    ident.add_argument("log", nargs="?", help="flight log (.csv, .csv.gz, .bin, .ulg, .parquet)")
+    ident.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
+                       help="log format (default: from the file extension)")
+    ident.add_argument("--aircraft", default="aerosonde",
+                       help="catalog name or a params .toml file (default: aerosonde)")
+    ident.add_argument("--out", default="drake_uav_report", help="report folder")
+    ident.add_argument("--seed", type=int, default=0,
+                       help="seed of the Monte-Carlo uncertainty of the measured coefficients")
+    ident.set_defaults(handler=_cmd_identify)
     return parser
 
 

@@ -54,7 +54,7 @@ def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clea
 
     def models(scale_lift_slope):
         out = {}
-        for k in ("CL", "CD", "CY"):
+        for k in ("CL", "CD", "CY", "Cl", "Cm", "Cn"):
             names = baseline_names(params, k)
             theta = np.array([params.derivatives.get(n, 0.0) for n in names])
             if k == "CL":
@@ -67,3 +67,4 @@ def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clea
     wrong = reconstruct(test, params, models(0.8))
     assert right.mae[1] < 0.5 * wrong.mae[1]
     assert right.mae[0] < 0.2 and np.degrees(right.mae[1]) < 0.2
+    assert np.degrees(np.max(right.mae[3:])) < 0.5  # body rates [deg/s]

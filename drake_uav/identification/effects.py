@@ -196,12 +196,19 @@ _SURFACE_COEFFICIENTS = {"elevator": LONGITUDINAL, "aileron": LATERAL, "rudder":
 
 
 def _actuator_delay(samples, params, coefficient):
-    # delta(t - tau) ~ delta(t) - tau * d(delta)/dt: the column is -d(delta)/dt.
+    # delta(t - tau) ~ delta(t) - tau * d(delta)/dt: the column is -d(delta)/dt. A delayed
+    # throttle makes the modelled thrust lead the real one in the force coefficients.
     columns = {}
     for surface, affected in _SURFACE_COEFFICIENTS.items():
         if coefficient in affected:
             rate = differentiate(samples.time, getattr(samples.condition, surface))
             columns[f"{surface}_rate"] = -rate
+    if coefficient in ("CL", "CD"):
+        thrust_rate = differentiate(samples.time, samples.thrust)
+        per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
+        lift, drag = body_to_lift_drag(thrust_rate * per_force, 0.0 * thrust_rate,
+                                       samples.condition.alpha)
+        columns["throttle_rate"] = -(lift if coefficient == "CL" else drag)
     return columns
 
 

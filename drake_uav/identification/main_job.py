@@ -24,8 +24,9 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["IdentificationRun", "identify", "write_report", "coefficient_uncertainty"]
 
-_FORCES = ("CL", "CD", "CY")
-_AIR = ("airspeed", "alpha", "beta")
+_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
+_OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
+                 "r": "deg/s"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,9 +65,9 @@ class IdentificationRun:
             ],
             "equation_error_rms_holdout": rms,
             "reconstruction_mae_holdout": {
-                name: {"before": float(b), "after": float(a)}
-                for name, b, a in zip(("airspeed_m_s", "alpha_rad", "beta_rad"), mae_b, mae_a,
-                                      strict=True)
+                name: {"before": float(b), "after": float(a), "unit": unit}
+                for name, unit, b, a in zip(_OUTPUTS, ("m/s", "rad", "rad", "rad/s", "rad/s",
+                                                       "rad/s"), mae_b, mae_a, strict=True)
             },
             "measured_coefficient_sigma_monte_carlo": self.coefficient_sigma,
             "parameters": {
@@ -85,7 +86,7 @@ def _reconstruct(samples: AeroSamples, params, discovery: DiscoveryResult, fits,
     test = samples.subset(slice(start, len(samples)))
     sensor_effects = [f.name for f in discovery.found if f.kind == "sensor"]
     models = {k: (fits[k].names, fits[k].result.estimate, fits[k].holdout_design)
-              for k in _FORCES}
+              for k in fits}
     return reconstruct(test, params, models, exclude_prefixes=sensor_effects,
                        reset_interval=reset_interval)
 
@@ -162,10 +163,10 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
                        "change": (a - b) / b if b else 0.0}
                       for k, (b, a) in d.rms_change().items()], formats={"change": "+.1%"})
     mae_b, mae_a = run.reconstruction_before.mae, run.reconstruction_after.mae
-    scale = (1.0, np.degrees(1.0), np.degrees(1.0))
-    report.add_table([{"variable": name, "MAE before": b * s, "MAE after": a * s}
-                      for name, b, a, s in zip(("Va [m/s]", "alpha [deg]", "beta [deg]"),
-                                               mae_b, mae_a, scale, strict=True)],
+    report.add_table([{"variable": f"{name} [{_OUTPUT_UNITS[name]}]",
+                       "MAE before": b * (1.0 if name == "airspeed" else np.degrees(1.0)),
+                       "MAE after": a * (1.0 if name == "airspeed" else np.degrees(1.0))}
+                      for name, b, a in zip(_OUTPUTS, mae_b, mae_a, strict=True)],
                      caption="Output-error reconstruction (seed S0 Table 11 reports 1.2 m/s, "
                              "0.87 deg, 0.52 deg on its flight)")
     test_time = run.samples.time[-len(d.final["CL"].holdout_residual):]
@@ -181,10 +182,10 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
         "residuals after the update", name="normal_probability")
     rec_b, rec_a = run.reconstruction_before, run.reconstruction_after
     report.add_figure(lambda: figures.reconstruction_plot(
-        rec_b.time, dict(zip(_AIR, rec_b.measured.T, strict=True)),
-        dict(zip(_AIR, rec_b.reconstructed.T, strict=True)),
-        dict(zip(_AIR, rec_a.reconstructed.T, strict=True)),
-        units={"airspeed": "m/s", "alpha": "deg", "beta": "deg"}),
+        rec_b.time, dict(zip(_OUTPUTS, rec_b.measured.T, strict=True)),
+        dict(zip(_OUTPUTS, rec_b.reconstructed.T, strict=True)),
+        dict(zip(_OUTPUTS, rec_a.reconstructed.T, strict=True)),
+        units={"airspeed": "m/s"}, degrees=("alpha", "beta", "p", "q", "r")),
         f"Reconstruction with periodic resets every {rec_b.reset_interval:g} s",
         name="reconstruction")
     report.add_key_values(run.coefficient_sigma, caption="Monte-Carlo standard deviation of "

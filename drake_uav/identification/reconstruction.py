@@ -1,4 +1,4 @@
-"""Output-error validation: reconstruct airspeed, alpha and beta with an identified model.
+"""Output-error validation: reconstruct air data and body rates with an identified model.
 
 Seed S0 sec. 6.5.2 integrates the wind-axis force equations (eq. 6.4-6.6),
 driven by the logged rates, attitude, thrust and surfaces, with the identified
@@ -9,11 +9,15 @@ gyros are noisy. Here the same dynamics are integrated in their body-axis form
     d v_r / dt = (qbar S [C_X, C_Y, C_Z] + [T, 0, 0]) / m + g_body(phi, theta) - w x v_r
 
 with (C_X, C_Z) from the identified (C_L, C_D) and the stability triplet from
-:func:`air_data_from_velocity`. Every ``reset_interval`` seconds the state is
-reset to the measured air data (the periodic correction; the seed does not give
-its law or period). Baseline terms are evaluated at the reconstructed air data;
-columns of added effects are evaluated on the logged signals, and effects of
-kind ``"sensor"`` are left out (they describe the data, not the aircraft).
+:func:`air_data_from_velocity`. The body rates are integrated too, with the
+identified moment coefficients, so that moment effects show in output error
+(the seed drives the force equations with the measured rates instead).
+
+Every ``reset_interval`` seconds the state is reset to the measured air data
+and rates (the periodic correction; the seed does not give its law or period).
+Baseline terms are evaluated at the reconstructed state; columns of added
+effects on the logged signals; effects of kind ``"sensor"`` are left out (they
+describe the data, not the aircraft).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import numpy as np
 
 from drake_uav.identification.isolation import AeroSamples
 from drake_uav.systems.aerodynamics import (
+    COEFFICIENTS,
     AeroCondition,
     air_data_from_velocity,
     lift_drag_to_body,
@@ -32,6 +37,7 @@ from drake_uav.systems.aerodynamics import (
     split_derivative_name,
     velocity_from_air_data,
 )
+from drake_uav.systems.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["Reconstruction", "reconstruct"]
@@ -43,15 +49,15 @@ class Reconstruction:
 
     time: np.ndarray
     measured: np.ndarray
-    """(N, 3) Va [m/s], alpha, beta [rad] from the log."""
+    """(N, 6) Va [m/s], alpha, beta [rad], p, q, r [rad/s] from the log."""
     reconstructed: np.ndarray
-    """(N, 3) the integrated model."""
+    """(N, 6) the integrated model."""
     reset_interval: float
     """[s]."""
 
     @property
     def mae(self) -> np.ndarray:
-        """Mean absolute error of Va [m/s], alpha [rad], beta [rad]."""
+        """Mean absolute error of Va [m/s], alpha, beta [rad], p, q, r [rad/s]."""
         return np.mean(np.abs(self.reconstructed - self.measured), axis=0)
 
 
@@ -72,62 +78,66 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
                 models: Mapping[str, tuple[tuple[str, ...], np.ndarray, np.ndarray]],
                 exclude_prefixes: Collection[str] = (), reset_interval: float = 5.0
                 ) -> Reconstruction:
-    """Integrates the air-relative velocity with the identified force model.
+    """Integrates air-relative velocity and body rates with the identified model.
 
-    ``models`` maps ``"CL"``, ``"CD"``, ``"CY"`` to ``(names, estimate,
-    design)``: the term names, their values and the (N, n) regressor matrix
-    on ``samples`` (used for effect columns). ``samples.signals`` must hold
-    ``roll`` and ``pitch`` [rad].
+    ``models`` maps each of ``CL, CD, CY, Cl, Cm, Cn`` to ``(names, estimate,
+    design)``: the term names, their values and the (N, n) regressor matrix on
+    ``samples`` (used for effect columns). ``samples.signals`` must hold
+    ``roll`` and ``pitch`` [rad]. The rotational part is the plant's own
+    :meth:`FixedWingModel.angular_acceleration`.
     """
     for key in ("roll", "pitch"):
         if key not in samples.signals:
             raise ValueError(f"reconstruct: samples.signals lacks '{key}'")
     if not reset_interval > 0:
         raise ValueError(f"reconstruct: reset_interval must be positive, got {reset_interval}")
-    terms = {k: _split_terms(*models[k], exclude_prefixes) for k in ("CL", "CD", "CY")}
+    terms = {k: _split_terms(*models[k], exclude_prefixes) for k in COEFFICIENTS}
     c = samples.condition
     n = len(samples)
     t = samples.time
-    measured = np.column_stack([c.airspeed, c.alpha, c.beta])
-    rates = np.column_stack([c.p, c.q, c.r])
+    measured = np.column_stack([c.airspeed, c.alpha, c.beta, c.p, c.q, c.r])
     controls = np.column_stack([c.elevator, c.aileron, c.rudder, c.flap])
+    model = FixedWingModel(params)
     thrust = samples.thrust
+    torque = np.broadcast_to(model.thrust(c.airspeed, samples.throttle)[1], (n,))
     g = params.gravity
     roll, pitch = samples.signals["roll"], samples.signals["pitch"]
     gravity = np.column_stack([-g * np.sin(pitch), g * np.cos(pitch) * np.sin(roll),
                                g * np.cos(pitch) * np.cos(roll)])
-    k_force = 0.5 * params.rho * params.S / params.mass
+    half_rho_s = 0.5 * params.rho * params.S
 
-    def acceleration(i: int, v):
-        Va, alpha, beta = air_data_from_velocity(*v)
-        cond = AeroCondition(Va, alpha, beta, rates[i, 0], rates[i, 1], rates[i, 2],
-                             controls[i, 0], controls[i, 1], controls[i, 2], controls[i, 3],
-                             c.alphadot[i], thrust[i] / (0.5 * params.rho * Va * Va * params.S))
+    def derivative(i: int, y) -> np.ndarray:
+        u, v, w, p, q, r = y
+        Va, alpha, beta = air_data_from_velocity(u, v, w)
+        q_bar_s = half_rho_s * Va * Va
+        cond = AeroCondition(Va, alpha, beta, p, q, r, controls[i, 0], controls[i, 1],
+                             controls[i, 2], controls[i, 3], c.alphadot[i], thrust[i] / q_bar_s)
         signals = signal_values(cond, params.b, params.c)
-        coef = {}
-        for k, (baseline, exogenous) in terms.items():
-            coef[k] = exogenous[i] + sum(theta * signals[s] for s, theta in baseline)
+        coef = {k: exogenous[i] + sum(theta * signals[s] for s, theta in baseline)
+                for k, (baseline, exogenous) in terms.items()}
         CX, CZ = lift_drag_to_body(coef["CL"], coef["CD"], alpha)
-        q = k_force * Va * Va
-        p_, q_, r_ = rates[i]
+        m = params.mass
+        moment = (q_bar_s * params.b * coef["Cl"] + torque[i], q_bar_s * params.c * coef["Cm"],
+                  q_bar_s * params.b * coef["Cn"])
         return np.array([
-            q * CX + thrust[i] / params.mass + gravity[i, 0] - (q_ * v[2] - r_ * v[1]),
-            q * coef["CY"] + gravity[i, 1] - (r_ * v[0] - p_ * v[2]),
-            q * CZ + gravity[i, 2] - (p_ * v[1] - q_ * v[0]),
+            (q_bar_s * CX + thrust[i]) / m + gravity[i, 0] - (q * w - r * v),
+            q_bar_s * coef["CY"] / m + gravity[i, 1] - (r * u - p * w),
+            q_bar_s * CZ / m + gravity[i, 2] - (p * v - q * u),
+            *model.angular_acceleration((p, q, r), moment),
         ])
 
-    out = np.empty((n, 3))
+    out = np.empty((n, 6))
     next_reset = t[0]
-    v = None
+    y = None
     for i in range(n):
         if t[i] >= next_reset - 1e-9:
-            v = np.array(velocity_from_air_data(*measured[i]))
+            y = np.array([*velocity_from_air_data(*measured[i, :3]), *measured[i, 3:]])
             next_reset += reset_interval
-        out[i] = air_data_from_velocity(*v)
+        out[i] = (*air_data_from_velocity(*y[:3]), *y[3:])
         if i + 1 < n:
             dt = t[i + 1] - t[i]
-            k1 = acceleration(i, v)
-            k2 = acceleration(i + 1, v + dt * k1)
-            v = v + 0.5 * dt * (k1 + k2)
+            k1 = derivative(i, y)
+            k2 = derivative(i + 1, y + dt * k1)
+            y = y + 0.5 * dt * (k1 + k2)
     return Reconstruction(time=t.copy(), measured=measured, reconstructed=out,
                           reset_interval=reset_interval)
