@@ -208,8 +208,8 @@ class IdentificationFlight:
         data = logs["measurements"].data()[:, 1:n + 1]
         for name, row in zip(self.sensors.channel_names, data, strict=True):
             measured[name], units[name] = row, self.sensors.channel_units[name]
-        # Commands are read by the plant at t_k directly (no sample-and-hold in between).
-        commands = logs["commands"].data()[:, :n]
+        # The command issued at t_k (held over [t_k, t_(k+1))) is published at t_(k+1).
+        commands = logs["commands"].data()[:, 1:n + 1]
         for i, surface in enumerate(SURFACES):
             name = f"cmd_{surface}"
             measured[name], units[name] = commands[i], _TRUTH["controls"][1][i]
@@ -422,6 +422,7 @@ def build_identification_flight(
         "steady_wind_ned": steady.tolist(),
         "excitation": [f"{type(s).__name__}({s.surface})" for s in signals],
         "sample_rate_hz": sensors.base_rate_hz,
+        "sensor_noise_std": sensors.noise_std(airspeed),
         "stabilized": stabilize,
         "duration": duration,
     }

@@ -17,18 +17,28 @@ height (optional)   ``baro_alt``                                 m
 ==================  ===========================================  ========
 
 The channels are resampled to a uniform rate, checked (no NaN, no gap longer
-than ``max_gap``), and passed to the coefficient isolation.
+than ``max_gap``), and passed to the coefficient isolation. Commands are taken
+as held between their samples (zero-order hold) and interpolated at the centres
+of their hold intervals.
+
+Sensor noise matters to the errors-in-variables corrections of the discovery
+loop. A log's metadata ``sensor_noise_std`` (channel -> standard deviation,
+written by the simulator or by the user from the sensor data sheets) is used
+when present; otherwise the white-noise floor of each raw channel is read from
+the top fifth of its spectrum, where flight dynamics and turbulence have faded.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import welch
 
 from drake_uav.identification.isolation import AeroSamples, isolate_coefficients
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps"]
+__all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
+           "white_noise_variance"]
 
 SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
 RATES = ("imu_p", "imu_q", "imu_r")
@@ -39,6 +49,32 @@ HEIGHT = "baro_alt"
 
 REQUIRED_CHANNELS = SPECIFIC_FORCE + RATES + ATTITUDE + AIR_DATA + CONTROLS
 """Measured channels the main job needs."""
+
+
+_NOISE_SOURCES = dict(zip(
+    ("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az"),
+    AIR_DATA + RATES + SPECIFIC_FORCE, strict=True))
+
+
+def white_noise_variance(values: np.ndarray, rate_hz: float) -> float:
+    """Variance of the white-noise floor of a uniformly sampled signal.
+
+    The median Welch PSD over the top fifth of the band, where a flight
+    signal has faded, times the Nyquist bandwidth.
+    """
+    frequency, psd = welch(values - np.mean(values), fs=rate_hz,
+                           nperseg=min(256, len(values)))
+    band = frequency >= 0.8 * frequency[-1]
+    return float(np.median(psd[band]) * rate_hz / 2.0)
+
+
+def raw_noise_variance(log: FlightLog) -> dict[str, float]:
+    """Noise variance of the raw channels the isolation needs (metadata or spectrum)."""
+    declared = log.metadata.get("sensor_noise_std") or {}
+    rate = 1.0 / float(np.median(np.diff(log.time)))
+    return {name: (float(declared[channel]) ** 2 if channel in declared
+                   else white_noise_variance(log[channel], rate))
+            for name, channel in _NOISE_SOURCES.items()}
 
 
 def check_gaps(log: FlightLog, max_gap: float) -> None:
@@ -62,12 +98,20 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     """
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
+    noise = raw_noise_variance(log)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
     log = log.slice(log.time[airborne[0]], log.time[airborne[-1]])
     uniform = log.resample(rate_hz=rate_hz)
+    # Commands are held from their sample time to the next one (zero-order hold): on
+    # average they act half a period later than stamped. Interpolating them at their
+    # hold-interval centres keeps that half-sample lag out of the residual, where it
+    # would read as an actuator delay.
+    half_period = 0.5 * float(np.median(np.diff(log.time)))
+    controls = np.column_stack([np.interp(uniform.time, log.time + half_period, log[c])
+                                for c in CONTROLS])
     yaw = np.unwrap(log["att_yaw"])
     yaw_uniform = np.interp(uniform.time, log.time, yaw)
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
@@ -76,6 +120,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     try:
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
-            uniform.stack(AIR_DATA), uniform.stack(CONTROLS), signals=signals)
+            uniform.stack(AIR_DATA), controls, signals=signals,
+            raw_noise_variance=noise)
     except ValueError as err:
         raise FlightLogError(str(err)) from None

@@ -45,6 +45,7 @@ __all__ = [
     "differentiate",
     "isolate_coefficients",
     "smoothed_noise_variance",
+    "NOISE_CHANNELS",
     "monte_carlo_sigma",
 ]
 
@@ -165,6 +166,10 @@ def differentiate(time: np.ndarray, values: np.ndarray, window: float = 0.2,
                          mode="interp")
 
 
+NOISE_CHANNELS = ("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az")
+"""Signals whose noise variance the isolation tracks."""
+
+
 def _smoothing_coefficients(time: np.ndarray, window: float, polyorder: int) -> np.ndarray:
     step = float(np.median(np.diff(time)))
     length = min(int(round(window / step)) | 1, len(time) - (1 - len(time) % 2))
@@ -195,11 +200,15 @@ def isolate_coefficients(
     thrust: np.ndarray | None = None,
     signals: Mapping[str, np.ndarray] | None = None,
     derivative_window: float = 0.2,
+    raw_noise_variance: Mapping[str, float] | None = None,
 ) -> AeroSamples:
     """Measured coefficients (seed S0 eq. 5.41) from uniformly sampled flight data.
 
     All signals are smoothed by the Savitzky-Golay filter of length
     ``derivative_window`` [s] that also differentiates the rates.
+    ``raw_noise_variance`` gives the white-noise variance of the raw
+    ``airspeed, alpha, beta, p, q, r, ax, ay, az`` samples (e.g. from sensor
+    specifications); missing entries are estimated from the data.
 
     Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
     ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` (N, 4)
@@ -268,8 +277,12 @@ def isolate_coefficients(
     )
     noise = np.concatenate([smoothed_noise_variance(time, arrays[k], derivative_window)
                             for k in ("air_data", "rates", "specific_force")])
-    noise_variance = dict(zip(("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az"),
-                              noise.tolist(), strict=True))
+    noise_variance = dict(zip(NOISE_CHANNELS, noise.tolist(), strict=True))
+    gain = float(np.sum(_smoothing_coefficients(time, derivative_window, 3) ** 2))
+    for name, value in (raw_noise_variance or {}).items():
+        if name not in noise_variance:
+            raise ValueError(f"isolate_coefficients: raw_noise_variance has unknown '{name}'")
+        noise_variance[name] = float(value) * gain
     extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
     for name, value in extra.items():
         if value.shape != (n,):

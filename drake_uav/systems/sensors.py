@@ -249,6 +249,23 @@ class SensorSuiteParams:
             raise ValueError(f"pitot.air_density: must be positive, got {self.pitot.air_density}")
         return self
 
+    def noise_std(self, airspeed: float) -> dict[str, float]:
+        """White-noise standard deviation of every measured channel [its unit].
+
+        The pitot airspeed's is the dynamic-pressure noise carried through
+        ``Va = sqrt(2 q / rho)`` at ``airspeed`` [m/s].
+        """
+        out = {}
+        for sensor, group, _, names, _ in _CHANNELS:
+            params = getattr(self, sensor)
+            if params is None:
+                continue
+            std = getattr(params, group).arrays(len(names), f"{sensor}.{group}")["noise_std"]
+            out.update(zip(names, np.broadcast_to(std, (len(names),)).tolist(), strict=True))
+            if sensor == "pitot":
+                out["pitot_airspeed"] = out["pitot_qbar"] / (params.air_density * airspeed)
+        return out
+
     def channels(self) -> tuple[tuple[str, str], ...]:
         """(name, unit) of every measured channel in the ``measurements`` output."""
         out = []

@@ -92,15 +92,17 @@ def test_wind_truth_and_air_data_are_consistent(log):
         v = log.stack(["u", "v", "w"])[k] - R.T @ wind[k]
         assert log["airspeed"][k] == pytest.approx(np.linalg.norm(v), rel=1e-12)
     assert 0.5 < np.std(log["gust_w"]) < 3.0
-    # The logged command at t_k is the surface deflection the plant used at t_k.
-    np.testing.assert_array_equal(log["cmd_aileron"], log["aileron"])
+    # A command is stamped with the time it is issued and held until the next one; the
+    # truth surfaces are stamped at the end of the interval they were held over.
+    np.testing.assert_array_equal(log["cmd_aileron"][:-1], log["aileron"][1:])
 
 
 def test_actuator_delay_and_disturbance_act_through_the_physics():
     base = fly("aerosonde", None, seed=3, duration=6.0)
     delayed = fly("aerosonde", None, seed=3, duration=6.0, actuator_delay=0.05)
-    # The surfaces lag the logged commands by five 10 ms samples.
-    np.testing.assert_array_equal(delayed["aileron"][5:], delayed["cmd_aileron"][:-5])
+    # The surfaces lag the logged commands by five 10 ms samples (plus the one-sample
+    # stamping offset of the truth surfaces, see above).
+    np.testing.assert_array_equal(delayed["aileron"][6:], delayed["cmd_aileron"][:-6])
     assert not np.array_equal(base["p"], delayed["p"])
     pushed = fly("aerosonde", None, seed=3, duration=6.0, disturbance=[-20.0, 0, 0, 0, 0, 0])
     # A 20 N drag-like force shows up 1:1 in the accelerometer's truth.
