@@ -35,7 +35,7 @@ def _cmd_trim(args: argparse.Namespace) -> int:
     return 0
 
 
-SAMPLE_FLIGHT = "sample_flight.csv.gz"
+SAMPLE_FLIGHT = "sample_flight.parquet"
 """Bundled flight (drake_uav/data/): a simulated Aerosonde identification flight with an
 effect its catalog model lacks."""
 
@@ -111,7 +111,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Fit the aerodynamic model to a flight log, study the residual, trace it "
                     "to the physical effect the model lacks, add it, and write a report with "
                     "the errors before and after. Without LOG, runs on a bundled sample flight.")
-    ident.add_argument("log", nargs="?", help="flight log (.csv, .csv.gz, .bin, .ulg, .parquet)")
+    ident.add_argument("log", nargs="?", help="flight log (.csv, .bin, .ulg, .parquet)")
     ident.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
                        help="log format (default: from the file extension)")
     ident.add_argument("--aircraft", default="aerosonde",
