@@ -289,7 +289,7 @@ def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient:
     names = baseline_names(params, coefficient)
 
     def columns(smp):
-        X = regressor_matrix(names, smp.condition, params.b, params.c)
+        X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
         return dict(zip(names, X.T, strict=True))
 
     variance = samples.noise_variance
@@ -381,12 +381,14 @@ def _fit(coefficient: str, train: _Design, test: _Design, rate: float) -> Coeffi
 
 
 def _effect_function(effect: Effect, params: FixedWingParams, coefficient: str):
-    return lambda smp: effect.columns(smp, params, coefficient)
+    return lambda smp: effect.columns(smp.aligned(coefficient), params, coefficient)
 
 
-def _product_function(params: FixedWingParams, names: Sequence[str] | None = None):
+def _product_function(params: FixedWingParams, coefficient: str,
+                      names: Sequence[str] | None = None):
     def products(smp):
-        out = {_product_name(k): v for k, v in product_candidates(smp, params).items()}
+        out = {_product_name(k): v for k, v in
+               product_candidates(smp.aligned(coefficient), params).items()}
         return out if names is None else {k: out[k] for k in names}
     return products
 
@@ -444,7 +446,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         for ev in accepted:
             k = ev.coefficient
             function = (_effect_function(effect, params, k) if effect is not None
-                        else _product_function(params, ev.columns))
+                        else _product_function(params, k, ev.columns))
             for design, smp in ((designs, train), (tests, test)):
                 columns, jac = _columns_and_jacobians(function, smp, design[k].variance)
                 design[k] = design[k].extended({c: columns[c] for c in ev.columns}, jac,
@@ -466,8 +468,8 @@ def _score_products(bases, train, params, folds, rule, used) -> list[Evidence]:
             effect_name = f"data_driven:{name}"
             if effect_name in used:
                 continue
-            ev = _score(effect_name, k, base, _product_function(params, [name]), train, folds,
-                        rule, n_tests)
+            ev = _score(effect_name, k, base, _product_function(params, k, [name]), train,
+                        folds, rule, n_tests)
             if ev is not None:
                 out.append(ev)
     return out

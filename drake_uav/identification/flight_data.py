@@ -18,8 +18,13 @@ height (optional)   ``baro_alt``                                 m
 
 The channels are resampled to a uniform rate, checked (no NaN, no gap longer
 than ``max_gap``), and passed to the coefficient isolation. Commands are taken
-as held between their samples (zero-order hold) and interpolated at the centres
-of their hold intervals.
+as held from their time stamp to the next one (zero-order hold), which places
+them differently for forces and moments (:func:`held_commands`): a sensor
+sample sees the command in effect at its instant, the last one issued strictly
+before it (a command stamped with the same time acts only after the sample);
+the angular accelerations, a centred derivative, see the held command on
+average half a hold period after its stamp, so the moments take the commands
+interpolated at the centres of their hold intervals.
 
 Sensor noise matters to the errors-in-variables corrections of the discovery
 loop. A log's metadata ``sensor_noise_std`` (channel -> standard deviation,
@@ -38,7 +43,7 @@ from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
-           "white_noise_variance"]
+           "white_noise_variance", "held_commands"]
 
 SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
 RATES = ("imu_p", "imu_q", "imu_r")
@@ -77,6 +82,27 @@ def raw_noise_variance(log: FlightLog) -> dict[str, float]:
             for name, channel in _NOISE_SOURCES.items()}
 
 
+def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Held commands at ``time``: (at the sample instants, as the moments see them).
+
+    ``values`` (N, m) are issued at ``stamps`` [s] and held until the next stamp.
+    The first result is the command in effect at each instant, the last one
+    issued strictly before it (a sample and a command with the same stamp: the
+    sample comes first); the second interpolates the commands at the centres of
+    their hold intervals, the time a centred derivative of the motion sees them.
+    """
+    stamps = np.asarray(stamps, dtype=float)
+    values = np.asarray(values, dtype=float)
+    step = np.diff(stamps)
+    tolerance = 1e-6 * float(np.median(step))
+    index = np.clip(np.searchsorted(stamps, np.asarray(time) - tolerance, side="left") - 1,
+                    0, len(stamps) - 1)
+    centres = stamps + 0.5 * np.append(step, step[-1])
+    centred = np.column_stack([np.interp(time, centres, v) for v in values.T])
+    return values[index], centred
+
+
 def check_gaps(log: FlightLog, max_gap: float) -> None:
     """Raises :class:`FlightLogError` at the first time step longer than ``max_gap`` [s]."""
     step = np.diff(log.time)
@@ -105,13 +131,9 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
     log = log.slice(log.time[airborne[0]], log.time[airborne[-1]])
     uniform = log.resample(rate_hz=rate_hz)
-    # Commands are held from their sample time to the next one (zero-order hold): on
-    # average they act half a period later than stamped. Interpolating them at their
-    # hold-interval centres keeps that half-sample lag out of the residual, where it
-    # would read as an actuator delay.
-    half_period = 0.5 * float(np.median(np.diff(log.time)))
-    controls = np.column_stack([np.interp(uniform.time, log.time + half_period, log[c])
-                                for c in CONTROLS])
+    # Misplacing held commands by half a hold period would leave a spurious actuator
+    # delay (or lead) in the residual: forces and moments each get their own alignment.
+    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time)
     yaw = np.unwrap(log["att_yaw"])
     yaw_uniform = np.interp(uniform.time, log.time, yaw)
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
@@ -121,6 +143,6 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), controls, signals=signals,
-            raw_noise_variance=noise)
+            raw_noise_variance=noise, moment_controls=moment_controls)
     except ValueError as err:
         raise FlightLogError(str(err)) from None

@@ -42,12 +42,17 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
     "AeroSamples",
+    "MOMENTS",
     "differentiate",
     "isolate_coefficients",
     "smoothed_noise_variance",
     "NOISE_CHANNELS",
     "monte_carlo_sigma",
 ]
+
+
+MOMENTS = ("Cl", "Cm", "Cn")
+"""Coefficients measured from the angular accelerations."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,9 +84,20 @@ class AeroSamples:
     """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured)."""
     reference_area: float = 1.0
     """Wing area S [m^2] the coefficients refer to."""
+    moment_view: AeroSamples | None = None
+    """The same samples with the controls (surfaces, throttle, thrust) as the moment
+    coefficients see them, or None when forces and moments see the same controls
+    (see :func:`isolate_coefficients`)."""
 
     def __len__(self) -> int:
         return len(self.time)
+
+    def aligned(self, coefficient: str) -> AeroSamples:
+        """The samples whose controls belong with ``coefficient``: the moment view for
+        ``Cl, Cm, Cn`` when there is one, else these samples."""
+        if coefficient in MOMENTS and self.moment_view is not None:
+            return self.moment_view
+        return self
 
     def observation_sensitivity(self, coefficient: str) -> dict[str, np.ndarray]:
         """d(measured coefficient)/d(air-data signal) per sample, for noise propagation.
@@ -108,15 +124,16 @@ class AeroSamples:
         the dynamic pressure follows the airspeed."""
         value = getattr(self.condition, signal) + delta
         condition = self.condition._replace(**{signal: value})
+        view = None if self.moment_view is None else self.moment_view.perturbed(signal, delta)
         if signal != "airspeed":
-            return dataclasses.replace(self, condition=condition)
+            return dataclasses.replace(self, condition=condition, moment_view=view)
         q_bar = self.dynamic_pressure * (value / self.condition.airspeed) ** 2
         thrust = self.thrust
         if self.thrust_airspeed_slope is not None:
             thrust = thrust + self.thrust_airspeed_slope * delta
         condition = condition._replace(thrust_coefficient=thrust / (q_bar * self.reference_area))
         return dataclasses.replace(self, condition=condition, dynamic_pressure=q_bar,
-                                   thrust=thrust)
+                                   thrust=thrust, moment_view=view)
 
     def subset(self, index) -> AeroSamples:
         """The samples selected by a boolean mask or an index array."""
@@ -139,6 +156,7 @@ class AeroSamples:
             thrust_airspeed_slope=(None if self.thrust_airspeed_slope is None
                                    else pick(self.thrust_airspeed_slope)),
             reference_area=self.reference_area,
+            moment_view=None if self.moment_view is None else self.moment_view.subset(index),
         )
 
 
@@ -201,6 +219,7 @@ def isolate_coefficients(
     signals: Mapping[str, np.ndarray] | None = None,
     derivative_window: float = 0.2,
     raw_noise_variance: Mapping[str, float] | None = None,
+    moment_controls: np.ndarray | None = None,
 ) -> AeroSamples:
     """Measured coefficients (seed S0 eq. 5.41) from uniformly sampled flight data.
 
@@ -210,18 +229,31 @@ def isolate_coefficients(
     ``airspeed, alpha, beta, p, q, r, ax, ay, az`` samples (e.g. from sensor
     specifications); missing entries are estimated from the data.
 
+    Forces and moments see held (stepwise) controls at different times. The
+    accelerometer samples the force at an instant: ``controls`` are the
+    surfaces and throttle in effect at each sample. The angular accelerations
+    come from a centred derivative of the rates, which averages the moment
+    over the samples around each instant: ``moment_controls`` are the controls
+    as that average sees them (for held commands: their value at the centres
+    of the hold intervals). When given, the moment coefficients' regressors
+    are built from them (:meth:`AeroSamples.aligned`); by default both are
+    ``controls`` (controls that vary smoothly).
+
     Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
-    ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` (N, 4)
-    [elevator, aileron, rudder rad, throttle]. ``thrust`` [N] defaults to the
-    params' propulsion model at the measured airspeed and throttle.
+    ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` and
+    ``moment_controls`` (N, 4) [elevator, aileron, rudder rad, throttle].
+    ``thrust`` [N] defaults to the params' propulsion model at the measured
+    airspeed and throttle (then the same for forces and moments).
     """
     time = np.asarray(time, dtype=float)
     n = len(time)
     arrays = {"specific_force": specific_force, "rates": rates, "air_data": air_data,
               "controls": controls}
+    if moment_controls is not None:
+        arrays["moment_controls"] = moment_controls
     for name, value in arrays.items():
         value = np.asarray(value, dtype=float)
-        width = 4 if name == "controls" else 3
+        width = 4 if name.endswith("controls") else 3
         if value.shape != (n, width):
             raise ValueError(f"isolate_coefficients: {name} must have shape ({n}, {width}), "
                              f"got {value.shape}")
@@ -229,52 +261,64 @@ def isolate_coefficients(
             bad = int(np.argwhere(~np.isfinite(value))[0, 0])
             raise ValueError(f"isolate_coefficients: {name} is not finite at sample {bad}")
         arrays[name] = value
+
     def smooth(values):
         return differentiate(time, values, derivative_window, deriv=0)
 
     raw_rates = arrays["rates"]
-    f, w, air, u = (smooth(arrays[k]) for k in ("specific_force", "rates", "air_data",
-                                                 "controls"))
+    f, w, air = (smooth(arrays[k]) for k in ("specific_force", "rates", "air_data"))
     airspeed, alpha, beta = air[:, 0], air[:, 1], air[:, 2]
     if np.any(airspeed <= 1.0):
         bad = int(np.argmax(airspeed <= 1.0))
         raise ValueError(f"isolate_coefficients: airspeed {airspeed[bad]:.3g} m/s at sample "
                          f"{bad} is too low to normalise the forces")
-    # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
-    # samples, then smooth the result like every other signal.
-    model = FixedWingModel(params)
-    raw_thrust, raw_torque = model.thrust(arrays["air_data"][:, 0], arrays["controls"][:, 3])
-    slope = None
-    if thrust is None:
-        step = 0.01
-        slope = smooth((model.thrust(arrays["air_data"][:, 0] + step, arrays["controls"][:, 3])[0]
-                        - model.thrust(arrays["air_data"][:, 0] - step,
-                                       arrays["controls"][:, 3])[0]) / (2 * step))
-    thrust = smooth(raw_thrust if thrust is None else np.asarray(thrust, dtype=float))
-    torque = smooth(np.broadcast_to(raw_torque, (n,)).astype(float))
     q_bar = 0.5 * params.rho * airspeed**2
     q_bar_s = q_bar * params.S
+    measured_thrust = None if thrust is None else smooth(np.asarray(thrust, dtype=float))
+    alpha_dot = differentiate(time, alpha, derivative_window)
+
+    def controls_view(raw_controls):
+        """(condition, thrust [N], d thrust / d airspeed, propeller torque [N m], throttle)."""
+        u = smooth(raw_controls)
+        # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
+        # samples, then smooth the result like every other signal.
+        model = FixedWingModel(params)
+        raw_airspeed = arrays["air_data"][:, 0]
+        raw_thrust, raw_torque = model.thrust(raw_airspeed, raw_controls[:, 3])
+        slope, force = None, measured_thrust
+        if measured_thrust is None:
+            step = 0.01
+            slope = smooth((model.thrust(raw_airspeed + step, raw_controls[:, 3])[0]
+                            - model.thrust(raw_airspeed - step, raw_controls[:, 3])[0])
+                           / (2 * step))
+            force = smooth(raw_thrust)
+        torque = smooth(np.broadcast_to(raw_torque, (n,)).astype(float))
+        condition = AeroCondition(
+            airspeed=airspeed, alpha=alpha, beta=beta, p=w[:, 0], q=w[:, 1], r=w[:, 2],
+            elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
+            alphadot=alpha_dot, thrust_coefficient=force / q_bar_s,
+        )
+        return condition, force, slope, torque, u[:, 3]
+
+    force_inputs = controls_view(arrays["controls"])
+    moment_inputs = (force_inputs if moment_controls is None
+                     else controls_view(arrays["moment_controls"]))
+    condition, force_thrust, slope, _, throttle = force_inputs
     m = params.mass
-    CX = (m * f[:, 0] - thrust) / q_bar_s
+    CX = (m * f[:, 0] - force_thrust) / q_bar_s
     CY = m * f[:, 1] / q_bar_s
     CZ = m * f[:, 2] / q_bar_s
     CL, CD = body_to_lift_drag(CX, CZ, alpha)
     w_dot = differentiate(time, raw_rates, derivative_window)
     J = params.inertia
     moment = w_dot @ J.T + np.cross(w, w @ J.T)
-    moment[:, 0] -= torque
+    moment[:, 0] -= moment_inputs[3]
     coefficients = dict(zip(COEFFICIENTS, (
         CL, CD, CY,
         moment[:, 0] / (q_bar_s * params.b),
         moment[:, 1] / (q_bar_s * params.c),
         moment[:, 2] / (q_bar_s * params.b),
     ), strict=True))
-    alpha_dot = differentiate(time, alpha, derivative_window)
-    condition = AeroCondition(
-        airspeed=airspeed, alpha=alpha, beta=beta, p=w[:, 0], q=w[:, 1], r=w[:, 2],
-        elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
-        alphadot=alpha_dot, thrust_coefficient=thrust / q_bar_s,
-    )
     noise = np.concatenate([smoothed_noise_variance(time, arrays[k], derivative_window)
                             for k in ("air_data", "rates", "specific_force")])
     noise_variance = dict(zip(NOISE_CHANNELS, noise.tolist(), strict=True))
@@ -287,12 +331,18 @@ def isolate_coefficients(
     for name, value in extra.items():
         if value.shape != (n,):
             raise ValueError(f"isolate_coefficients: signal '{name}' must have shape ({n},)")
-    return AeroSamples(
+    samples = AeroSamples(
         time=time, condition=condition, coefficients=coefficients, dynamic_pressure=q_bar,
-        throttle=u[:, 3], thrust=np.asarray(thrust, dtype=float), rate_derivatives=w_dot,
+        throttle=throttle, thrust=force_thrust, rate_derivatives=w_dot,
         specific_force=f, signals=extra, noise_variance=noise_variance,
         thrust_airspeed_slope=slope, reference_area=params.S,
     )
+    if moment_controls is None:
+        return samples
+    view_condition, view_thrust, view_slope, _, view_throttle = moment_inputs
+    return dataclasses.replace(samples, moment_view=dataclasses.replace(
+        samples, condition=view_condition, thrust=view_thrust,
+        thrust_airspeed_slope=view_slope, throttle=view_throttle))
 
 
 def monte_carlo_sigma(
