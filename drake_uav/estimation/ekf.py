@@ -1,0 +1,891 @@
+"""Continuous-discrete extended Kalman filter core (seed S0 sec. 5.4.2, seed S1 sec. 4).
+
+A filter is built from an :class:`EkfModel`: scalar-generic functions
+
+    x_dot = f(x, u, w)        (process; ``w`` are continuous process-noise inputs at 0)
+    y     = h(x, u)           (measurements)
+
+that work for float, ``AutoDiffXd`` and ``symbolic.Expression``. There is no
+hand-written Jacobian: :class:`CompiledFunction` traces each function once with
+symbolic inputs and writes value and Jacobians (forward-mode differentiation of
+the trace) as straight-line Python with shared subexpressions. They equal the
+``AutoDiffXd`` Jacobians of the same function; the ``"autodiff"`` backend
+computes those on every call instead.
+
+Time update over a step ``dt``, input held (the mean of the previous and the
+current sample): with ``A = F dt``,
+
+    x- = x + dt (I + A/2 + A^2/6 + A^3/24) f(x, u),    Phi = I + A + A^2/2 + A^3/6,
+    P- = Phi (P + Qd/2) Phi^T + Qd/2,   Qd = G Qc G^T dt + (B dt) Sigma_u (B dt)^T
+
+(exponential integration of the linearised model, Taylor series to third order), ``Qc`` the
+power spectral density of ``w``, ``Sigma_u`` the per-sample covariance of the
+noisy inputs (IMU, attitude), ``F = df/dx``, ``G = df/dw``, ``B = df/du``.
+
+Measurement update in Joseph form with the availability mask of seed S0: the
+channels with no new sample at this step, NaN samples, and the sensor groups
+rejected by the innovation gate get zero rows in ``C_k = D_k H_k`` and zero
+innovations, so they contribute nothing. The gate tests each channel's
+``nu_i^2 / S_ii`` against the chi-square(1) quantile and drops the whole group
+of a failing channel. Input noise entering ``h`` (attitude in the GPS rows) is
+added to ``R`` through ``dh/du``. Each update reports its normalised innovation
+squared (NIS) and degrees of freedom.
+
+Everything works on one filter or, with a leading batch axis, on many
+independent filters in lockstep (Monte-Carlo campaigns). :func:`run_filter`
+runs the core over logged samples offline.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue, InitializeAutoDiff
+from pydrake.symbolic import Expression, ExpressionKind, Formula, FormulaKind, Variable
+from scipy.stats import chi2
+
+from drake_uav.scalar import as_list
+
+__all__ = [
+    "CompiledFunction",
+    "EkfModel",
+    "EkfNoise",
+    "UpdateResult",
+    "ExtendedKalmanFilter",
+    "FilterRun",
+    "run_filter",
+    "wrap_angle",
+    "chi2_bounds",
+]
+
+
+def wrap_angle(angle):
+    """Angle(s) wrapped to [-pi, pi) [rad]."""
+    return (np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def chi2_bounds(dof: float, runs: int, probability: float = 0.95) -> tuple[float, float]:
+    """Two-sided ``probability`` bounds of the mean of ``runs`` chi-square(``dof``) samples."""
+    tail = 0.5 * (1.0 - probability)
+    total = dof * runs
+    return float(chi2.ppf(tail, total) / runs), float(chi2.ppf(1.0 - tail, total) / runs)
+
+
+# --------------------------------------------------------------------------------------
+# Compilation of scalar-generic functions: symbolic trace -> straight-line Python.
+# --------------------------------------------------------------------------------------
+
+_K = ExpressionKind
+_UNARY = {
+    _K.Sqrt: "_sqrt", _K.Sin: "_sin", _K.Cos: "_cos", _K.Tan: "_tan", _K.Asin: "_asin",
+    _K.Acos: "_acos", _K.Atan: "_atan", _K.Exp: "_exp", _K.Log: "_log", _K.Abs: "_abs",
+    _K.Sinh: "_sinh", _K.Cosh: "_cosh", _K.Tanh: "_tanh", _K.Floor: "_floor",
+    _K.Ceil: "_ceil",
+}
+_RELATIONS = {FormulaKind.Gt: ">", FormulaKind.Geq: ">=", FormulaKind.Lt: "<",
+              FormulaKind.Leq: "<=", FormulaKind.Eq: "==", FormulaKind.Neq: "!="}
+_SPECIAL = {"math.nan": math.nan, "math.inf": math.inf, "(-math.inf)": -math.inf}
+_ZERO, _ONE = "0.0", "1.0"
+
+# The same generated source runs on Python floats (one sample) or on numpy arrays
+# (a batch of samples): only the functions bound to these names differ.
+_SCALAR_SCOPE = {
+    "_sqrt": math.sqrt, "_sin": math.sin, "_cos": math.cos, "_tan": math.tan,
+    "_asin": math.asin, "_acos": math.acos, "_atan": math.atan, "_exp": math.exp,
+    "_log": math.log, "_abs": abs, "_sinh": math.sinh, "_cosh": math.cosh,
+    "_tanh": math.tanh, "_floor": math.floor, "_ceil": math.ceil, "_atan2": math.atan2,
+    "_max": max, "_min": min, "_pow": math.pow, "_copysign": math.copysign,
+    "_where": lambda c, a, b: a if c else b, "_and": lambda a, b: a and b,
+    "_or": lambda a, b: a or b, "_not": lambda a: not a,
+}
+_VECTOR_SCOPE = {
+    "_sqrt": np.sqrt, "_sin": np.sin, "_cos": np.cos, "_tan": np.tan, "_asin": np.arcsin,
+    "_acos": np.arccos, "_atan": np.arctan, "_exp": np.exp, "_log": np.log, "_abs": np.abs,
+    "_sinh": np.sinh, "_cosh": np.cosh, "_tanh": np.tanh, "_floor": np.floor,
+    "_ceil": np.ceil, "_atan2": np.arctan2, "_max": np.maximum, "_min": np.minimum,
+    "_pow": np.power, "_copysign": np.copysign, "_where": np.where,
+    "_and": np.logical_and, "_or": np.logical_or, "_not": np.logical_not,
+}
+
+
+def _literal(value: float) -> str:
+    value = float(value)
+    if math.isnan(value):
+        return "math.nan"
+    if math.isinf(value):
+        return "math.inf" if value > 0 else "(-math.inf)"
+    return repr(value)
+
+
+def _is_literal(text: str) -> bool:
+    """Literals are everything but temporaries ``t<k>`` and inputs ``a<i>_<j>``."""
+    return text[0] not in "ta"
+
+
+def _constant(text: str) -> float:
+    return _SPECIAL[text] if text in _SPECIAL else float(text)
+
+
+class _Tracer:
+    """Writes a Drake expression DAG as Python statements, with forward-mode derivatives.
+
+    Equal subexpressions share one temporary. With ``seeds`` (input name ->
+    seed index) every node also gets its partial derivatives by the chain rule,
+    kept sparse (absent means zero).
+    """
+
+    def __init__(self, variable_names: Mapping[int, str], seeds: Mapping[str, int] | None):
+        self._variables = variable_names
+        self._seeds = seeds
+        self._table: dict[str, str] = {}
+        self._derivatives: dict[str, dict[int, str]] = {}
+        self.lines: list[str] = []
+        self.used_variables: set[str] = set()
+
+    # ------------------------------------------------------------ emission helpers
+    def _new(self, text: str) -> str:
+        name = self._table.get(text)
+        if name is None:
+            name = f"t{len(self._table)}"
+            self._table[text] = name
+            self.lines.append(f"    {name} = {text}")
+        return name
+
+    def _mul(self, *factors: str) -> str:
+        factors = [f for f in factors if f != _ONE]
+        if any(f == _ZERO for f in factors):
+            return _ZERO
+        if not factors:
+            return _ONE
+        if len(factors) == 1:
+            return factors[0]
+        return self._new(" * ".join(sorted(factors)))
+
+    def _sum(self, terms: list[str]) -> str:
+        terms = [t for t in terms if t != _ZERO]
+        if not terms:
+            return _ZERO
+        if len(terms) == 1:
+            return terms[0]
+        return self._new(" + ".join(sorted(terms)))
+
+    def _neg(self, term: str) -> str:
+        return _ZERO if term == _ZERO else self._new(f"-{term}")
+
+    def _div(self, numerator: str, denominator: str) -> str:
+        return _ZERO if numerator == _ZERO else self._new(f"{numerator} / {denominator}")
+
+    def derivatives(self, name: str) -> dict[int, str]:
+        """Sparse partial derivatives of an emitted node by seed index."""
+        return self._derivatives.get(name, {})
+
+    # ---------------------------------------------------------------- traversal
+    def _leaf(self, node) -> str | None:
+        if isinstance(node, float | int):
+            return _literal(node)
+        if isinstance(node, Formula):
+            kind = node.get_kind()
+            if kind == FormulaKind.True_:
+                return "True"
+            if kind == FormulaKind.False_:
+                return "False"
+            return None
+        kind = node.get_kind()
+        if kind == _K.Constant:
+            return _literal(node.Evaluate())
+        if kind == _K.NaN:
+            return "math.nan"
+        if kind == _K.Var:
+            (var,) = node.GetVariables()
+            name = self._variables[var.get_id()]
+            self.used_variables.add(name)
+            if self._seeds is not None and name in self._seeds:
+                self._derivatives[name] = {self._seeds[name]: _ONE}
+            return name
+        return None
+
+    def emit(self, root) -> str:
+        """Name (or literal) of ``root``'s value; derivatives via :meth:`derivatives`."""
+        results: list[str] = []
+        stack: list[tuple[object, tuple | None]] = [(root, None)]
+        while stack:
+            node, pending = stack.pop()
+            if pending is None:
+                leaf = self._leaf(node)
+                if leaf is not None:
+                    results.append(leaf)
+                    continue
+                _, args = node.Unapply()
+                stack.append((node, (node.get_kind(), len(args))))
+                stack.extend((arg, None) for arg in reversed(args))
+                continue
+            kind, count = pending
+            args = results[len(results) - count:]
+            del results[len(results) - count:]
+            results.append(self._combine(kind, args))
+        return results[0]
+
+    def _combine(self, kind, args: list[str]) -> str:
+        name = self._new(self._format(kind, args))
+        if self._seeds is not None and name not in self._derivatives:
+            partials = self._partials(kind, args, name)
+            if partials:
+                self._derivatives[name] = partials
+        return name
+
+    @staticmethod
+    def _format(kind, args: list[str]) -> str:
+        if kind == _K.Add:
+            terms = sorted(args[1:])
+            return " + ".join(terms if _constant(args[0]) == 0.0 else [args[0], *terms])
+        if kind == _K.Mul:
+            product = " * ".join(sorted(args[1:]))
+            factor = _constant(args[0])
+            if factor == 1.0:
+                return product
+            return f"-({product})" if factor == -1.0 else f"{args[0]} * {product}"
+        if kind == _K.Div:
+            return f"{args[0]} / {args[1]}"
+        if kind == _K.Pow:
+            base, exponent = args
+            if _is_literal(exponent) and _constant(exponent) == 2.0:
+                return f"{base} * {base}"
+            if _is_literal(exponent) and _constant(exponent) == int(_constant(exponent)):
+                return f"{base} ** {int(_constant(exponent))}"
+            return f"_pow({base}, {exponent})"
+        if kind in _UNARY:
+            return f"{_UNARY[kind]}({args[0]})"
+        if kind == _K.Atan2:
+            return f"_atan2({args[0]}, {args[1]})"
+        if kind in (_K.Max, _K.Min):
+            return f"{'_max' if kind == _K.Max else '_min'}({args[0]}, {args[1]})"
+        if kind == _K.IfThenElse:
+            return f"_where({args[0]}, {args[1]}, {args[2]})"
+        if kind in _RELATIONS:
+            return f"({args[0]} {_RELATIONS[kind]} {args[1]})"
+        if kind in (FormulaKind.And, FormulaKind.Or):
+            function = "_and" if kind == FormulaKind.And else "_or"
+            text = args[0]
+            for arg in args[1:]:
+                text = f"{function}({text}, {arg})"
+            return text
+        if kind == FormulaKind.Not:
+            return f"_not({args[0]})"
+        raise NotImplementedError(f"cannot compile symbolic node of kind {kind}")
+
+    def _partials(self, kind, args: list[str], t: str) -> dict[int, str]:
+        """Chain rule for node ``t = kind(args)``."""
+        if isinstance(kind, FormulaKind) or kind in (_K.Floor, _K.Ceil):
+            return {}
+        d = [self.derivatives(a) for a in args]
+        out = {}
+        for j in sorted(set().union(*d)):
+            value = self._partial(kind, args, t, [di.get(j, _ZERO) for di in d])
+            if value != _ZERO:
+                out[j] = value
+        return out
+
+    def _partial(self, kind, args: list[str], t: str, da: list[str]) -> str:
+        a = args[0]
+        if kind == _K.Add:
+            return self._sum(da[1:])
+        if kind == _K.Mul:
+            factors = args[1:]
+            return self._sum([self._mul(args[0], *factors[:i], *factors[i + 1:], da[1 + i])
+                              for i in range(len(factors))])
+        if kind == _K.Div:
+            return self._div(self._sum([da[0], self._neg(self._mul(t, da[1]))]), args[1])
+        if kind == _K.Pow:
+            base, exponent = args
+            if _is_literal(exponent):
+                e = _constant(exponent)
+                if e == 2.0:
+                    slope = self._mul("2.0", base)
+                elif e == 0.5:
+                    slope = self._new(f"0.5 / {t}")
+                elif e == int(e):
+                    slope = self._new(f"{_literal(e)} * {base} ** {int(e) - 1}")
+                else:
+                    slope = self._new(f"{_literal(e)} * _pow({base}, {_literal(e - 1.0)})")
+                return self._mul(slope, da[0])
+            log_term = self._mul(self._new(f"_log({base})"), da[1])
+            base_term = self._mul(self._new(f"{exponent} / {base}"), da[0])
+            return self._mul(t, self._sum([log_term, base_term]))
+        slopes = {
+            _K.Sqrt: lambda: f"0.5 / {t}",
+            _K.Sin: lambda: f"_cos({a})",
+            _K.Cos: lambda: f"-_sin({a})",
+            _K.Tan: lambda: f"1.0 + {t} * {t}",
+            _K.Asin: lambda: f"1.0 / _sqrt(1.0 - {a} * {a})",
+            _K.Acos: lambda: f"-1.0 / _sqrt(1.0 - {a} * {a})",
+            _K.Atan: lambda: f"1.0 / (1.0 + {a} * {a})",
+            _K.Log: lambda: f"1.0 / {a}",
+            _K.Abs: lambda: f"_copysign(1.0, {a})",
+            _K.Sinh: lambda: f"_cosh({a})",
+            _K.Cosh: lambda: f"_sinh({a})",
+            _K.Tanh: lambda: f"1.0 - {t} * {t}",
+        }
+        if kind == _K.Exp:
+            return self._mul(t, da[0])
+        if kind in slopes:
+            return self._mul(self._new(slopes[kind]()), da[0])
+        if kind == _K.Atan2:
+            y, x = args
+            numerator = self._sum([self._mul(x, da[0]), self._neg(self._mul(y, da[1]))])
+            return self._div(numerator, self._new(f"{x} * {x} + {y} * {y}"))
+        if kind in (_K.Max, _K.Min):
+            op = ">=" if kind == _K.Max else "<="
+            return self._new(f"_where({args[0]} {op} {args[1]}, {da[0]}, {da[1]})")
+        if kind == _K.IfThenElse:
+            return self._new(f"_where({args[0]}, {da[1]}, {da[2]})")
+        raise NotImplementedError(f"cannot differentiate symbolic node of kind {kind}")
+
+
+VECTOR_BATCH = 16
+"""Batch size from which compiled functions evaluate on numpy arrays instead of per sample."""
+
+
+class CompiledFunction:
+    """A scalar-generic function of vector arguments with value and Jacobians compiled.
+
+    ``fn(*args)`` must accept numpy arrays of float, ``AutoDiffXd`` or
+    ``Expression`` (sizes ``arg_sizes``) and return a 1-D sequence. ``wrt``
+    maps an argument index to the entries to differentiate by (``None``: all).
+
+    ``fn`` is traced once with symbolic inputs; the trace is written as
+    straight-line Python with shared subexpressions, and its Jacobians by
+    forward-mode differentiation of the same trace. The generated code runs on
+    floats (:meth:`value`, :meth:`jacobians`) or elementwise on a batch of
+    samples (:meth:`batch_jacobians`). :meth:`autodiff_jacobians` evaluates
+    ``fn`` with ``AutoDiffXd`` instead (the reference the tests compare with).
+    """
+
+    def __init__(self, fn: Callable, arg_sizes: Sequence[int],
+                 wrt: Mapping[int, Sequence[int] | None], name: str = "fn"):
+        self.fn = fn
+        self.arg_sizes = tuple(int(n) for n in arg_sizes)
+        self.wrt = {int(i): tuple(range(self.arg_sizes[i])) if idx is None else tuple(idx)
+                    for i, idx in wrt.items()}
+        self.name = name
+        symbols = [[Variable(f"a{i}_{j}") for j in range(n)] for i, n in enumerate(self.arg_sizes)]
+        self._names = {v.get_id(): f"a{i}_{j}"
+                       for i, vs in enumerate(symbols) for j, v in enumerate(vs)}
+        traced = fn(*[np.array([Expression(v) for v in vs], dtype=object) for vs in symbols])
+        self._outputs = [o if isinstance(o, Expression) else Expression(float(o)) for o in traced]
+        self.output_size = len(self._outputs)
+        seeds = [f"a{i}_{j}" for i, idx in self.wrt.items() for j in idx]
+        self._n_seeds = len(seeds)
+        self._blocks, start = [], 0
+        for idx in self.wrt.values():
+            self._blocks.append((start, start + len(idx)))
+            start += len(idx)
+        tracer = _Tracer(self._names, {name: k for k, name in enumerate(seeds)})
+        self._values = [tracer.emit(e) for e in self._outputs]
+        self._partials = [tracer.derivatives(v) for v in self._values]
+        self._lines, self._used = tracer.lines, tracer.used_variables
+        self.operation_count = len(self._lines)
+        self._scalar = self._build(vector=False)
+        self._vector: Callable | None = None
+
+    def _build(self, vector: bool) -> Callable:
+        m, k = self.output_size, self._n_seeds
+        params = ", ".join(f"a{i}" for i in range(len(self.arg_sizes)))
+        lines = [f"def jacobians({params}):"]
+        index = "[:, {}]" if vector else "[{}]"
+        lines += [f"    a{i}_{j} = a{i}{index.format(j)}" for i, n in enumerate(self.arg_sizes)
+                  for j in range(n) if f"a{i}_{j}" in self._used]
+        lines += self._lines
+        if vector:
+            lines.append(f"    _y = _empty((len(a0), {m}))")
+            lines += [f"    _y[:, {i}] = {v}" for i, v in enumerate(self._values)]
+            lines.append(f"    _J = _zeros((len(a0), {m * k}))")
+            lines += [f"    _J[:, {i * k + j}] = {d}" for i, partials in enumerate(self._partials)
+                      for j, d in partials.items()]
+            lines.append(f"    return _y, _J.reshape(len(a0), {m}, {k})")
+        else:
+            entries = [partials.get(j, _ZERO) for partials in self._partials for j in range(k)]
+            lines.append(f"    return _array([{', '.join(self._values)}]), "
+                         f"_array([{', '.join(entries)}]).reshape({m}, {k})")
+        scope = {"math": math, "_array": _float_array, "_empty": np.empty, "_zeros": np.zeros,
+                 **(_VECTOR_SCOPE if vector else _SCALAR_SCOPE)}
+        label = "batch" if vector else "scalar"
+        exec(compile("\n".join(lines), f"<compiled {self.name} ({label})>", "exec"), scope)
+        return scope["jacobians"]
+
+    def _split(self, J: np.ndarray) -> list[np.ndarray]:
+        return [J[..., a:b] for a, b in self._blocks]
+
+    def value(self, *args) -> np.ndarray:
+        """``fn(*args)`` for one sample of float arguments (compiled)."""
+        return self._scalar(*[as_list(a) for a in args])[0]
+
+    def jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Value and the Jacobians w.r.t. the ``wrt`` entries for one sample (compiled)."""
+        value, J = self._scalar(*[as_list(a) for a in args])
+        return value, self._split(J)
+
+    def batch_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
+        """:meth:`jacobians` for (B, size) arguments: values (B, m), Jacobians (B, m, k).
+
+        Small batches run the float code per sample; from ``VECTOR_BATCH``
+        samples on, the same code runs once on numpy arrays.
+        """
+        if len(args[0]) < VECTOR_BATCH:
+            results = [self._scalar(*[as_list(a[b]) for a in args]) for b in range(len(args[0]))]
+            value = np.array([r[0] for r in results])
+            return value, self._split(np.array([r[1] for r in results]))
+        if self._vector is None:
+            self._vector = self._build(vector=True)
+        value, J = self._vector(*[np.asarray(a, float) for a in args])
+        return value, self._split(J)
+
+
+    def autodiff_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Value and Jacobians computed by ``AutoDiffXd`` on ``fn`` itself (reference)."""
+        args = [np.asarray(a, float) for a in args]
+        seeds = np.concatenate([args[i][list(idx)] for i, idx in self.wrt.items()])
+        ad_seeds = InitializeAutoDiff(seeds)[:, 0]
+        ad_args = [np.array([AutoDiffXd(v) for v in a], dtype=object) for a in args]
+        k = 0
+        for i, idx in self.wrt.items():
+            for j in idx:
+                ad_args[i][j] = ad_seeds[k]
+                k += 1
+        out = np.array([o if isinstance(o, AutoDiffXd) else AutoDiffXd(float(o))
+                        for o in self.fn(*ad_args)], dtype=object)
+        value = ExtractValue(out)[:, 0]
+        gradient = ExtractGradient(out)
+        if gradient.shape[1] != seeds.size:  # every output constant
+            gradient = np.zeros((out.size, seeds.size))
+        blocks, k = [], 0
+        for idx in self.wrt.values():
+            blocks.append(gradient[:, k:k + len(idx)])
+            k += len(idx)
+        return value, blocks
+
+
+def _float_array(values) -> np.ndarray:
+    return np.array(values, dtype=float)
+
+
+def _diagonal(M: np.ndarray) -> np.ndarray:
+    """Writable view of the diagonals of a contiguous (B, n, n) stack, shape (B, n)."""
+    return M.reshape(len(M), -1)[:, :: M.shape[1] + 1]
+
+
+# --------------------------------------------------------------------------------------
+# Model description and noise.
+# --------------------------------------------------------------------------------------
+
+
+class EkfModel:
+    """Process and measurement model of a filter (subclass and fill in).
+
+    Attributes (tuples of names): ``state_names``, ``input_names``,
+    ``noise_names`` (process-noise inputs ``w`` of :meth:`dynamics`) and
+    ``measurement_names``. ``groups`` maps a sensor name to the measurement
+    indices it delivers together (gated together). ``angle_inputs``,
+    ``angle_states`` and ``angle_measurements`` are indices whose differences
+    wrap at +-pi. Inputs are samples of continuous signals (held at the mean
+    of the two samples around a step) except ``held_inputs`` (commands held
+    over the step; their current value is the one in effect during the step
+    that ends at the sample).
+    """
+
+    state_names: tuple[str, ...] = ()
+    input_names: tuple[str, ...] = ()
+    noise_names: tuple[str, ...] = ()
+    measurement_names: tuple[str, ...] = ()
+    groups: Mapping[str, tuple[int, ...]] = {}
+    angle_inputs: tuple[int, ...] = ()
+    angle_states: tuple[int, ...] = ()
+    angle_measurements: tuple[int, ...] = ()
+    held_inputs: tuple[int, ...] = ()
+
+    def dynamics(self, x, u, w):
+        """State derivative (scalar-generic)."""
+        raise NotImplementedError
+
+    def measurement(self, x, u):
+        """Predicted measurements (scalar-generic)."""
+        raise NotImplementedError
+
+    def initial_state(self, u: np.ndarray, y: np.ndarray, available: np.ndarray) -> np.ndarray:
+        """First state estimate from the first input and measurement samples."""
+        raise NotImplementedError
+
+    @property
+    def sizes(self) -> tuple[int, int, int, int]:
+        """(states, inputs, noise inputs, measurements)."""
+        return (len(self.state_names), len(self.input_names), len(self.noise_names),
+                len(self.measurement_names))
+
+
+@dataclasses.dataclass(frozen=True)
+class EkfNoise:
+    """Noise and initial-uncertainty description of a filter (all by name, SI units).
+
+    Attributes:
+        process_psd: power spectral density of each process-noise input ``w``
+            [(unit of w)^2 s].
+        input_std: standard deviation of each noisy input sample (inputs not
+            named are exact) [unit of the input].
+        measurement_std: standard deviation of each measurement [its unit].
+        initial_std: standard deviation of each initial state [its unit].
+    """
+
+    process_psd: Mapping[str, float]
+    input_std: Mapping[str, float]
+    measurement_std: Mapping[str, float]
+    initial_std: Mapping[str, float]
+
+    def validate(self, model: EkfModel | None = None) -> EkfNoise:
+        """Raises ``ValueError`` naming the field; checks names against ``model``."""
+        checks = (("process_psd", "noise_names", True), ("input_std", "input_names", False),
+                  ("measurement_std", "measurement_names", True),
+                  ("initial_std", "state_names", True))
+        for field, attribute, complete in checks:
+            values = getattr(self, field)
+            for key, value in values.items():
+                if not (math.isfinite(value) and value >= 0):
+                    raise ValueError(f"EkfNoise.{field}['{key}'] must be finite and >= 0, "
+                                     f"got {value}")
+            if model is None:
+                continue
+            names = getattr(model, attribute)
+            unknown = sorted(set(values) - set(names))
+            if unknown:
+                raise ValueError(f"EkfNoise.{field}: unknown names {unknown} "
+                                 f"(model has {names})")
+            missing = [n for n in names if n not in values]
+            if complete and missing:
+                raise ValueError(f"EkfNoise.{field}: missing {missing}")
+        if model is not None:
+            for field, names in (("measurement_std", model.measurement_names),
+                                 ("initial_std", model.state_names)):
+                for name in names:
+                    if not getattr(self, field)[name] > 0:
+                        raise ValueError(f"EkfNoise.{field}['{name}'] must be positive")
+        return self
+
+    def replace(self, **fields: Mapping[str, float]) -> EkfNoise:
+        """A copy with some entries of the given fields replaced."""
+        return dataclasses.replace(self, **{k: {**getattr(self, k), **v}
+                                            for k, v in fields.items()})
+
+
+@dataclasses.dataclass
+class UpdateResult:
+    """Outcome of a measurement update (leading batch axis when the inputs had one)."""
+
+    x: np.ndarray
+    """Posterior state."""
+    P: np.ndarray
+    """Posterior covariance."""
+    nis: np.ndarray
+    """Normalised innovation squared of the used channels (NaN when none)."""
+    dof: np.ndarray
+    """Number of used channels (degrees of freedom of ``nis``)."""
+    used: np.ndarray
+    """Channels that entered the update (bool)."""
+    rejected: np.ndarray
+    """Groups rejected by the innovation gate (bool, one per group)."""
+    innovation: np.ndarray
+    """``y - h(x-)`` where a sample was available (NaN elsewhere)."""
+    innovation_var: np.ndarray
+    """Innovation variance ``S_ii`` where a sample was available (NaN elsewhere)."""
+
+
+# --------------------------------------------------------------------------------------
+# The filter.
+# --------------------------------------------------------------------------------------
+
+
+class ExtendedKalmanFilter:
+    """Continuous-discrete EKF on an :class:`EkfModel` (see the module docstring).
+
+    :meth:`predict` and :meth:`update` take one filter (state ``(n,)``) or a
+    batch of independent filters (``(B, n)``, e.g. one per flight of a
+    Monte-Carlo campaign) with the same arithmetic.
+
+    Args:
+        model: process and measurement model.
+        noise: noise description (validated against ``model``).
+        gate_probability: a group is rejected when the normalised innovation
+            squared ``nu_i^2 / S_ii`` of any of its channels exceeds the
+            chi-square(1) quantile at this probability (``1.0`` disables gating).
+        backend: ``"compiled"`` (default) or ``"autodiff"`` Jacobians.
+    """
+
+    def __init__(self, model: EkfModel, noise: EkfNoise, gate_probability: float = 0.9999,
+                 backend: str = "compiled"):
+        noise.validate(model)
+        if not 0.0 < gate_probability <= 1.0:
+            raise ValueError(f"gate_probability must be in (0, 1], got {gate_probability}")
+        if backend not in ("compiled", "autodiff"):
+            raise ValueError(f"backend must be 'compiled' or 'autodiff', got {backend!r}")
+        self.model, self.noise, self.backend = model, noise, backend
+        nx, nu, nw, ny = model.sizes
+        self.n_states, self.n_inputs, self.n_measurements = nx, nu, ny
+        noisy = tuple(i for i, n in enumerate(model.input_names)
+                      if noise.input_std.get(n, 0.0) > 0)
+        self._input_var = np.array([noise.input_std[model.input_names[i]] for i in noisy]) ** 2
+        self._qc = np.array([noise.process_psd[n] for n in model.noise_names])
+        self._r = np.array([noise.measurement_std[n] for n in model.measurement_names]) ** 2
+        self.initial_covariance = np.diag(
+            [noise.initial_std[n] ** 2 for n in model.state_names])
+        self.dynamics = CompiledFunction(model.dynamics, (nx, nu, nw),
+                                         {0: None, 1: noisy, 2: None}, "dynamics")
+        self.measurement = CompiledFunction(model.measurement, (nx, nu), {0: None, 1: noisy},
+                                            "measurement")
+        self.group_names = tuple(model.groups)
+        self._membership = np.zeros((ny, len(self.group_names)))
+        for g, name in enumerate(self.group_names):
+            self._membership[list(model.groups[name]), g] = 1.0
+        if not np.array_equal(self._membership.sum(axis=1), np.ones(ny)):
+            raise ValueError(f"{type(model).__name__}.groups must cover every measurement once")
+        self.gate_probability = gate_probability
+        self._gate = chi2.ppf(gate_probability, 1) if gate_probability < 1 else np.inf
+        self._angle_inputs = list(model.angle_inputs)
+        self._held = list(model.held_inputs)
+        self._angle_y = list(model.angle_measurements)
+        self._w0 = np.zeros((1, nw))
+        self._eye = np.eye(nx)
+
+    # -------------------------------------------------------------- pieces
+    def _jacobians(self, function: CompiledFunction, *args):
+        if self.backend == "compiled":
+            return function.batch_jacobians(*args)
+        results = [function.autodiff_jacobians(*[a[b] for a in args])
+                   for b in range(len(args[0]))]
+        return (np.array([r[0] for r in results]),
+                [np.array([r[1][i] for r in results]) for i in range(len(results[0][1]))])
+
+    def midpoint_input(self, u_previous: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Input held over a step: the mean of two samples (angles wrapped); held inputs
+        (commands) take their current value."""
+        delta = np.asarray(u, float) - u_previous
+        if self._angle_inputs:
+            delta[..., self._angle_inputs] = wrap_angle(delta[..., self._angle_inputs])
+        if self._held:
+            delta[..., self._held] *= 2.0
+        return u_previous + 0.5 * delta
+
+    def predict(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
+        """Time update over ``dt`` [s] (scalar or per filter) with the input ``u`` held."""
+        single = x.ndim == 1
+        if single:
+            x, P, u = x[None], P[None], u[None]
+        batch = len(x)
+        dt = np.broadcast_to(np.asarray(dt, float), (batch,))[:, None, None]
+        w0 = np.broadcast_to(self._w0, (batch, self._w0.shape[1]))
+        fx, (F, B, G) = self._jacobians(self.dynamics, x, u, w0)
+        A = F * dt
+        A2 = A @ A
+        A3 = A2 @ A
+        f = fx[..., None]
+        # Exponential integrator: x + dt phi1(A) f, phi1(A) = I + A/2 + A^2/6 + A^3/24 + ...
+        x_new = x + ((f + A @ (0.5 * f) + A2 @ (f / 6.0) + A3 @ (f / 24.0)) * dt)[..., 0]
+        Phi = self._eye + A + 0.5 * A2 + A3 / 6.0
+        Bdt = B * dt
+        half = 0.5 * ((G * self._qc) @ G.transpose(0, 2, 1) * dt
+                      + (Bdt * self._input_var) @ Bdt.transpose(0, 2, 1))
+        P_new = Phi @ (P + half) @ Phi.transpose(0, 2, 1) + half
+        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
+        return (x_new[0], P_new[0]) if single else (x_new, P_new)
+
+    def update(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndarray,
+               available: np.ndarray | None = None) -> UpdateResult:
+        """Measurement update (Joseph form) with the channels flagged in ``available``.
+
+        ``available`` (bool, default all) is the seed's D matrix; NaN samples are
+        never used. Batched inputs give batched results.
+        """
+        single = x.ndim == 1
+        if single:
+            x, P, u, y = x[None], P[None], u[None], y[None]
+        mask = np.isfinite(y)
+        if available is not None:
+            mask &= available if not single else np.asarray(available, bool)[None]
+        yhat, (H, D) = self._jacobians(self.measurement, x, u)
+        nu = y - yhat
+        if self._angle_y:
+            nu[:, self._angle_y] = wrap_angle(nu[:, self._angle_y])
+        Ht = H.transpose(0, 2, 1)
+        PHt = P @ Ht
+        R = (D * self._input_var) @ D.transpose(0, 2, 1)
+        _diagonal(R)[:] += self._r
+        S = H @ PHt + R
+        S_diag = _diagonal(S).copy()
+        innovation = np.where(mask, nu, np.nan)
+        innovation_var = np.where(mask, S_diag, np.nan)
+        rejected = (mask & (nu * nu > self._gate * S_diag)) @ self._membership > 0
+        if rejected.any():
+            mask &= rejected @ self._membership.T == 0
+        # Unused channels: zero rows of C = D_k H and zero innovation (no gain), unit S.
+        m = mask.astype(float)
+        nu = np.where(mask, nu, 0.0)
+        outer = m[:, :, None] * m[:, None, :]
+        PCt = PHt * m[:, None, :]
+        S *= outer
+        _diagonal(S)[:] += 1.0 - m
+        R *= outer
+        S_inv = np.linalg.inv(S)
+        K = PCt @ S_inv
+        Knu = K @ nu[..., None]
+        nis = (nu[:, None, :] @ S_inv @ nu[..., None])[:, 0, 0]
+        dof = mask.sum(axis=1)
+        A = self._eye - K @ (H * m[..., None])
+        P_new = A @ P @ A.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
+        nis[dof == 0] = np.nan
+        if single:
+            return UpdateResult(x[0] + Knu[0, :, 0], P_new[0], nis[0], dof[0], mask[0],
+                                rejected[0], innovation[0], innovation_var[0])
+        return UpdateResult(x + Knu[..., 0], P_new, nis, dof, mask, rejected, innovation,
+                            innovation_var)
+
+
+# --------------------------------------------------------------------------------------
+# Offline runs.
+# --------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class FilterRun:
+    """Result of :func:`run_filter`: arrays over N samples (leading B axis for a batch)."""
+
+    time: np.ndarray
+    """Sample times [s] (N)."""
+    state: np.ndarray
+    """Posterior state (N, n)."""
+    std: np.ndarray
+    """Posterior standard deviations (N, n)."""
+    nis: np.ndarray
+    """NIS of each update (N; NaN when nothing was used)."""
+    dof: np.ndarray
+    """Channels used in each update (N)."""
+    nees: np.ndarray | None
+    """Normalised estimation error squared against ``truth`` (N), if given."""
+    innovation: np.ndarray
+    """Innovations (N, m); NaN where the channel had no sample."""
+    innovation_var: np.ndarray
+    """Innovation variances (N, m); NaN where the channel had no sample."""
+    used: np.ndarray
+    """Channels that entered each update (N, m) bool."""
+    rejected: np.ndarray
+    """Updates rejected by the innovation gate, per group (G)."""
+    nan_measurements: np.ndarray
+    """NaN measurement samples skipped, per channel (m)."""
+    nan_inputs: np.ndarray
+    """NaN input samples replaced by the previous input, per input (n_inputs)."""
+    covariance: np.ndarray | None
+    """Posterior covariance (N, n, n) when requested."""
+    state_names: tuple[str, ...]
+    measurement_names: tuple[str, ...]
+    group_names: tuple[str, ...]
+
+    def column(self, name: str) -> np.ndarray:
+        """One state component over time."""
+        return self.state[..., self.state_names.index(name)]
+
+    def rejected_by_group(self) -> dict[str, int]:
+        """Gate rejections per group (summed over a batch)."""
+        total = np.asarray(self.rejected).reshape(-1, len(self.group_names)).sum(axis=0)
+        return {g: int(n) for g, n in zip(self.group_names, total, strict=True)}
+
+
+def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=None, *,
+               x0: np.ndarray | None = None, P0: np.ndarray | None = None, truth=None,
+               store_covariance: bool = False) -> FilterRun:
+    """Runs ``ekf`` over logged samples: the core of the LeafSystems, offline.
+
+    Arrays may carry a leading batch axis B (several flights on the same time
+    base, filtered in lockstep); the results then carry it too.
+
+    Args:
+        time: sample times [s] (N), strictly increasing.
+        inputs: ([B,] N, n_inputs); a NaN entry is replaced by the previous
+            sample of that input and counted.
+        measurements: ([B,] N, n_measurements); NaN samples are skipped and
+            counted (where ``available`` flagged a sample).
+        available: same shape, bool, True where a new sample exists (multi-rate
+            sensors); default: every finite entry.
+        x0, P0: initial state(s) and covariance(s); default: the model's
+            ``initial_state`` from the first samples and the noise's initial_std.
+        truth: ([B,] N, n) true states for the NEES.
+        store_covariance: also return the full covariance history.
+    """
+    model = ekf.model
+    time = np.asarray(time, float)
+    U = np.array(inputs, float)
+    Y = np.asarray(measurements, float)
+    single = U.ndim == 2
+    if single:
+        U, Y = U[None], Y[None]
+    batch, n = U.shape[0], time.size
+    if U.shape != (batch, n, ekf.n_inputs) or Y.shape != (batch, n, ekf.n_measurements):
+        raise ValueError(f"run_filter: inputs {U.shape} / measurements {Y.shape} do not match "
+                         f"({batch}, {n}, {ekf.n_inputs}) / ({batch}, {n}, {ekf.n_measurements})")
+    finite = np.isfinite(Y)
+    avail = finite if available is None else np.asarray(available, bool).reshape(Y.shape)
+    nan_measurements = (avail & ~finite).sum(axis=1)
+    avail = avail & finite
+    bad_u = ~np.isfinite(U)
+    nan_inputs = bad_u.sum(axis=1)
+    if bad_u[:, 0].any():
+        raise ValueError("run_filter: the first input sample must be finite")
+    for k in np.flatnonzero(bad_u.any(axis=(0, 2))):
+        U[:, k] = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
+    if x0 is None:
+        X = np.array([model.initial_state(U[b, 0], Y[b, 0], avail[b, 0]) for b in range(batch)])
+        if not np.all(np.isfinite(X)):
+            raise ValueError("run_filter: the first samples do not determine the initial state "
+                             "(missing sensors at the first sample); give x0")
+    else:
+        X = np.broadcast_to(np.asarray(x0, float), (batch, ekf.n_states)).copy()
+    P = np.broadcast_to(ekf.initial_covariance if P0 is None else np.asarray(P0, float),
+                        (batch, ekf.n_states, ekf.n_states)).copy()
+    E = None if truth is None else np.asarray(truth, float).reshape(batch, n, ekf.n_states)
+    nx, ny, ng = ekf.n_states, ekf.n_measurements, len(ekf.group_names)
+    states, stds = np.empty((batch, n, nx)), np.empty((batch, n, nx))
+    covariances = np.empty((batch, n, nx, nx)) if store_covariance else None
+    nees = None if E is None else np.empty((batch, n))
+    nis, dof = np.full((batch, n), np.nan), np.zeros((batch, n), int)
+    innovation, innovation_var = np.full((batch, n, ny), np.nan), np.full((batch, n, ny), np.nan)
+    used = np.zeros((batch, n, ny), bool)
+    rejected = np.zeros((batch, ng), int)
+    angle_states = list(model.angle_states)
+    for k in range(n):
+        if k:
+            X, P = ekf.predict(X, P, ekf.midpoint_input(U[:, k - 1], U[:, k]),
+                               time[k] - time[k - 1])
+        if avail[:, k].any():
+            result = ekf.update(X, P, U[:, k], Y[:, k], avail[:, k])
+            X, P = result.x, result.P
+            nis[:, k], dof[:, k], used[:, k] = result.nis, result.dof, result.used
+            innovation[:, k], innovation_var[:, k] = result.innovation, result.innovation_var
+            rejected += result.rejected
+        states[:, k] = X
+        stds[:, k] = np.sqrt(np.einsum("bii->bi", P))
+        if covariances is not None:
+            covariances[:, k] = P
+        if E is not None:
+            error = X - E[:, k]
+            if angle_states:
+                error[:, angle_states] = wrap_angle(error[:, angle_states])
+            nees[:, k] = np.einsum("bi,bi->b", error,
+                                   np.linalg.solve(P, error[..., None])[..., 0])
+    out = FilterRun(time, states, stds, nis, dof, nees, innovation, innovation_var, used,
+                    rejected, nan_measurements, nan_inputs, covariances,
+                    tuple(model.state_names), tuple(model.measurement_names),
+                    ekf.group_names)
+    if single:
+        for f in dataclasses.fields(FilterRun):
+            value = getattr(out, f.name)
+            if isinstance(value, np.ndarray) and f.name != "time":
+                setattr(out, f.name, value[0])
+    return out
