@@ -1,0 +1,463 @@
+"""EKF LeafSystems: air data and wind (model-free and model-based) and aerodynamic derivatives.
+
+Each system runs :class:`~drake_uav.estimation.ekf.ExtendedKalmanFilter` (the
+core also used offline by :func:`~drake_uav.estimation.ekf.run_filter`) in one
+periodic discrete update; the whole filter (estimate, covariance, last inputs,
+last sensor samples, counters) lives in the discrete state, and the outputs only
+read it. The sensor ports take the held outputs of
+:class:`~drake_uav.systems.sensors.SensorSuite` directly:
+
+* a channel is a new sample when its value changed since the last update
+  (sample-and-hold sensors at any rate: the seed's availability mask);
+* an unconnected measurement port means that sensor is absent;
+* a NaN sample is skipped and counted once; a NaN input (IMU, attitude) is
+  replaced by the previous value and counted;
+* the GPS velocity is moved forward by the receiver latency with the IMU
+  (strapdown integration over the latency window);
+* the filter starts once the sensors it needs for the wind triangle (seed S0
+  eq. 5.24-5.25) have delivered a sample.
+
+Timing: when the EKF updates at the same instants as the sensors, it reads the
+samples taken one period earlier; commands (``controls``) are delayed by one
+period inside the system so they match those samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from drake_uav.estimation.ekf import EkfNoise, ExtendedKalmanFilter
+from drake_uav.estimation.models import (
+    DEFAULT_GPS_LATENCY,
+    AirDataModel,
+    ModelBasedAirDataModel,
+    ParameterModel,
+    is_new_sample,
+    ned_acceleration,
+)
+from drake_uav.systems.aerodynamics import air_data_from_velocity
+from drake_uav.systems.sensors import SensorSuiteParams
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = [
+    "EkfSystemParams",
+    "AirDataEkf",
+    "ModelBasedAirDataEkf",
+    "ParameterEkf",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class EkfSystemParams:
+    """Settings shared by the EKF systems.
+
+    Attributes:
+        aircraft: the aircraft (gravity, air density; for the model-based filters
+            also the identified model used in the prediction).
+        sensors: sensor suite whose noise levels tune the filter (default seed S0
+            Table 7).
+        noise: explicit filter noise; None: the model's ``default_noise(sensors)``.
+        period: update period [s] (the IMU period).
+        gps_latency: GPS receiver latency [s] removed with the IMU.
+        gate_probability: innovation gate (see ``ExtendedKalmanFilter``).
+    """
+
+    aircraft: FixedWingParams
+    sensors: SensorSuiteParams | None = None
+    noise: EkfNoise | None = None
+    period: float = 0.01
+    gps_latency: float = DEFAULT_GPS_LATENCY
+    gate_probability: float = 0.9999
+
+    def validate(self) -> EkfSystemParams:
+        """Raises ValueError naming the first invalid field; returns self."""
+        if not (math.isfinite(self.period) and self.period > 0):
+            raise ValueError(f"EkfSystemParams.period must be positive, got {self.period}")
+        if not (math.isfinite(self.gps_latency) and self.gps_latency >= 0):
+            raise ValueError(f"EkfSystemParams.gps_latency must be >= 0, got {self.gps_latency}")
+        if not 0.0 < self.gate_probability <= 1.0:
+            raise ValueError("EkfSystemParams.gate_probability must be in (0, 1], got "
+                             f"{self.gate_probability}")
+        if self.sensors is not None:
+            self.sensors.validate()
+        return self
+
+
+class _Slot:
+    """One filter's bookkeeping packed into a slice of the discrete state.
+
+    Layout: x (n), P (n*n), u_prev (m_u), raw_prev (m_y, last sensor values),
+    rejected (groups), nan_y (m_y), nan_u (m_u), [nis, dof, started].
+    """
+
+    def __init__(self, ekf: ExtendedKalmanFilter, start: int):
+        n, nu, ny = ekf.n_states, ekf.n_inputs, ekf.n_measurements
+        sizes = (("x", n), ("P", n * n), ("u_prev", nu), ("raw_prev", ny),
+                 ("rejected", len(ekf.group_names)), ("nan_y", ny), ("nan_u", nu),
+                 ("scalars", 3))
+        self.ekf, self.slices = ekf, {}
+        for name, size in sizes:
+            self.slices[name] = slice(start, start + size)
+            start += size
+        self.stop = start
+
+    def initial(self) -> np.ndarray:
+        """Initial contents: not started, no sample seen yet."""
+        values = np.zeros(self.stop - self.slices["x"].start)
+        offset = self.slices["x"].start
+        raw = self.slices["raw_prev"]
+        values[raw.start - offset:raw.stop - offset] = np.nan
+        return values
+
+    def get(self, state: np.ndarray, name: str) -> np.ndarray:
+        return state[self.slices[name]]
+
+    def covariance(self, state: np.ndarray) -> np.ndarray:
+        n = self.ekf.n_states
+        return state[self.slices["P"]].reshape(n, n)
+
+    def started(self, state: np.ndarray) -> bool:
+        return bool(state[self.slices["scalars"]][2])
+
+    def step(self, state: np.ndarray, u: np.ndarray, raw: np.ndarray, y: np.ndarray,
+             dt: float) -> None:
+        """Advances the filter stored in ``state`` (modified in place) by one period."""
+        ekf, sl = self.ekf, self.slices
+        bad_u = ~np.isfinite(u)
+        state[sl["nan_u"]] += bad_u
+        u = np.where(bad_u, state[sl["u_prev"]], u)
+        fresh = is_new_sample(raw, state[sl["raw_prev"]])
+        state[sl["raw_prev"]] = raw
+        state[sl["nan_y"]] += fresh & np.isnan(raw)
+        available = fresh & np.isfinite(y)
+        if not self.started(state):
+            if not np.all(np.isfinite(u)):
+                return
+            x0 = ekf.model.initial_state(u, y, available)
+            if not np.all(np.isfinite(x0)):
+                return
+            x, P = x0, ekf.initial_covariance
+        else:
+            x, P = ekf.predict(state[sl["x"]], self.covariance(state),
+                               ekf.midpoint_input(state[sl["u_prev"]], u), dt)
+        result = ekf.update(x, P, u, y, available)
+        state[sl["x"]] = result.x
+        state[sl["P"]] = result.P.ravel()
+        state[sl["u_prev"]] = u
+        state[sl["rejected"]] += result.rejected
+        state[sl["scalars"]] = (result.nis, result.dof, 1.0)
+
+
+class _GpsDelay:
+    """Ring buffer of the strapdown velocity change, packed into the discrete state."""
+
+    def __init__(self, latency: float, period: float, gravity: float, start: int):
+        self.lag = int(round(latency / period))
+        self.gravity = gravity
+        # cumulative velocity change (3), previous NED acceleration (3), ring (lag + 1, 3), index
+        self.start, self.stop = start, start + 6 + 3 * (self.lag + 1) + 1
+
+    def correction(self, state: np.ndarray, specific_force, euler, dt: float) -> np.ndarray:
+        """Adds this period's velocity change; returns the change over the latency."""
+        if self.lag == 0:
+            return np.zeros(3)
+        s = state[self.start:self.stop]
+        accel = ned_acceleration(specific_force, euler, self.gravity)
+        index = int(s[-1])
+        ring = s[6:-1].reshape(self.lag + 1, 3)
+        if index > 0:
+            s[0:3] += 0.5 * (accel + s[3:6]) * dt
+        s[3:6] = accel
+        ring[index % (self.lag + 1)] = s[0:3]
+        oldest = ring[(index + 1) % (self.lag + 1)] if index >= self.lag else ring[0]
+        s[-1] = index + 1
+        return s[0:3] - oldest
+
+
+class _AirDataSystem(LeafSystem):
+    """Common part of the two air-data filters (ports, GPS delay, outputs)."""
+
+    def __init__(self, params: EkfSystemParams, model, needs_controls: bool):
+        super().__init__()
+        self.params = params.validate()
+        noise = params.noise or model.default_noise(params.sensors)
+        self.ekf = ExtendedKalmanFilter(model, noise, params.gate_probability)
+        self._imu = self.DeclareVectorInputPort("imu", 6)
+        self._attitude = self.DeclareVectorInputPort("attitude", 3)
+        self._gps = self.DeclareVectorInputPort("gps", 6)
+        self._pitot = self.DeclareVectorInputPort("pitot", 2)
+        self._vanes = self.DeclareVectorInputPort("vanes", 2)
+        self._controls = self.DeclareVectorInputPort("controls", 4) if needs_controls else None
+        self._slot = _Slot(self.ekf, 0)
+        self._delay = _GpsDelay(params.gps_latency, params.period, params.aircraft.gravity,
+                                self._slot.stop)
+        self._held = self._delay.stop  # previous controls (4)
+        initial = np.concatenate([self._slot.initial(),
+                                  np.zeros(self._delay.stop - self._delay.start), np.zeros(4)])
+        self._xd = self.DeclareDiscreteState(initial)
+        self.DeclarePeriodicDiscreteUpdateEvent(params.period, 0.0, self._update)
+        deps = {self.xd_ticket()}
+        self.DeclareVectorOutputPort("air_data", 3, self._calc_air_data,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("wind_ned", 3, self._calc_wind, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("covariance", 36, self._calc_covariance,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("state", 6, self._calc_state, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("nis", 2, self._calc_nis, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("counters", 2, self._calc_counters,
+                                     prerequisites_of_calc=deps)
+
+    # ------------------------------------------------------------------ update
+    def _optional(self, port, context, size: int) -> np.ndarray:
+        return port.Eval(context) if port.HasValue(context) else np.full(size, np.nan)
+
+    def _measurements(self, context, state, imu, attitude) -> tuple[np.ndarray, np.ndarray]:
+        """(raw sensor values, corrected measurements) in the model's order, minus accel."""
+        gps = self._optional(self._gps, context, 6)[3:6]
+        pitot = self._optional(self._pitot, context, 2)[0]
+        vanes = self._optional(self._vanes, context, 2)
+        raw = np.concatenate([gps, [pitot], vanes])
+        shift = self._delay.correction(state, imu[0:3], attitude, self.params.period)
+        return raw, np.concatenate([gps + shift, [pitot], vanes])
+
+    def _update(self, context, discrete_state) -> None:
+        state = context.get_discrete_state(self._xd).get_value().copy()
+        imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
+        raw, y = self._measurements(context, state, imu, attitude)
+        u = self._inputs(context, state, imu, attitude)
+        if self._controls is not None:
+            raw, y = np.concatenate([imu[0:3], raw]), np.concatenate([imu[0:3], y])
+        self._slot.step(state, u, raw, y, self.params.period)
+        discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
+
+    def _held_controls(self, context, state) -> np.ndarray:
+        current = self._controls.Eval(context)
+        previous = (state[self._held:self._held + 4].copy() if self._slot.started(state)
+                    else current)
+        state[self._held:self._held + 4] = current
+        return previous
+
+    # ----------------------------------------------------------------- outputs
+    def _value(self, context) -> np.ndarray:
+        return context.get_discrete_state(self._xd).get_value()
+
+    def _x(self, context) -> np.ndarray:
+        return self._slot.get(self._value(context), "x")
+
+    def _calc_covariance(self, context, output) -> None:
+        output.SetFromVector(self._slot.get(self._value(context), "P"))
+
+    def _calc_state(self, context, output) -> None:
+        output.SetFromVector(self._x(context))
+
+    def _calc_wind(self, context, output) -> None:
+        output.SetFromVector(self._x(context)[3:6])
+
+    def _calc_nis(self, context, output) -> None:
+        output.SetFromVector(self._slot.get(self._value(context), "scalars")[:2])
+
+    def _calc_counters(self, context, output) -> None:
+        value = self._value(context)
+        output.SetFromVector([self._slot.get(value, "rejected").sum(),
+                              self._slot.get(value, "nan_y").sum()
+                              + self._slot.get(value, "nan_u").sum()])
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the ``state`` output entries."""
+        return self.ekf.model.state_names
+
+
+class AirDataEkf(_AirDataSystem):
+    """Model-free air-data and wind EKF (seed S0 sec. 5.4.3); see :class:`AirDataModel`.
+
+    ==============  ====  ==========================================================
+    Input port      size  content [unit]
+    ==============  ====  ==========================================================
+    ``imu``         6     specific force ax, ay, az [m/s^2], rates p, q, r [rad/s]
+    ``attitude``    3     roll, pitch, yaw [rad]
+    ``gps``         6     position [m] (unused), velocity NED [m/s]; optional
+    ``pitot``       2     dynamic pressure [Pa], airspeed [m/s] (unused); optional
+    ``vanes``       2     alpha, beta [rad]; optional
+    ==============  ====  ==========================================================
+
+    ==============  ====  ==========================================================
+    Output port     size  content [unit]
+    ==============  ====  ==========================================================
+    ``air_data``    3     Va [m/s], alpha [rad], beta [rad]
+    ``wind_ned``    3     W_N, W_E, W_D [m/s]
+    ``covariance``  36    state covariance, row-major 6x6 [SI units squared]
+    ``state``       6     u_r, v_r, w_r [m/s] (air-relative, body), W_N, W_E, W_D
+    ``nis``         2     NIS of the last update [-], its degrees of freedom
+    ``counters``    2     gate rejections, skipped NaN samples (since start)
+    ==============  ====  ==========================================================
+
+    All outputs depend on the discrete state only.
+    """
+
+    def __init__(self, params: EkfSystemParams):
+        super().__init__(params, AirDataModel(params.aircraft), needs_controls=False)
+
+    def _inputs(self, context, state, imu, attitude) -> np.ndarray:
+        return np.concatenate([imu, attitude])
+
+    def _calc_air_data(self, context, output) -> None:
+        x = self._x(context)
+        output.SetFromVector(np.array(air_data_from_velocity(x[0], x[1], x[2]), float))
+
+
+class ModelBasedAirDataEkf(_AirDataSystem):
+    """Model-based air-data and wind EKF (seed S0 sec. 5.4.5); see
+    :class:`ModelBasedAirDataModel`. Estimates alpha and beta without vanes from
+    the aerodynamic model of ``params.aircraft`` and the accelerometer.
+
+    ==============  ====  ==========================================================
+    Input port      size  content [unit]
+    ==============  ====  ==========================================================
+    ``imu``         6     specific force ax, ay, az [m/s^2] (measurement), rates
+                          p, q, r [rad/s] (input)
+    ``attitude``    3     roll, pitch, yaw [rad]
+    ``gps``         6     position [m] (unused), velocity NED [m/s]; optional
+    ``pitot``       2     dynamic pressure [Pa], airspeed [m/s] (unused); optional
+    ``vanes``       2     alpha, beta [rad]; optional
+    ``controls``    4     elevator, aileron, rudder [rad], throttle [0..1] (commands)
+    ==============  ====  ==========================================================
+
+    ==============  ====  ==========================================================
+    Output port     size  content [unit]
+    ==============  ====  ==========================================================
+    ``air_data``    3     Va [m/s], alpha [rad], beta [rad]
+    ``wind_ned``    3     W_N, W_E, W_D [m/s]
+    ``covariance``  36    state covariance, row-major 6x6 [SI units squared]
+    ``state``       6     Va [m/s], alpha, beta [rad], W_N, W_E, W_D [m/s]
+    ``nis``         2     NIS of the last update [-], its degrees of freedom
+    ``counters``    2     gate rejections, skipped NaN samples (since start)
+    ==============  ====  ==========================================================
+
+    All outputs depend on the discrete state only.
+    """
+
+    def __init__(self, params: EkfSystemParams):
+        super().__init__(params, ModelBasedAirDataModel(params.aircraft), needs_controls=True)
+
+    def _inputs(self, context, state, imu, attitude) -> np.ndarray:
+        return np.concatenate([imu[3:6], attitude, self._held_controls(context, state)])
+
+    def _calc_air_data(self, context, output) -> None:
+        output.SetFromVector(self._x(context)[0:3])
+
+
+class ParameterEkf(LeafSystem):
+    """Augmented-state EKFs of seed S1 (eq. 42-50): longitudinal and lateral derivatives.
+
+    Two filters on :class:`ParameterModel` (``axis="longitudinal"`` and
+    ``"lateral"``), started from the derivatives of ``params.aircraft`` (the
+    prior model) once the air data are available.
+
+    ========================  ====  ================================================
+    Input port                size  content [unit]
+    ========================  ====  ================================================
+    ``air_data``              3     Va [m/s], alpha, beta [rad] (vanes and pitot, or
+                                    an air-data EKF)
+    ``imu``                   6     specific force [m/s^2], rates p, q, r [rad/s]
+    ``attitude``              3     roll, pitch, yaw [rad]
+    ``controls``              4     elevator, aileron, rudder [rad], throttle [0..1]
+    ``angular_acceleration``  3     p_dot, q_dot, r_dot [rad/s^2]; optional
+    ========================  ====  ================================================
+
+    ========================  ====  ================================================
+    Output port               size  content [unit]
+    ========================  ====  ================================================
+    ``derivatives``           L+T   longitudinal then lateral derivatives [-]
+                                    (names in ``derivative_names``)
+    ``derivatives_std``       L+T   their standard deviations [-]
+    ``state``                 9     V [m/s], alpha [rad], q [rad/s], theta, beta
+                                    [rad], p, r [rad/s], phi, psi [rad]
+    ``nis``                   4     NIS and degrees of freedom, longitudinal and
+                                    lateral
+    ========================  ====  ================================================
+
+    All outputs depend on the discrete state only.
+    """
+
+    def __init__(self, params: EkfSystemParams, longitudinal: tuple[str, ...] | None = None,
+                 lateral: tuple[str, ...] | None = None):
+        super().__init__()
+        self.params = params.validate()
+        self.ekfs, self._slots, start = [], [], 0
+        for axis, names in (("longitudinal", longitudinal), ("lateral", lateral)):
+            model = ParameterModel(params.aircraft, axis, names)
+            noise = params.noise if params.noise is not None else model.default_noise(
+                params.sensors)
+            ekf = ExtendedKalmanFilter(model, noise, params.gate_probability)
+            self.ekfs.append(ekf)
+            self._slots.append(_Slot(ekf, start))
+            start = self._slots[-1].stop
+        self._held = start
+        self.derivative_names = tuple(n for e in self.ekfs for n in e.model.parameter_names)
+        self._air = self.DeclareVectorInputPort("air_data", 3)
+        self._imu = self.DeclareVectorInputPort("imu", 6)
+        self._attitude = self.DeclareVectorInputPort("attitude", 3)
+        self._controls = self.DeclareVectorInputPort("controls", 4)
+        self._omega_dot = self.DeclareVectorInputPort("angular_acceleration", 3)
+        initial = np.concatenate([s.initial() for s in self._slots] + [np.zeros(4)])
+        self._xd = self.DeclareDiscreteState(initial)
+        self.DeclarePeriodicDiscreteUpdateEvent(params.period, 0.0, self._update)
+        deps = {self.xd_ticket()}
+        n = len(self.derivative_names)
+        self.DeclareVectorOutputPort("derivatives", n, self._calc_derivatives,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("derivatives_std", n, self._calc_std,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("state", 9, self._calc_state, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("nis", 4, self._calc_nis, prerequisites_of_calc=deps)
+
+    def _update(self, context, discrete_state) -> None:
+        state = context.get_discrete_state(self._xd).get_value().copy()
+        air = self._air.Eval(context)
+        imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
+        current = self._controls.Eval(context)
+        controls = (state[self._held:self._held + 4].copy() if self._slots[0].started(state)
+                    else current)
+        state[self._held:self._held + 4] = current
+        omega_dot = (self._omega_dot.Eval(context) if self._omega_dot.HasValue(context)
+                     else np.full(3, np.nan))
+        airspeed, alpha, beta = air
+        ax, ay, az, p, q, r = imu
+        roll, pitch, yaw = attitude
+        longitudinal = (np.array([beta, p, r, roll, *controls]),
+                        np.array([airspeed, alpha, q, pitch, ax, az, omega_dot[1]]))
+        lateral = (np.array([airspeed, alpha, q, pitch, *controls]),
+                   np.array([beta, p, r, roll, yaw, ay, omega_dot[0], omega_dot[2]]))
+        for slot, (u, y) in zip(self._slots, (longitudinal, lateral), strict=True):
+            slot.step(state, u, y, y, self.params.period)
+        discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
+
+    def _value(self, context) -> np.ndarray:
+        return context.get_discrete_state(self._xd).get_value()
+
+    def _calc_derivatives(self, context, output) -> None:
+        value = self._value(context)
+        output.SetFromVector(np.concatenate([
+            s.get(value, "x")[len(e.model.physical_names):]
+            for s, e in zip(self._slots, self.ekfs, strict=True)]))
+
+    def _calc_std(self, context, output) -> None:
+        value = self._value(context)
+        output.SetFromVector(np.concatenate([
+            np.sqrt(np.diag(s.covariance(value)))[len(e.model.physical_names):]
+            for s, e in zip(self._slots, self.ekfs, strict=True)]))
+
+    def _calc_state(self, context, output) -> None:
+        value = self._value(context)
+        output.SetFromVector(np.concatenate([
+            s.get(value, "x")[:len(e.model.physical_names)]
+            for s, e in zip(self._slots, self.ekfs, strict=True)]))
+
+    def _calc_nis(self, context, output) -> None:
+        value = self._value(context)
+        output.SetFromVector(np.concatenate([s.get(value, "scalars")[:2] for s in self._slots]))
