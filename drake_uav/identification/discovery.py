@@ -292,13 +292,14 @@ def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient:
         X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
         return dict(zip(names, X.T, strict=True))
 
-    variance = samples.noise_variance
+    aligned = samples.aligned(coefficient)
+    variance = aligned.noise_variance
     cols, jac = _columns_and_jacobians(columns, samples, variance)
     return _Design(
         names=list(names), X=np.column_stack(list(cols.values())),
         jac={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
         z=np.asarray(samples.coefficients[coefficient], dtype=float),
-        z_jac={s: v for s, v in samples.observation_sensitivity(coefficient).items()
+        z_jac={s: v for s, v in aligned.observation_sensitivity(coefficient).items()
                if s in jac},
         variance={s: float(variance[s]) for s in jac},
     )

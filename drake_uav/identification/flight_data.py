@@ -22,9 +22,8 @@ as held from their time stamp to the next one (zero-order hold), which places
 them differently for forces and moments (:func:`held_commands`): a sensor
 sample sees the command in effect at its instant, the last one issued strictly
 before it (a command stamped with the same time acts only after the sample);
-the angular accelerations, a centred derivative, see the held command on
-average half a hold period after its stamp, so the moments take the commands
-interpolated at the centres of their hold intervals.
+the angular accelerations come from rate increments, which integrate the held
+commands over the sample intervals.
 
 Sensor noise matters to the errors-in-variables corrections of the discovery
 loop. A log's metadata ``sensor_noise_std`` (channel -> standard deviation,
@@ -84,23 +83,32 @@ def raw_noise_variance(log: FlightLog) -> dict[str, float]:
 
 def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Held commands at ``time``: (at the sample instants, as the moments see them).
+    """Held commands on the sample times ``time``: (at the instants, over the intervals).
 
     ``values`` (N, m) are issued at ``stamps`` [s] and held until the next stamp.
     The first result is the command in effect at each instant, the last one
     issued strictly before it (a sample and a command with the same stamp: the
-    sample comes first); the second interpolates the commands at the centres of
-    their hold intervals, the time a centred derivative of the motion sees them.
+    sample comes first); the second is the average of the held commands over
+    ``[time_k, time_(k+1))`` (the last row over one more step), what the rate
+    increments integrate.
     """
     stamps = np.asarray(stamps, dtype=float)
     values = np.asarray(values, dtype=float)
-    step = np.diff(stamps)
-    tolerance = 1e-6 * float(np.median(step))
-    index = np.clip(np.searchsorted(stamps, np.asarray(time) - tolerance, side="left") - 1,
+    time = np.asarray(time, dtype=float)
+    tolerance = 1e-6 * float(np.median(np.diff(stamps)))
+    index = np.clip(np.searchsorted(stamps, time - tolerance, side="left") - 1,
                     0, len(stamps) - 1)
-    centres = stamps + 0.5 * np.append(step, step[-1])
-    centred = np.column_stack([np.interp(time, centres, v) for v in values.T])
-    return values[index], centred
+    # Integral of the held commands from the first stamp, at any time.
+    area = np.vstack([np.zeros(values.shape[1]),
+                      np.cumsum(values[:-1] * np.diff(stamps)[:, None], axis=0)])
+
+    def integral(t):
+        i = np.clip(np.searchsorted(stamps, t, side="right") - 1, 0, len(stamps) - 1)
+        return area[i] + values[i] * (t - stamps[i])[:, None]
+
+    edges = np.append(time, 2.0 * time[-1] - time[-2])
+    averages = np.diff(integral(edges), axis=0) / np.diff(edges)[:, None]
+    return values[index], averages
 
 
 def check_gaps(log: FlightLog, max_gap: float) -> None:

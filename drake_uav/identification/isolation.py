@@ -12,11 +12,17 @@ Angular accelerations come from a Savitzky-Golay differentiating filter: a
 local cubic least-squares fit over a window of about 0.2 s. It has zero phase
 lag (centred window), passes the rigid-body band below ~5 Hz almost
 unattenuated, and suppresses gyro noise far better than finite differences;
-the window is a parameter. Every other signal (specific force, rates, air
-data, controls) goes through the same Savitzky-Golay smoothing, so that the
-measured coefficients and their regressors see one and the same filter: the
-filter's distortion then cancels in the regression instead of showing up as a
-spurious rate effect.
+the window is a parameter. The force coefficients come from instantaneous
+samples: they and their regressors (air data, rates, controls) go through the
+same Savitzky-Golay smoothing. The derivative is a weighted sum of the rate
+increments, each the integral of the angular acceleration over one sample
+interval, so the moments are a filter of interval averages: their regressors
+take the interval averages (trapezoidal for sampled signals, exact for held
+controls) through the same weights. Either way a coefficient and its
+regressors see one and the same filter, whose distortion then cancels in the
+regression instead of showing up as a spurious rate, delay or unsteady effect
+(turbulence makes the air data and the controls of a stabilised aircraft
+rough enough for the difference between the two filters to matter).
 
 :func:`monte_carlo_sigma` is the uncertainty propagation of sec. 5.6 (uniform
 marginals joined by a Gaussian copula, Gaussian errors, 95% coverage interval
@@ -194,6 +200,28 @@ def _smoothing_coefficients(time: np.ndarray, window: float, polyorder: int) -> 
     return savgol_coeffs(length, polyorder)
 
 
+def _increment_weights(time: np.ndarray, window: float, polyorder: int) -> np.ndarray:
+    """(2m,) weights of the Savitzky-Golay derivative written on the sample increments.
+
+    ``sum_i d_i y_(k+i) = sum_j w_j (y_(k+j+1) - y_(k+j)) / step``, j = -m .. m-1: a
+    filter of the increment rates (interval averages of the derivative), unit DC gain.
+    """
+    step = float(np.median(np.diff(time)))
+    length = min(int(round(window / step)) | 1, len(time) - (1 - len(time) % 2))
+    d = savgol_coeffs(length, polyorder, deriv=1, delta=step, use="dot")
+    return -np.cumsum(d)[:-1] * step
+
+
+def _interval_filter(weights: np.ndarray, interval_values: np.ndarray) -> np.ndarray:
+    """Values at the N samples from (N - 1, ...) values on the intervals between them,
+    by the increment ``weights`` (the ends are padded with the end intervals)."""
+    m = len(weights) // 2
+    padded = np.concatenate([np.repeat(interval_values[:1], m, axis=0), interval_values,
+                             np.repeat(interval_values[-1:], m, axis=0)])
+    return np.apply_along_axis(lambda v: np.convolve(v, weights[::-1], mode="valid"), 0,
+                               padded)
+
+
 def smoothed_noise_variance(time: np.ndarray, raw: np.ndarray, window: float = 0.2,
                             polyorder: int = 3) -> np.ndarray:
     """White-noise variance left in the Savitzky-Golay smoothed ``raw`` (per column).
@@ -229,15 +257,15 @@ def isolate_coefficients(
     ``airspeed, alpha, beta, p, q, r, ax, ay, az`` samples (e.g. from sensor
     specifications); missing entries are estimated from the data.
 
-    Forces and moments see held (stepwise) controls at different times. The
+    Forces and moments see held (stepwise) controls differently. The
     accelerometer samples the force at an instant: ``controls`` are the
     surfaces and throttle in effect at each sample. The angular accelerations
-    come from a centred derivative of the rates, which averages the moment
-    over the samples around each instant: ``moment_controls`` are the controls
-    as that average sees them (for held commands: their value at the centres
-    of the hold intervals). When given, the moment coefficients' regressors
-    are built from them (:meth:`AeroSamples.aligned`); by default both are
-    ``controls`` (controls that vary smoothly).
+    come from the rate increments, integrals over the sample intervals:
+    ``moment_controls`` row k is the average of the controls over
+    ``[t_k, t_(k+1))`` (the last row is not used). By default the interval
+    averages are the trapezoidal ones of ``controls`` (right for controls that
+    vary smoothly). The moment coefficients' regressors are in
+    :attr:`AeroSamples.moment_view` (:meth:`AeroSamples.aligned`).
 
     Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
     ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` and
@@ -265,60 +293,85 @@ def isolate_coefficients(
     def smooth(values):
         return differentiate(time, values, derivative_window, deriv=0)
 
-    raw_rates = arrays["rates"]
-    f, w, air = (smooth(arrays[k]) for k in ("specific_force", "rates", "air_data"))
-    airspeed, alpha, beta = air[:, 0], air[:, 1], air[:, 2]
-    if np.any(airspeed <= 1.0):
-        bad = int(np.argmax(airspeed <= 1.0))
-        raise ValueError(f"isolate_coefficients: airspeed {airspeed[bad]:.3g} m/s at sample "
-                         f"{bad} is too low to normalise the forces")
-    q_bar = 0.5 * params.rho * airspeed**2
-    q_bar_s = q_bar * params.S
-    measured_thrust = None if thrust is None else smooth(np.asarray(thrust, dtype=float))
-    alpha_dot = differentiate(time, alpha, derivative_window)
+    weights = _increment_weights(time, derivative_window, 3)
 
-    def controls_view(raw_controls):
-        """(condition, thrust [N], d thrust / d airspeed, propeller torque [N m], throttle)."""
-        u = smooth(raw_controls)
+    def interval_smooth(interval_values):
+        return _interval_filter(weights, interval_values)
+
+    def trapezoid(values):
+        return 0.5 * (values[1:] + values[:-1])
+
+    model = FixedWingModel(params)
+    measured_thrust = None if thrust is None else np.asarray(thrust, dtype=float)
+
+    def view(raw_air, raw_controls, filt):
+        """Condition, dynamic pressure, thrust, thrust slope, propeller torque and
+        throttle of raw (sample or interval) air data and controls through ``filt``."""
+        air, u = filt(raw_air), filt(raw_controls)
+        if np.any(air[:, 0] <= 1.0):
+            bad = int(np.argmax(air[:, 0] <= 1.0))
+            raise ValueError(f"isolate_coefficients: airspeed {air[bad, 0]:.3g} m/s at "
+                             f"sample {bad} is too low to normalise the forces")
         # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
-        # samples, then smooth the result like every other signal.
-        model = FixedWingModel(params)
-        raw_airspeed = arrays["air_data"][:, 0]
-        raw_thrust, raw_torque = model.thrust(raw_airspeed, raw_controls[:, 3])
-        slope, force = None, measured_thrust
+        # values, then filter the result like every other signal.
+        raw_thrust, raw_torque = model.thrust(raw_air[:, 0], raw_controls[:, 3])
+        slope, force = None, None
         if measured_thrust is None:
             step = 0.01
-            slope = smooth((model.thrust(raw_airspeed + step, raw_controls[:, 3])[0]
-                            - model.thrust(raw_airspeed - step, raw_controls[:, 3])[0])
-                           / (2 * step))
-            force = smooth(raw_thrust)
-        torque = smooth(np.broadcast_to(raw_torque, (n,)).astype(float))
-        condition = AeroCondition(
-            airspeed=airspeed, alpha=alpha, beta=beta, p=w[:, 0], q=w[:, 1], r=w[:, 2],
-            elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
-            alphadot=alpha_dot, thrust_coefficient=force / q_bar_s,
-        )
-        return condition, force, slope, torque, u[:, 3]
+            slope = filt((model.thrust(raw_air[:, 0] + step, raw_controls[:, 3])[0]
+                          - model.thrust(raw_air[:, 0] - step, raw_controls[:, 3])[0])
+                         / (2 * step))
+            force = filt(raw_thrust)
+        torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
+        q_bar = 0.5 * params.rho * air[:, 0] ** 2
+        return air, u, q_bar, force, slope, torque
 
-    force_inputs = controls_view(arrays["controls"])
-    moment_inputs = (force_inputs if moment_controls is None
-                     else controls_view(arrays["moment_controls"]))
-    condition, force_thrust, slope, _, throttle = force_inputs
+    # Forces: instantaneous samples, Savitzky-Golay smoothing.
+    raw_air = arrays["air_data"]
+    air, u, q_bar, force_thrust, slope, _ = view(raw_air, arrays["controls"], smooth)
+    if measured_thrust is not None:
+        force_thrust = smooth(measured_thrust)
+    f, w = smooth(arrays["specific_force"]), smooth(arrays["rates"])
+    q_bar_s = q_bar * params.S
     m = params.mass
     CX = (m * f[:, 0] - force_thrust) / q_bar_s
     CY = m * f[:, 1] / q_bar_s
     CZ = m * f[:, 2] / q_bar_s
-    CL, CD = body_to_lift_drag(CX, CZ, alpha)
-    w_dot = differentiate(time, raw_rates, derivative_window)
+    CL, CD = body_to_lift_drag(CX, CZ, air[:, 1])
+    alpha_dot = differentiate(time, raw_air[:, 1], derivative_window)
+    condition = AeroCondition(
+        airspeed=air[:, 0], alpha=air[:, 1], beta=air[:, 2], p=w[:, 0], q=w[:, 1], r=w[:, 2],
+        elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
+        alphadot=alpha_dot, thrust_coefficient=force_thrust / q_bar_s,
+    )
+    # Moments: interval averages through the derivative's own increment weights.
+    interval_controls = (trapezoid(arrays["controls"]) if moment_controls is None
+                         else arrays["moment_controls"][:-1])
+    step = np.diff(time)[:, None]
+    m_air, m_u, m_q_bar, m_thrust, m_slope, torque = view(
+        trapezoid(raw_air), interval_controls, interval_smooth)
+    if measured_thrust is not None:
+        m_thrust = interval_smooth(trapezoid(measured_thrust))
+    w_m = interval_smooth(trapezoid(arrays["rates"]))
+    w_dot = interval_smooth(np.diff(arrays["rates"], axis=0) / step)
     J = params.inertia
-    moment = w_dot @ J.T + np.cross(w, w @ J.T)
-    moment[:, 0] -= moment_inputs[3]
+    moment = w_dot @ J.T + np.cross(w_m, w_m @ J.T)
+    moment[:, 0] -= torque
+    m_q_bar_s = m_q_bar * params.S
     coefficients = dict(zip(COEFFICIENTS, (
         CL, CD, CY,
-        moment[:, 0] / (q_bar_s * params.b),
-        moment[:, 1] / (q_bar_s * params.c),
-        moment[:, 2] / (q_bar_s * params.b),
+        moment[:, 0] / (m_q_bar_s * params.b),
+        moment[:, 1] / (m_q_bar_s * params.c),
+        moment[:, 2] / (m_q_bar_s * params.b),
     ), strict=True))
+    moment_condition = AeroCondition(
+        airspeed=m_air[:, 0], alpha=m_air[:, 1], beta=m_air[:, 2], p=w_m[:, 0], q=w_m[:, 1],
+        r=w_m[:, 2], elevator=m_u[:, 0], aileron=m_u[:, 1], rudder=m_u[:, 2],
+        flap=np.zeros(n),
+        alphadot=interval_smooth(np.diff(raw_air[:, 1]) / step[:, 0]),
+        thrust_coefficient=m_thrust / m_q_bar_s,
+    )
+
     noise = np.concatenate([smoothed_noise_variance(time, arrays[k], derivative_window)
                             for k in ("air_data", "rates", "specific_force")])
     noise_variance = dict(zip(NOISE_CHANNELS, noise.tolist(), strict=True))
@@ -327,22 +380,24 @@ def isolate_coefficients(
         if name not in noise_variance:
             raise ValueError(f"isolate_coefficients: raw_noise_variance has unknown '{name}'")
         noise_variance[name] = float(value) * gain
+    # White noise through the trapezoid and the increment weights.
+    sample_weights = 0.5 * (np.append(weights, 0.0) + np.insert(weights, 0, 0.0))
+    moment_gain = float(sample_weights @ sample_weights) / gain
     extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
     for name, value in extra.items():
         if value.shape != (n,):
             raise ValueError(f"isolate_coefficients: signal '{name}' must have shape ({n},)")
     samples = AeroSamples(
         time=time, condition=condition, coefficients=coefficients, dynamic_pressure=q_bar,
-        throttle=throttle, thrust=force_thrust, rate_derivatives=w_dot,
+        throttle=u[:, 3], thrust=force_thrust, rate_derivatives=differentiate(
+            time, arrays["rates"], derivative_window),
         specific_force=f, signals=extra, noise_variance=noise_variance,
         thrust_airspeed_slope=slope, reference_area=params.S,
     )
-    if moment_controls is None:
-        return samples
-    view_condition, view_thrust, view_slope, _, view_throttle = moment_inputs
     return dataclasses.replace(samples, moment_view=dataclasses.replace(
-        samples, condition=view_condition, thrust=view_thrust,
-        thrust_airspeed_slope=view_slope, throttle=view_throttle))
+        samples, condition=moment_condition, dynamic_pressure=m_q_bar, thrust=m_thrust,
+        thrust_airspeed_slope=m_slope, throttle=m_u[:, 3], rate_derivatives=w_dot,
+        noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
 
 
 def monte_carlo_sigma(
