@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import re
@@ -81,6 +82,14 @@ def resolve_unit(name: str, unit: str) -> tuple[str, float]:
                          f"{', '.join(dict.fromkeys([*UNIT_VARIANTS, *UNITS]))})")
 
 
+def _text(line: bytes, source: str, number: int) -> str:
+    try:
+        return bytes(line).decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise FlightLogError(f"{source}: line {number} is not UTF-8 text ({err.reason})"
+                             ) from None
+
+
 def _header(line: str, source: str) -> list[tuple[str, str]]:
     columns = []
     for i, field in enumerate(line.split(",")):
@@ -99,9 +108,11 @@ def _header(line: str, source: str) -> list[tuple[str, str]]:
 
 
 def _locate_bad_row(lines: list[str], first_line: int, names: list[str], source: str,
-                    ends_with_newline: bool) -> FlightLogError:
+                    ends_with_newline: bool, reason: str) -> FlightLogError:
     """The error of the first malformed data line (slow path, only after a failure)."""
-    numbered = [(first_line + i, line) for i, line in enumerate(lines) if line.strip()]
+    numbered = [(first_line + i, line) for i, line in enumerate(lines) if line]
+    if not numbered:
+        return FlightLogError(f"{source}: no data rows after the header")
     for k, (number, line) in enumerate(numbered):
         problem = _row_problem(line.split(","), names)
         if problem is None:
@@ -110,7 +121,7 @@ def _locate_bad_row(lines: list[str], first_line: int, names: list[str], source:
         if last and (not ends_with_newline or line.count(",") < len(names) - 1):
             return FlightLogError(f"{source}: truncated last line {number}: {problem}")
         return FlightLogError(f"{source}: line {number}: {problem}")
-    return FlightLogError(f"{source}: unreadable data")
+    return FlightLogError(f"{source}: unreadable data ({reason})")
 
 
 def _row_problem(cells: list[str], names: list[str]) -> str | None:
@@ -129,8 +140,38 @@ def _row_problem(cells: list[str], names: list[str]) -> str | None:
     return None
 
 
+def _numbers(body: memoryview, n_columns: int) -> list[np.ndarray] | str:
+    """The columns of ``body`` as float arrays, or the parser's complaint when a cell is
+    empty or not a number, or a row has another number of fields (pyarrow's parser)."""
+    pa, csv = _pyarrow_csv()
+    names = [f"c{i}" for i in range(n_columns)]
+    try:
+        table = csv.read_csv(
+            pa.py_buffer(body), read_options=csv.ReadOptions(column_names=names),
+            convert_options=csv.ConvertOptions(
+                column_types=dict.fromkeys(names, pa.float64()), null_values=[""],
+                strings_can_be_null=False, quoted_strings_can_be_null=False))
+    except pa.ArrowInvalid as err:
+        return str(err)
+    if any(column.null_count for column in table.columns):
+        return "empty cell"
+    return [column.to_numpy() for column in table.columns]
+
+
+def _pyarrow_csv():
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as csv
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("CSV flight logs need pyarrow: pip install pyarrow") from exc
+    return pa, csv
+
+
 def read_csv(path: str | Path) -> FlightLog:
     """Reads a CSV flight log (see the module docstring) into a FlightLog in SI units.
+
+    The cells are parsed by pyarrow's multi-threaded CSV reader; only when that
+    fails is the file scanned line by line to name the first bad cell.
 
     Raises:
         FlightLogError: naming the file and the column/line of a bad header,
@@ -139,58 +180,62 @@ def read_csv(path: str | Path) -> FlightLog:
     """
     path = Path(path)
     source = str(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise FlightLogError(f"{source}: not UTF-8 text ({err.reason} at byte {err.start})"
-                             ) from None
-    lines = text.splitlines()
+    raw = path.read_bytes()
+    pos = len(codecs.BOM_UTF8) if raw.startswith(codecs.BOM_UTF8) else 0
     metadata: dict[str, object] = {}
-    start = 0
-    while start < len(lines) and (lines[start].startswith("#") or not lines[start].strip()):
-        key, colon, value = lines[start][1:].partition(":")
-        if lines[start].startswith("#") and colon and key.strip():
-            try:
-                metadata[key.strip()] = json.loads(value)
-            except json.JSONDecodeError:
-                metadata[key.strip()] = value.strip()
-        start += 1
-    if start == len(lines):
+    header, line_count = None, 0
+    while header is None and pos < len(raw):
+        end = raw.find(b"\n", pos)
+        end = len(raw) if end < 0 else end
+        line = _text(raw[pos:end], source, line_count + 1).rstrip("\r")
+        pos, line_count = end + 1, line_count + 1
+        if line.startswith("#"):
+            key, colon, value = line[1:].partition(":")
+            if colon and key.strip():
+                try:
+                    metadata[key.strip()] = json.loads(value)
+                except json.JSONDecodeError:
+                    metadata[key.strip()] = value.strip()
+        elif line.strip():
+            header = line
+    if header is None:
         raise FlightLogError(f"{source}: no header line")
-    columns = _header(lines[start], source)
+    columns = _header(header, source)
     names = [n for n, _ in columns]
     try:
         units = [resolve_unit(name, unit) for name, unit in columns]
     except FlightLogError as err:
         raise FlightLogError(f"{source}: {err}") from None
-    body = lines[start + 1:]
-    first_line = start + 2  # 1-based line number of body[0]
-    if not any(line.strip() for line in body):
+    body = memoryview(raw)[min(pos, len(raw)):]
+    first_line = line_count + 1  # 1-based line number of the body's first line
+    data = _numbers(body, len(names))
+    body_lines = None
+
+    def lines() -> list[str]:
+        nonlocal body_lines
+        if body_lines is None:
+            body_lines = bytes(body).decode("utf-8", errors="replace").splitlines()
+        return body_lines
+
+    if isinstance(data, str):
+        raise _locate_bad_row(lines(), first_line, names, source, raw.endswith(b"\n"), data)
+    if data[0].size == 0:
         raise FlightLogError(f"{source}: no data rows after the header")
-    try:
-        data = np.loadtxt(body, delimiter=",", comments=None, ndmin=2, dtype=float)
-        if data.size and data.shape[1] != len(names):
-            raise ValueError("column count")
-    except ValueError:
-        raise _locate_bad_row(body, first_line, names, source, text.endswith("\n")) from None
-    line_of = None
 
     def line_number(row: int) -> int:
-        nonlocal line_of
-        if line_of is None:
-            line_of = [first_line + i for i, line in enumerate(body) if line.strip()]
-        return line_of[row]
+        return [first_line + i for i, line in enumerate(lines()) if line][row]
 
-    bad = ~np.isfinite(data)
-    if bad.any():
-        row = int(np.flatnonzero(bad.any(axis=1))[0])
-        col = int(np.flatnonzero(bad[row])[0])
-        value = "NaN" if np.isnan(data[row, col]) else f"{data[row, col]}"
+    first_bad = [(int(np.argmin(np.isfinite(column))), col) for col, column in enumerate(data)
+                 if not np.isfinite(column).all()]
+    if first_bad:
+        row, col = min(first_bad)
+        value = "NaN" if np.isnan(data[col][row]) else f"{data[col][row]}"
         raise FlightLogError(
             f"{source}: column '{names[col]}': {value} at line {line_number(row)}, "
-            f"{int(bad[:, col].sum())} non-finite cells in this column")
-    data = data * np.array([factor for _, factor in units])
-    time = data[:, names.index("time")]
+            f"{int(np.count_nonzero(~np.isfinite(data[col])))} non-finite cells in this column")
+    data = [column if factor == 1.0 else column * factor
+            for column, (_, factor) in zip(data, units, strict=True)]
+    time = data[names.index("time")]
     step = np.diff(time)
     wrong = np.flatnonzero(step <= 0)
     if wrong.size:
@@ -199,13 +244,13 @@ def read_csv(path: str | Path) -> FlightLog:
         raise FlightLogError(f"{source}: time {what} at line {line_number(row)} "
                              f"(t = {time[row]:.9g} s after {time[row - 1]:.9g} s)")
     measured, truth, unit_of = {}, {}, {}
-    for i, ((name, _), (unit, _)) in enumerate(zip(columns, units, strict=True)):
+    for (name, _), (unit, _), values in zip(columns, units, data, strict=True):
         if name == "time":
             continue
         target = measured
         if name.startswith(_TRUTH):
             name, target = name[len(_TRUTH):], truth
-        target[name] = data[:, i]
+        target[name] = values
         unit_of[name] = unit
     try:
         return FlightLog(time, measured, truth, unit_of, metadata)
