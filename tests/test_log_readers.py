@@ -174,7 +174,7 @@ def _us(start_s: float, rate_hz: float, n: int) -> np.ndarray:
 
 
 def _multirate_bin(path, *, gap_in_arsp=False, att_backwards=False, arsp_nan=False,
-                   with_arsp=True):
+                   with_arsp=True, gps_fix=True):
     """A 4 s log: IMU 50 Hz (two instances), ATT 25, GPS 5 (no fix first), ARSP/BARO/RCOU/RPM
     10, XKF2 25 (two cores), VANE 50. Signals are linear in time so the alignment is exact."""
     w = DataFlashWriter()
@@ -203,8 +203,8 @@ def _multirate_bin(path, *, gap_in_arsp=False, att_backwards=False, arsp_nan=Fal
     w.add("ATT", TimeUS=stamped, Roll=0.25 * k, Pitch=-0.5 * k, Yaw=(350 + 2.5 * k) % 360,
           at=att)
     k = np.arange(21)
-    w.add("GPS", TimeUS=_us(1.0, 5, 21), I=0, Status=np.where(k < 2, 1, 3), Lat=47 + 1e-5 * k,
-          Lng=8.0 - 2e-5 * k, Alt=500.0 + 0.5 * k, Spd=20.0, GCrs=30.0, VZ=-1.5)
+    w.add("GPS", TimeUS=_us(1.0, 5, 21), I=0, Status=np.where((k < 2) | (not gps_fix), 1, 3),
+          Lat=47 + 1e-5 * k, Lng=8.0 - 2e-5 * k, Alt=500.0 + 0.5 * k, Spd=20.0, GCrs=30.0, VZ=-1.5)
     k = np.arange(41)
     arsp = _us(1.0, 10, 41)
     airspeed = 20.0 + 0.5 * k
@@ -288,8 +288,12 @@ def test_dataflash_channels_units_and_alignment_exact(tmp_path):
 def test_dataflash_other_instance_and_actuator_mapping(tmp_path):
     path = _multirate_bin(tmp_path / "flight.bin")
     mapping = ActuatorMapping.ardupilot(elevator=10 * DEG)
-    with pytest.raises(FlightLogError, match=r"no GPS message with I = 1"):
-        read_ardupilot(path, instance=1)
+    second = read_ardupilot(path, instance=1)  # IMU and EKF core 1; no GPS/ARSP/BARO 1
+    np.testing.assert_array_equal(second["imu_r"], np.full(len(second), 1.5))
+    np.testing.assert_array_equal(second["est_wind_n"], np.full(len(second), 30.0))
+    assert "gps_vn" not in second and "pitot_airspeed" not in second and "baro_alt" not in second
+    with pytest.raises(FlightLogError, match=r"no IMU messages with I = 2 \(the time base\)"):
+        read_ardupilot(path, instance=2)
     log = read_ardupilot(path, actuators=mapping)
     k = np.floor((log.time - 1.005) / 0.1 + 1e-9)
     np.testing.assert_allclose(log["cmd_elevator"], -(10 * k / 500) * 10 * DEG, atol=1e-15)
@@ -316,6 +320,10 @@ def test_dataflash_vanes_missing_only_an_error_when_required(tmp_path):
     with pytest.raises(FlightLogError, match=r"flight\.bin: missing channel 'vane_alpha' "
                                              r"\(present: .*\); autopilot logs carry no vane"):
         read_log(path, required=REQUIRED_CHANNELS)
+    no_fix = _multirate_bin(tmp_path / "no_fix.bin", gps_fix=False)
+    with pytest.warns(UserWarning, match=r"no_fix\.bin: no GPS message with a 3-D fix"):
+        log = read_log(no_fix)
+    assert "gps_vn" not in log and log.time[0] == 1.02  # first IMU sample after RCOU's
     no_airspeed = _multirate_bin(tmp_path / "no_arsp.bin", with_arsp=False)
     with pytest.raises(FlightLogError, match=r"no_arsp\.bin: missing channel 'pitot_airspeed'"):
         read_log(no_airspeed, required=["pitot_airspeed"])

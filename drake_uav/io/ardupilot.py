@@ -55,7 +55,8 @@ _HEAD = (0xA3, 0x95, 0x80)  # every DataFlash log starts with a FMT message
 _TRAILING_SLACK = 528
 """Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
 _EARTH_A, _EARTH_E2 = 6378137.0, 6.69437999014e-3  # WGS-84 semi-major axis [m], e^2
-_RPM = 2.0 * math.pi / 60.0
+_RPM = 2.0 * math.pi / 60.0  # rev/min -> rad/s
+_DEG = math.pi / 180.0
 
 
 class _Index(DFReader_binary):
@@ -137,9 +138,13 @@ class _DataFlash:
     def fields(self, name: str) -> list[str]:
         return list(self.formats[name].columns)
 
-    def decode(self, name: str, fields: list[str], instance_column: str | None = None,
-               instance: int | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """(time [s], field -> values) of message ``name``, multipliers applied."""
+    def read(self, name: str, fields: list[str], instance_column: str | None = None,
+             instance: int | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        """(time [s], field -> values) of message ``name`` (multipliers applied), keeping
+        the messages whose ``instance_column`` equals ``instance`` when the message has
+        that column; None when there is no such message."""
+        if not self.has(name):
+            return None
         fmt = self.formats[name]
         missing = [f for f in ("TimeUS", *fields) if f not in fmt.colhash]
         if missing:
@@ -154,8 +159,7 @@ class _DataFlash:
         if instance is not None and instance_column in fmt.colhash:
             records = records[records[instance_column] == instance]
             if records.size == 0:
-                raise FlightLogError(f"{self.source}: no {name} message with "
-                                     f"{instance_column} = {instance}")
+                return None
         out = {}
         for field in fields:
             values = records[field].astype(float)
@@ -168,24 +172,40 @@ class _DataFlash:
         return records["TimeUS"].astype(float) / 1e6, out
 
 
-def _stream(name, time, channels, **kwargs) -> Stream:
-    return Stream(name, time, channels, {n: CHANNELS[n][0] for n in channels}, **kwargs)
+def _stream(name, time, channels, fields: Mapping[str, str], **kwargs) -> Stream:
+    """A stream of canonical channels; ``fields``: channel -> field of message ``name``."""
+    return Stream(name, time, channels, {n: CHANNELS[n][0] for n in channels},
+                  fields={c: f"{name}.{f}" for c, f in fields.items()}, **kwargs)
 
 
-def _gps(log: _DataFlash, instance: int) -> tuple[Stream, list[float]]:
-    time, f = log.decode("GPS", ["Status", "Spd", "GCrs", "VZ", "Lat", "Lng", "Alt"],
-                         "I", instance)
+def _simple(log: _DataFlash, name: str, mapping: Mapping[str, str], column: str | None = None,
+            instance: int | None = None, scale: float = 1.0, **kwargs) -> Stream | None:
+    """Stream of message ``name`` with channel <- scale * field, or None when absent."""
+    got = log.read(name, list(mapping.values()), column, instance)
+    if got is None:
+        return None
+    time, f = got
+    return _stream(name, time, {c: scale * f[k] for c, k in mapping.items()}, mapping,
+                   **kwargs)
+
+
+def _gps(log: _DataFlash, instance: int) -> tuple[Stream, list[float]] | None:
+    got = log.read("GPS", ["Status", "Spd", "GCrs", "VZ", "Lat", "Lng", "Alt"], "I", instance)
+    if got is None:
+        return None
+    time, f = got
     fix = f["Status"] >= 3
     if not np.any(fix):
-        raise FlightLogError(f"{log.source}: no GPS message with a 3-D fix (Status >= 3)")
+        warnings.warn(f"{log.source}: no GPS message with a 3-D fix (Status >= 3); no GPS "
+                      "channels", stacklevel=3)
+        return None
     time, f = time[fix], {k: v[fix] for k, v in f.items()}
     course = np.radians(f["GCrs"])
     lat0, lon0, alt0 = (float(f[k][0]) for k in ("Lat", "Lng", "Alt"))
-    if log.has("ORGN"):
-        _, origin = log.decode("ORGN", ["Type", "Lat", "Lng", "Alt"])
-        ekf = np.flatnonzero(origin["Type"] == 0)
-        if ekf.size:
-            lat0, lon0, alt0 = (float(origin[k][ekf[0]]) for k in ("Lat", "Lng", "Alt"))
+    origin = log.read("ORGN", ["Type", "Lat", "Lng", "Alt"])
+    if origin is not None and np.any(origin[1]["Type"] == 0):
+        ekf = int(np.flatnonzero(origin[1]["Type"] == 0)[0])
+        lat0, lon0, alt0 = (float(origin[1][k][ekf]) for k in ("Lat", "Lng", "Alt"))
     s2 = 1.0 - _EARTH_E2 * math.sin(math.radians(lat0)) ** 2
     r_north = _EARTH_A * (1.0 - _EARTH_E2) / s2 ** 1.5
     r_east = _EARTH_A / math.sqrt(s2) * math.cos(math.radians(lat0))
@@ -197,13 +217,8 @@ def _gps(log: _DataFlash, instance: int) -> tuple[Stream, list[float]]:
         "gps_ve": f["Spd"] * np.sin(course),
         "gps_vd": f["VZ"],
     }
-    fields = dict(zip(channels, ("GPS.Lat", "GPS.Lng", "GPS.Alt", "GPS.Spd", "GPS.Spd",
-                                 "GPS.VZ"), strict=True))
-    return _stream("GPS", time, channels, fields=fields), [lat0, lon0, alt0]
-
-
-def _fields_map(message: str, mapping: Mapping[str, str]) -> dict[str, str]:
-    return {channel: f"{message}.{field}" for channel, field in mapping.items()}
+    fields = dict(zip(channels, ("Lat", "Lng", "Alt", "Spd", "Spd", "VZ"), strict=True))
+    return _stream("GPS", time, channels, fields), [lat0, lon0, alt0]
 
 
 def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None,
@@ -217,7 +232,8 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None
         extra: more channels, e.g. vanes: ``{"vane_alpha": FieldSource("CUR2", "Volt",
             "rad", scale=..., offset=...)}``.
         instance: instance of IMU, GPS, ARSP, BARO, RPM (field ``I``) and EKF core
-            of XKF2/NKF2 (field ``C``).
+            of XKF2/NKF2 (field ``C``); messages without it are left out, except
+            the IMU (the time base), which must have it.
         max_gap: longest allowed interval between two messages of a stream [s].
         allow_truncated: drop an incomplete last message (with a warning) instead
             of raising.
@@ -230,53 +246,40 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None
     actuators = (actuators or ActuatorMapping.ardupilot()).validate()
     extra = {name: source.validate() for name, source in (extra or {}).items()}
     log = _DataFlash(path, allow_truncated)
-    source = log.source
-    if not log.has("IMU"):
-        raise FlightLogError(f"{source}: no IMU messages (the time base)")
-    imu_fields = {"imu_ax": "AccX", "imu_ay": "AccY", "imu_az": "AccZ",
-                  "imu_p": "GyrX", "imu_q": "GyrY", "imu_r": "GyrZ"}
-    time, f = log.decode("IMU", list(imu_fields.values()), "I", instance)
-    base = _stream("IMU", time, {c: f[k] for c, k in imu_fields.items()},
-                   fields=_fields_map("IMU", imu_fields))
-    streams, metadata = [], {"format": "ArduPilot DataFlash", "instance": instance,
-                             "actuators": actuators.describe()}
-    if log.has("ATT"):
-        time, f = log.decode("ATT", ["Roll", "Pitch", "Yaw"])
-        att = {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"}
-        streams.append(_stream("ATT", time, {c: np.radians(f[k]) for c, k in att.items()},
-                               angles=("att_roll", "att_yaw"), fields=_fields_map("ATT", att)))
-    if log.has("GPS"):
-        stream, metadata["gps_origin_lat_lon_alt"] = _gps(log, instance)
-        streams.append(stream)
-    if log.has("ARSP"):
-        time, f = log.decode("ARSP", ["Airspeed", "DiffPress"], "I", instance)
-        arsp = {"pitot_airspeed": "Airspeed", "pitot_qbar": "DiffPress"}
-        streams.append(_stream("ARSP", time, {c: f[k] for c, k in arsp.items()},
-                               fields=_fields_map("ARSP", arsp)))
-    if log.has("BARO"):
-        time, f = log.decode("BARO", ["Alt"], "I", instance)
-        streams.append(_stream("BARO", time, {"baro_alt": f["Alt"]},
-                               fields={"baro_alt": "BARO.Alt"}))
-    if log.has(actuators.message):
-        commands = actuators.channels()
-        time, f = log.decode(actuators.message, [m.field for m in commands.values()])
+    imu = {"imu_ax": "AccX", "imu_ay": "AccY", "imu_az": "AccZ",
+           "imu_p": "GyrX", "imu_q": "GyrY", "imu_r": "GyrZ"}
+    base = _simple(log, "IMU", imu, "I", instance)
+    if base is None:
+        raise FlightLogError(f"{log.source}: no IMU messages with I = {instance} (the time "
+                             "base)")
+    metadata = {"format": "ArduPilot DataFlash", "instance": instance,
+                "actuators": actuators.describe()}
+    streams = [
+        _simple(log, "ATT", {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"},
+                scale=_DEG, angles=("att_roll", "att_yaw")),
+        _simple(log, "ARSP", {"pitot_airspeed": "Airspeed", "pitot_qbar": "DiffPress"}, "I",
+                instance),
+        _simple(log, "BARO", {"baro_alt": "Alt"}, "I", instance),
+        _simple(log, "XKF2" if log.has("XKF2") else "NKF2",
+                {"est_wind_n": "VWN", "est_wind_e": "VWE"}, "C", instance),
+    ]
+    commands = actuators.channels()
+    got = log.read(actuators.message, [m.field for m in commands.values()])
+    if got is not None:
+        time, f = got
         streams.append(_stream(actuators.message, time,
-                               {c: m.apply(f[m.field]) for c, m in commands.items()}, hold=True,
-                               fields=_fields_map(actuators.message,
-                                                  {c: m.field for c, m in commands.items()})))
-    wind = next((m for m in ("XKF2", "NKF2") if log.has(m)), None)
-    if wind is not None:
-        time, f = log.decode(wind, ["VWN", "VWE"], "C", instance)
-        streams.append(_stream(wind, time, {"est_wind_n": f["VWN"], "est_wind_e": f["VWE"]},
-                               fields=_fields_map(wind, {"est_wind_n": "VWN",
-                                                         "est_wind_e": "VWE"})))
+                               {c: m.apply(f[m.field]) for c, m in commands.items()},
+                               {c: m.field for c, m in commands.items()}, hold=True))
     if log.has("RPM"):
         field = "rpm1" if "rpm1" in log.fields("RPM") else "RPM"
-        time, f = log.decode("RPM", [field], "I", instance)
-        streams.append(_stream("RPM", time, {"motor_speed": f[field] * _RPM},
-                               fields={"motor_speed": f"RPM.{field}"}))
+        streams.append(_simple(log, "RPM", {"motor_speed": field}, "I", instance, _RPM))
+    gps = _gps(log, instance)
+    if gps is not None:
+        streams.append(gps[0])
+        metadata["gps_origin_lat_lon_alt"] = gps[1]
     streams += _extra_streams(log, extra)
-    return align_streams(base, streams, source=source, max_gap=max_gap, metadata=metadata)
+    return align_streams(base, [s for s in streams if s is not None], source=log.source,
+                         max_gap=max_gap, metadata=metadata)
 
 
 def _extra_streams(log: _DataFlash, extra: Mapping[str, FieldSource]) -> list[Stream]:
@@ -286,12 +289,13 @@ def _extra_streams(log: _DataFlash, extra: Mapping[str, FieldSource]) -> list[St
         groups.setdefault((src.message, src.instance, src.hold), {})[channel] = src
     streams = []
     for (message, instance, hold), sources in groups.items():
-        if not log.has(message):
-            raise FlightLogError(f"{log.source}: no {message} messages for channel(s) "
+        column = ("I" if "I" in log.fields(message) else "C") if log.has(message) else None
+        got = log.read(message, sorted({s.field for s in sources.values()}), column, instance)
+        if got is None:
+            which = "" if instance is None else f" with {column} = {instance}"
+            raise FlightLogError(f"{log.source}: no {message} messages{which} for channel(s) "
                                  f"{', '.join(sources)}")
-        column = "I" if "I" in log.fields(message) else "C"
-        time, f = log.decode(message, sorted({s.field for s in sources.values()}), column,
-                             instance)
+        time, f = got
         streams.append(Stream(
             message if instance is None else f"{message}[{instance}]", time,
             {c: s.apply(f[s.field]) for c, s in sources.items()},
