@@ -4,7 +4,7 @@ pymavlink's ``DFReader_binary`` indexes the file (message formats from the FMT
 messages, byte offset of every message); each needed message type is then
 decoded in one vectorised step (numpy structured view of all its messages) with
 pymavlink's format table and multipliers (a 30-minute log with two IMUs at
-400 Hz, 81 MB, reads in about 2 s). Time is ``TimeUS / 1e6`` [s since boot].
+400 Hz, 81 MB, reads in under 2 s). Time is ``TimeUS / 1e6`` [s since boot].
 
 Default mapping (instance 0 of multi-instance messages; see docs/flight_logs.md):
 
@@ -25,9 +25,9 @@ RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
 
 GPS samples without a 3-D fix (Status < 3) are dropped. The origin of the local
 positions is the EKF origin (``ORGN`` with Type 0), else the first fix; they use
-the WGS-84 radii of curvature at the origin (flat earth, good to a few km). Vane
-angles are not
-standard ArduPilot messages: map them with ``extra`` (e.g. from ``CUR2``).
+the WGS-84 radii of curvature at the origin (flat earth, good to a few km).
+Vane angles are not standard ArduPilot messages: map them with ``extra``
+(e.g. from ``CUR2``).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 from pymavlink.DFReader import FORMAT_TO_STRUCT, DFReader_binary
 
-from drake_uav.io.flight_log import FlightLogError
+from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.readers import (
     CHANNELS,
     ActuatorMapping,
@@ -223,7 +223,7 @@ def _gps(log: _DataFlash, instance: int) -> tuple[Stream, list[float]] | None:
 
 def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None,
                    extra: Mapping[str, FieldSource] | None = None, instance: int = 0,
-                   max_gap: float = 0.5, allow_truncated: bool = False):
+                   max_gap: float = 0.5, allow_truncated: bool = False) -> FlightLog:
     """Reads an ArduPilot DataFlash ``.bin`` log into a FlightLog (canonical channels).
 
     Args:

@@ -41,7 +41,7 @@ import numpy as np
 from pyulog import ULog
 from pyulog.core import ULogException
 
-from drake_uav.io.flight_log import FlightLogError
+from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.readers import (
     CHANNELS,
     ActuatorMapping,
@@ -149,7 +149,8 @@ def _attitude(log: _ULog, instance: int) -> Stream:
 
 def read_px4(path: str | Path, *, actuators: ActuatorMapping | None = None,
              airspeed: str = "true", extra: Mapping[str, FieldSource] | None = None,
-             instance: int = 0, max_gap: float = 0.5, allow_truncated: bool = False):
+             instance: int = 0, max_gap: float = 0.5,
+             allow_truncated: bool = False) -> FlightLog:
     """Reads a PX4 ``.ulg`` log into a FlightLog (canonical channels).
 
     Args:
