@@ -472,8 +472,14 @@ def _float_array(values) -> np.ndarray:
 
 
 def _diagonal(M: np.ndarray) -> np.ndarray:
-    """Writable view of the diagonals of a contiguous (B, n, n) stack, shape (B, n)."""
-    return M.reshape(len(M), -1)[:, :: M.shape[1] + 1]
+    """Writable view of the diagonal(s) of a contiguous (n, n) or (B, n, n) array."""
+    n = M.shape[-1]
+    return M.reshape(*M.shape[:-2], n * n)[..., :: n + 1]
+
+
+def _t(M: np.ndarray) -> np.ndarray:
+    """Transpose of the last two axes."""
+    return M.swapaxes(-1, -2)
 
 
 # --------------------------------------------------------------------------------------
@@ -657,6 +663,11 @@ class ExtendedKalmanFilter:
 
     # -------------------------------------------------------------- pieces
     def _jacobians(self, function: CompiledFunction, *args):
+        """Value and Jacobians for one sample (1-D args) or a batch (2-D args)."""
+        if args[0].ndim == 1:
+            if self.backend == "compiled":
+                return function.jacobians(*args)
+            return function.autodiff_jacobians(*args)
         if self.backend == "compiled":
             return function.batch_jacobians(*args)
         results = [function.autodiff_jacobians(*[a[b] for a in args])
@@ -675,13 +686,12 @@ class ExtendedKalmanFilter:
         return u_previous + 0.5 * delta
 
     def predict(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
-        """Time update over ``dt`` [s] (scalar or per filter) with the input ``u`` held."""
-        single = x.ndim == 1
-        if single:
-            x, P, u = x[None], P[None], u[None]
-        batch = len(x)
-        dt = np.broadcast_to(np.asarray(dt, float), (batch,))[:, None, None]
-        w0 = np.broadcast_to(self._w0, (batch, self._w0.shape[1]))
+        """Time update over ``dt`` [s] (scalar, or one per filter of a batch) with ``u`` held."""
+        if x.ndim == 1:
+            w0 = self._w0[0]
+        else:
+            w0 = np.broadcast_to(self._w0, (len(x), self._w0.shape[1]))
+            dt = np.broadcast_to(np.asarray(dt, float), (len(x),))[:, None, None]
         fx, (F, B, G) = self._jacobians(self.dynamics, x, u, w0)
         A = F * dt
         A2 = A @ A
@@ -691,62 +701,57 @@ class ExtendedKalmanFilter:
         x_new = x + ((f + A @ (0.5 * f) + A2 @ (f / 6.0) + A3 @ (f / 24.0)) * dt)[..., 0]
         Phi = self._eye + A + 0.5 * A2 + A3 / 6.0
         Bdt = B * dt
-        half = 0.5 * ((G * self._qc) @ G.transpose(0, 2, 1) * dt
-                      + (Bdt * self._input_var) @ Bdt.transpose(0, 2, 1))
-        P_new = Phi @ (P + half) @ Phi.transpose(0, 2, 1) + half
-        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
-        return (x_new[0], P_new[0]) if single else (x_new, P_new)
+        half = 0.5 * ((G * self._qc) @ _t(G) * dt + (Bdt * self._input_var) @ _t(Bdt))
+        P_new = Phi @ (P + half) @ _t(Phi) + half
+        return x_new, 0.5 * (P_new + _t(P_new))
 
     def update(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndarray,
                available: np.ndarray | None = None) -> UpdateResult:
         """Measurement update (Joseph form) with the channels flagged in ``available``.
 
         ``available`` (bool, default all) is the seed's D matrix; NaN samples are
-        never used. Batched inputs give batched results.
+        never used. Batched inputs (leading axis) give batched results.
         """
-        single = x.ndim == 1
-        if single:
-            x, P, u, y = x[None], P[None], u[None], y[None]
         mask = np.isfinite(y)
         if available is not None:
-            mask &= available if not single else np.asarray(available, bool)[None]
+            mask &= available
         yhat, (H, D) = self._jacobians(self.measurement, x, u)
         nu = y - yhat
         if self._angle_y:
-            nu[:, self._angle_y] = wrap_angle(nu[:, self._angle_y])
-        Ht = H.transpose(0, 2, 1)
+            nu[..., self._angle_y] = wrap_angle(nu[..., self._angle_y])
+        Ht = _t(H)
         PHt = P @ Ht
-        R = (D * self._input_var) @ D.transpose(0, 2, 1)
-        _diagonal(R)[:] += self._r
+        R = (D * self._input_var) @ _t(D)
+        _diagonal(R)[...] += self._r
         S = H @ PHt + R
         S_diag = _diagonal(S).copy()
         innovation = np.where(mask, nu, np.nan)
         innovation_var = np.where(mask, S_diag, np.nan)
-        rejected = (mask & (nu * nu > self._gate * S_diag)) @ self._membership > 0
-        if rejected.any():
+        bad = mask & (nu * nu > self._gate * S_diag)
+        if bad.any():
+            rejected = bad @ self._membership > 0
             mask &= rejected @ self._membership.T == 0
+        else:
+            rejected = np.zeros(mask.shape[:-1] + (len(self.group_names),), bool)
         # Unused channels: zero rows of C = D_k H and zero innovation (no gain), unit S.
         m = mask.astype(float)
         nu = np.where(mask, nu, 0.0)
-        outer = m[:, :, None] * m[:, None, :]
-        PCt = PHt * m[:, None, :]
-        S *= outer
-        _diagonal(S)[:] += 1.0 - m
-        R *= outer
+        if not mask.all():
+            outer = m[..., :, None] * m[..., None, :]
+            PHt = PHt * m[..., None, :]
+            H = H * m[..., :, None]
+            S = S * outer
+            _diagonal(S)[...] += 1.0 - m
+            R = R * outer
         S_inv = np.linalg.inv(S)
-        K = PCt @ S_inv
-        Knu = K @ nu[..., None]
-        nis = (nu[:, None, :] @ S_inv @ nu[..., None])[:, 0, 0]
-        dof = mask.sum(axis=1)
-        A = self._eye - K @ (H * m[..., None])
-        P_new = A @ P @ A.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
-        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
-        nis[dof == 0] = np.nan
-        if single:
-            return UpdateResult(x[0] + Knu[0, :, 0], P_new[0], nis[0], dof[0], mask[0],
-                                rejected[0], innovation[0], innovation_var[0])
-        return UpdateResult(x + Knu[..., 0], P_new, nis, dof, mask, rejected, innovation,
-                            innovation_var)
+        K = PHt @ S_inv
+        nis = (nu[..., None, :] @ S_inv @ nu[..., :, None])[..., 0, 0]
+        dof = mask.sum(axis=-1)
+        A = self._eye - K @ H
+        P_new = A @ P @ _t(A) + K @ R @ _t(K)
+        nis = np.where(dof > 0, nis, np.nan)
+        return UpdateResult(x + (K @ nu[..., None])[..., 0], 0.5 * (P_new + _t(P_new)), nis,
+                            dof, mask, rejected, innovation, innovation_var)
 
 
 # --------------------------------------------------------------------------------------
@@ -859,18 +864,21 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
     used = np.zeros((batch, n, ny), bool)
     rejected = np.zeros((batch, ng), int)
     angle_states = list(model.angle_states)
+    # A single flight runs as one filter (the cheaper per-sample path).
+    cut = (lambda a: a[0]) if batch == 1 else (lambda a: a)
+    X, P = cut(X), cut(P)
     for k in range(n):
         if k:
-            X, P = ekf.predict(X, P, ekf.midpoint_input(U[:, k - 1], U[:, k]),
+            X, P = ekf.predict(X, P, ekf.midpoint_input(cut(U[:, k - 1]), cut(U[:, k])),
                                time[k] - time[k - 1])
         if avail[:, k].any():
-            result = ekf.update(X, P, U[:, k], Y[:, k], avail[:, k])
+            result = ekf.update(X, P, cut(U[:, k]), cut(Y[:, k]), cut(avail[:, k]))
             X, P = result.x, result.P
             nis[:, k], dof[:, k], used[:, k] = result.nis, result.dof, result.used
             innovation[:, k], innovation_var[:, k] = result.innovation, result.innovation_var
             rejected += result.rejected
         states[:, k] = X
-        stds[:, k] = np.sqrt(np.einsum("bii->bi", P))
+        stds[:, k] = np.sqrt(_diagonal(P))
         if covariances is not None:
             covariances[:, k] = P
         if E is not None:

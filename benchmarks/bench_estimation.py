@@ -1,0 +1,113 @@
+"""Cost of the EKFs: time per filter step and real-time factor of a flight with the EKF inside.
+
+Step cost: CPU time of predict + update over 20 s of a logged identification flight
+(one filter; a batch of 20 filters in lockstep; the AutoDiffXd backend for reference).
+Target: <= 100 us per step. Real-time factor: 60 s of plant + Dryden wind + sensors +
+multisine excitation, without and with the AirDataEkf at 100 Hz. Target: >= 50x.
+
+Run: python benchmarks/bench_estimation.py
+"""
+
+import time
+
+import numpy as np
+from pydrake.common import RandomGenerator
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from drake_uav.diagrams.identification_flight import default_excitation, fly
+from drake_uav.estimation.ekf import ExtendedKalmanFilter
+from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
+from drake_uav.optimization.trim import trim
+from drake_uav.rotations import quat_to_rotmat
+from drake_uav.systems.estimation import AirDataEkf, EkfSystemParams
+from drake_uav.systems.excitation import ExcitationSource
+from drake_uav.systems.fixed_wing import FixedWingPlant
+from drake_uav.systems.sensors import SensorSuite, SensorSuiteParams
+from drake_uav.systems.wind import DrydenParams, DrydenWind
+from drake_uav.vehicles.fixed_wing import aerosonde
+
+STEP_TARGET_US = 100.0
+RTF_TARGET = 50.0
+STEADY_WIND = (4.0, -3.0, 0.0)
+
+
+def step_cost_us(ekf: ExtendedKalmanFilter, data, batch: int = 1, steps: int = 2000) -> float:
+    """CPU microseconds per filter per step (predict + update) over logged samples."""
+    U, Y, A = data.inputs, data.measurements, data.available
+    x, P = ekf.model.initial_state(U[0], Y[0], A[0]), ekf.initial_covariance
+    if batch > 1:  # the same flight for every filter of the batch
+        U, Y, A = (np.repeat(a[:, None], batch, axis=1) for a in (U, Y, A))
+        x, P = np.repeat(x[None], batch, axis=0), np.repeat(P[None], batch, axis=0)
+    dt = data.time[1] - data.time[0]
+    start = time.process_time()
+    for k in range(1, steps + 1):
+        x, P = ekf.predict(x, P, ekf.midpoint_input(U[k - 1], U[k]), dt)
+        result = ekf.update(x, P, U[k], Y[k], A[k])
+        x, P = result.x, result.P
+    return (time.process_time() - start) / steps / batch * 1e6
+
+
+def flight_rtf(with_ekf: bool, duration: float = 60.0) -> float:
+    """Real-time factor (CPU) of the flight diagram, optionally with an AirDataEkf."""
+    params = aerosonde()
+    level = trim(params, 25.0)
+    sensors = SensorSuiteParams.seed_table7(air_density=params.rho)
+    builder = DiagramBuilder()
+    plant = builder.AddSystem(FixedWingPlant(params))
+    wind = builder.AddSystem(DrydenWind(DrydenParams("light", steady_wind_ned=STEADY_WIND)))
+    suite = builder.AddSystem(SensorSuite(sensors))
+    source = builder.AddSystem(ExcitationSource(level.controls,
+                                                default_excitation("multisine", duration)))
+    builder.Connect(source.get_output_port(), plant.GetInputPort("controls"))
+    builder.Connect(wind.GetOutputPort("wind_ned"), plant.GetInputPort("wind_ned"))
+    builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
+    for name in ("state", "euler", "air_data", "specific_force"):
+        builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
+    if with_ekf:
+        ekf = builder.AddSystem(AirDataEkf(EkfSystemParams(params, sensors)))
+        for name in ("imu", "attitude", "gps", "pitot", "vanes"):
+            builder.Connect(suite.GetOutputPort(name), ekf.GetInputPort(name))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    diagram.SetRandomContext(context, RandomGenerator(1))
+    x0 = level.state.copy()
+    x0[7:10] += quat_to_rotmat(x0[3:7]).T @ np.array(STEADY_WIND)
+    plant.set_state(plant.GetMyMutableContextFromRoot(context), x0)
+    simulator.Initialize()
+    start = time.process_time()
+    simulator.AdvanceTo(duration)
+    return duration / (time.process_time() - start)
+
+
+def fly_rtf(duration: float = 60.0) -> float:
+    start = time.process_time()
+    fly(aerosonde(), "light", steady_wind=STEADY_WIND, duration=duration)
+    return duration / (time.process_time() - start)
+
+
+if __name__ == "__main__":
+    params = aerosonde()
+    log = fly(params, "light", steady_wind=STEADY_WIND, seed=2, duration=25.0)
+    filters = [("AirDataEkf (model-free)", AirDataModel(params)),
+               ("ModelBasedAirDataEkf", ModelBasedAirDataModel(params)),
+               ("ParameterEkf longitudinal", ParameterModel(params, "longitudinal")),
+               ("ParameterEkf lateral", ParameterModel(params, "lateral"))]
+    print("EKF step cost (predict + update), CPU time per filter:")
+    for label, model in filters:
+        ekf = ExtendedKalmanFilter(model, model.default_noise())
+        data = model.log_data(log)
+        single = step_cost_us(ekf, data)
+        batch = step_cost_us(ekf, data, batch=20, steps=500)
+        reference = ExtendedKalmanFilter(model, model.default_noise(), backend="autodiff")
+        autodiff = step_cost_us(reference, data, steps=100)
+        print(f"  {label:26s} {single:7.1f} us ({single / STEP_TARGET_US:4.2f} of the "
+              f"{STEP_TARGET_US:.0f} us target); in a batch of 20: {batch:6.1f} us; "
+              f"AutoDiffXd Jacobians: {autodiff:7.1f} us ({autodiff / single:4.1f}x)")
+    without, with_ekf = flight_rtf(False), flight_rtf(True)
+    print(f"flight diagram (plant, wind, sensors, excitation), 60 s: {without:6.1f}x real time")
+    print(f"  with the AirDataEkf at 100 Hz:                     {with_ekf:6.1f}x real time "
+          f"({with_ekf / RTF_TARGET:4.2f} of the {RTF_TARGET:.0f}x target; EKF share "
+          f"{1.0 - with_ekf / without:4.0%} of the run time)")
+    print(f"fly() with its loggers, 60 s: {fly_rtf():6.1f}x real time")
