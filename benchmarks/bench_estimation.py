@@ -102,9 +102,11 @@ if __name__ == "__main__":
         batch = step_cost_us(ekf, data, batch=20, steps=500)
         reference = ExtendedKalmanFilter(model, model.default_noise(), backend="autodiff")
         autodiff = step_cost_us(reference, data, steps=100)
+        operations = ekf.dynamics.operation_count + ekf.measurement.operation_count
         print(f"  {label:26s} {single:7.1f} us ({single / STEP_TARGET_US:4.2f} of the "
               f"{STEP_TARGET_US:.0f} us target); in a batch of 20: {batch:6.1f} us; "
-              f"AutoDiffXd Jacobians: {autodiff:7.1f} us ({autodiff / single:4.1f}x)")
+              f"AutoDiffXd Jacobians: {autodiff:7.1f} us ({autodiff / single:4.1f}x); "
+              f"{operations} compiled operations")
     without, with_ekf = flight_rtf(False), flight_rtf(True)
     print(f"flight diagram (plant, wind, sensors, excitation), 60 s: {without:6.1f}x real time")
     print(f"  with the AirDataEkf at 100 Hz:                     {with_ekf:6.1f}x real time "

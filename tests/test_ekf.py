@@ -230,6 +230,8 @@ def test_run_filter_nis_and_nees_match_chi_square_statistics():
     assert low <= nees.mean() <= high
     assert low / 2 <= nis.mean() <= high / 2
     assert run.state.shape == (40, 400, 2) and run.rejected.shape == (40, 2)
+    assert run.rejected_by_group() == {"first": int(run.rejected[:, 0].sum()),
+                                       "second": int(run.rejected[:, 1].sum())}
 
 
 def test_nan_samples_are_skipped_and_counted():

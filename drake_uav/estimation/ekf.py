@@ -361,6 +361,7 @@ class CompiledFunction:
     floats (:meth:`value`, :meth:`jacobians`) or elementwise on a batch of
     samples (:meth:`batch_jacobians`). :meth:`autodiff_jacobians` evaluates
     ``fn`` with ``AutoDiffXd`` instead (the reference the tests compare with).
+    ``operation_count`` is the number of generated statements.
     """
 
     def __init__(self, fn: Callable, arg_sizes: Sequence[int],
@@ -441,7 +442,6 @@ class CompiledFunction:
             self._vector = self._build(vector=True)
         value, J = self._vector(*[np.asarray(a, float) for a in args])
         return value, self._split(J)
-
 
     def autodiff_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
         """Value and Jacobians computed by ``AutoDiffXd`` on ``fn`` itself (reference)."""
@@ -792,10 +792,6 @@ class FilterRun:
     state_names: tuple[str, ...]
     measurement_names: tuple[str, ...]
     group_names: tuple[str, ...]
-
-    def column(self, name: str) -> np.ndarray:
-        """One state component over time."""
-        return self.state[..., self.state_names.index(name)]
 
     def rejected_by_group(self) -> dict[str, int]:
         """Gate rejections per group (summed over a batch)."""
