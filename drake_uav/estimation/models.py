@@ -47,6 +47,10 @@ from drake_uav.systems.sensors import GpsParams, SensorSuiteParams
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
+    "DEFAULT_GPS_LATENCY",
+    "MIN_START_AIRSPEED",
+    "WIND_PSD",
+    "sensor_std",
     "FilterData",
     "is_new_sample",
     "fresh_samples",
