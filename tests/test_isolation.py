@@ -108,6 +108,10 @@ def test_held_commands_at_instants_and_over_intervals():
     np.testing.assert_array_equal(instant[:, 0], np.arange(1.0, 89.0, 2.0))
     np.testing.assert_allclose(average[:, 0], np.arange(2.5, 90.0, 2.0))
     np.testing.assert_allclose(average[:, 1], -average[:, 0])
+    # A log thinned to every other command: the dropped (here linear) commands come back.
+    thinned = held_commands(stamps[::2], values[::2], time, hold_period=0.01)
+    np.testing.assert_allclose(thinned[0], instant)
+    np.testing.assert_allclose(thinned[1], average)
 
 
 NOISE_FREE = SensorSuiteParams(

@@ -23,7 +23,9 @@ them differently for forces and moments (:func:`held_commands`): a sensor
 sample sees the command in effect at its instant, the last one issued strictly
 before it (a command stamped with the same time acts only after the sample);
 the angular accelerations come from rate increments, which integrate the held
-commands over the sample intervals.
+commands over the sample intervals. A log's metadata ``sample_rate_hz`` (the
+simulator's tick, at which it issues commands) gives the hold period when the
+log was thinned after the flight; otherwise every command is taken as logged.
 
 Sensor noise matters to the errors-in-variables corrections of the discovery
 loop. A log's metadata ``sensor_noise_std`` (channel -> standard deviation,
@@ -81,20 +83,29 @@ def raw_noise_variance(log: FlightLog) -> dict[str, float]:
             for name, channel in _NOISE_SOURCES.items()}
 
 
-def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
+                  hold_period: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Held commands on the sample times ``time``: (at the instants, over the intervals).
 
-    ``values`` (N, m) are issued at ``stamps`` [s] and held until the next stamp.
-    The first result is the command in effect at each instant, the last one
-    issued strictly before it (a sample and a command with the same stamp: the
-    sample comes first); the second is the average of the held commands over
+    ``values`` (N, m) are logged at ``stamps`` [s]. The commands are issued every
+    ``hold_period`` [s] from the first stamp and held until the next issue
+    (default: the log's step, every command logged); commands issued between two
+    logged ones (a log thinned after the flight) are interpolated. The first
+    result is the command in effect at each instant, the last one issued
+    strictly before it (a sample and a command with the same stamp: the sample
+    comes first); the second is the average of the held commands over
     ``[time_k, time_(k+1))`` (the last row over one more step), what the rate
     increments integrate.
     """
     stamps = np.asarray(stamps, dtype=float)
     values = np.asarray(values, dtype=float)
     time = np.asarray(time, dtype=float)
+    step = float(np.median(np.diff(stamps)))
+    if hold_period is not None and hold_period < step * (1.0 - 1e-6):
+        issued = stamps[0] + hold_period * np.arange(
+            int(np.floor((stamps[-1] - stamps[0]) / hold_period + 1e-6)) + 1)
+        values = np.column_stack([np.interp(issued, stamps, v) for v in values.T])
+        stamps = issued
     tolerance = 1e-6 * float(np.median(np.diff(stamps)))
     index = np.clip(np.searchsorted(stamps, time - tolerance, side="left") - 1,
                     0, len(stamps) - 1)
@@ -141,7 +152,9 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     uniform = log.resample(rate_hz=rate_hz)
     # Misplacing held commands by half a hold period would leave a spurious actuator
     # delay (or lead) in the residual: forces and moments each get their own alignment.
-    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time)
+    rate = log.metadata.get("sample_rate_hz")
+    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time,
+                                              None if rate is None else 1.0 / float(rate))
     yaw = np.unwrap(log["att_yaw"])
     yaw_uniform = np.interp(uniform.time, log.time, yaw)
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
