@@ -32,7 +32,7 @@ OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 
 # name: (flight options, expected effect, coefficient it acts on, outputs it moves)
 CASES = {
-    "stall onset": (dict(disturbance=lambda c: (-30.0 * c.alpha**3, 0, 0, 0, 0, 0)),
+    "stall onset": (dict(disturbance=lambda c: (-60.0 * c.alpha**3, 0, 0, 0, 0, 0)),
                     "stall_onset", "CL", ("alpha",)),
     "propwash drag": (dict(disturbance=lambda c: (0, 0.08 * c.thrust_coefficient, 0, 0, 0, 0)),
                       "thrust_propwash", "CD", ("airspeed",)),
@@ -40,9 +40,9 @@ CASES = {
     "rate coupling": (dict(disturbance=lambda c: (
         0, 0, 0, 0, 40.0 * (PARAMS.b * c.p / (2 * c.airspeed)) * (PARAMS.b * c.r / (
             2 * c.airspeed)), 0)), "rate_coupling", "Cm", ("q",)),
-    "tow force": (dict(disturbance=[-8.0, 0, 0, 0, 0, 0]), "constant_body_force", "CD",
-                  ("airspeed",)),
-    "unnamed alpha-beta yaw": (dict(disturbance=lambda c: (0, 0, 0, 0, 0, 3.0 * c.alpha * c.beta)),
+    "elevator rolling moment": (dict(disturbance=lambda c: (0, 0, 0, 0.02 * c.elevator, 0, 0)),
+                                "control_cross_coupling", "Cl", ("p",)),
+    "unnamed alpha-beta yaw": (dict(disturbance=lambda c: (0, 0, 0, 0, 0, 10.0 * c.alpha * c.beta)),
                                "data_driven:alpha*beta", "Cn", ("r",)),
 }
 
