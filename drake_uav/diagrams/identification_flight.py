@@ -277,8 +277,9 @@ def _turbulence_params(turbulence, steady_wind, sample_period: float) -> DrydenP
     if not isinstance(turbulence, str):
         raise ValueError(f"turbulence: use a level name, DrydenParams or None, got {turbulence!r}")
     wind = (0.0, 0.0, 0.0) if steady_wind is None else tuple(float(w) for w in steady_wind)
-    return DrydenParams(level=turbulence, steady_wind_ned=wind,
-                        update_period=sample_period).validate()
+    # Gust steps half a period after the sensor samples (see DrydenParams.update_offset).
+    return DrydenParams(level=turbulence, steady_wind_ned=wind, update_period=sample_period,
+                        update_offset=0.5 * sample_period).validate()
 
 
 def _connect_disturbance(builder, plant, params, disturbance, commands) -> None:

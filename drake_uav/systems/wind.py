@@ -288,6 +288,11 @@ class DrydenParams:
         airspeed: fixed airspeed [m/s] for the filters; None: from ``plant_state``.
         altitude: fixed altitude [m] for the scales; None: -pD from ``plant_state``.
         update_period: filter and output sample period [s].
+        update_offset: time of the first update [s], 0 <= offset < update_period. A
+            flight diagram whose sensors sample at the period's start sets half a
+            period, so that the held gust steps fall between sensor samples (real
+            wind is continuous; a step exactly at a sample would reach the sampled
+            air data and the sampled forces half a step apart).
         min_airspeed: floor on the filter airspeed [m/s] (keeps V/L > 0).
     """
 
@@ -297,6 +302,7 @@ class DrydenParams:
     airspeed: float | None = None
     altitude: float | None = None
     update_period: float = 0.01
+    update_offset: float = 0.0
     min_airspeed: float = 1.0
 
     def validate(self) -> DrydenParams:
@@ -311,6 +317,9 @@ class DrydenParams:
             raise ValueError(f"altitude: must be finite, got {self.altitude}")
         if not (self.update_period > 0 and math.isfinite(self.update_period)):
             raise ValueError(f"update_period: must be positive, got {self.update_period}")
+        if not 0.0 <= self.update_offset < self.update_period:
+            raise ValueError(f"update_offset: must be in [0, update_period), got "
+                             f"{self.update_offset}")
         if not self.min_airspeed > 0:
             raise ValueError(f"min_airspeed: must be positive, got {self.min_airspeed}")
         return self
@@ -355,7 +364,8 @@ class DrydenFilter(LeafSystem):
         self._filter = self.DeclareDiscreteState(7)
         gust = self.DeclareDiscreteState(3)
         wind = self.DeclareDiscreteState(self._steady)
-        self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, params.update_offset,
+                                                self._update)
         self.DeclareStateOutputPort("wind_ned", wind)
         self.DeclareStateOutputPort("gust_body", gust)
         self._fixed = None
