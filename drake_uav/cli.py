@@ -60,6 +60,18 @@ class _Progress:
         self._start = None
 
 
+def _vane_sources(text: str, unit: str) -> dict:
+    """``"MSG.AoA,MSG.SSA"`` -> FieldSource mapping of the vane channels."""
+    from drake_uav.io.readers import FieldSource
+
+    fields = [f.strip() for f in text.split(",")]
+    if len(fields) != 2 or not all("." in f for f in fields):
+        raise ValueError(f"--vanes: expected MESSAGE.FIELD,MESSAGE.FIELD, got {text!r}")
+    scale = np.radians(1.0) if unit == "deg" else 1.0
+    return {channel: FieldSource(*field.split(".", 1), unit="rad", scale=scale)
+            for channel, field in zip(("vane_alpha", "vane_beta"), fields, strict=True)}
+
+
 def _cmd_identify(args: argparse.Namespace) -> int:
     from drake_uav.identification.main_job import identify, write_report
     from drake_uav.io.readers import read_log
@@ -73,7 +85,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     params = load_fixed_wing(args.aircraft)
     progress = _Progress()
     progress(f"reading {path}")
-    log = read_log(path, format=args.format)
+    options = {}
+    if args.vanes:
+        options["extra"] = _vane_sources(args.vanes, args.vane_unit)
+    log = read_log(path, format=args.format, **options)
     run = identify(log, params, progress=progress, source=str(path), seed=args.seed)
     progress("writing the report")
     out = write_report(run, args.out)
@@ -117,6 +132,11 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--aircraft", default="aerosonde",
                        help="catalog name or a params .toml file (default: aerosonde)")
     ident.add_argument("--out", default="drake_uav_report", help="report folder")
+    ident.add_argument("--vanes", metavar="MSG.AOA,MSG.SSA",
+                       help="log fields of the alpha and beta vanes (.bin message or .ulg "
+                            "topic and field), e.g. VANE.AoA,VANE.SSA")
+    ident.add_argument("--vane-unit", choices=("deg", "rad"), default="deg",
+                       help="unit of the vane fields (default: deg)")
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.set_defaults(handler=_cmd_identify)

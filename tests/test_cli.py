@@ -1,0 +1,98 @@
+"""drake-uav command line: formats, bad logs, exit codes, no half-written reports."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from log_writers import dataflash_from_log, ulog_from_log
+
+import drake_uav
+from drake_uav.cli import main
+from drake_uav.io.flight_log import FlightLog
+
+SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
+
+
+@pytest.fixture(scope="module")
+def short_log():
+    """The first 90 s of the bundled flight."""
+    log = FlightLog.load(SAMPLE)
+    return log.slice(0.0, 90.0)
+
+
+def _run(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "drake_uav.cli", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_help_lists_the_commands(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "identify" in out and "trim" in out
+
+
+def test_trim_command_prints_the_modes(capsys):
+    assert main(["trim", "--airspeed", "22"]) == 0
+    out = capsys.readouterr().out
+    assert "short period" in out and "dutch roll" in out
+
+
+@pytest.mark.parametrize("kind", ["csv", "bin", "ulg"])
+def test_identify_reads_each_log_format(kind, short_log, tmp_path):
+    path = tmp_path / f"flight.{kind}"
+    args = []
+    if kind == "csv":
+        short_log.save(path)
+    elif kind == "bin":
+        dataflash_from_log(short_log, path)
+        args = ["--vanes", "VANE.AoA,VANE.SSA"]
+    else:
+        ulog_from_log(short_log, path)
+        args = ["--vanes", "vane_angles.alpha,vane_angles.beta", "--vane-unit", "rad"]
+    out = tmp_path / "report"
+    done = _run("identify", str(path), "--out", str(out), *args)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is True
+    assert "thrust_propwash" in [e["name"] for e in summary["effects"]]
+    assert "->" in done.stdout
+
+
+def _bad_logs(log: FlightLog, tmp_path: Path) -> dict[str, tuple[Path, str]]:
+    good = tmp_path / "good.csv"
+    log.save(good)
+    lines = good.read_text().splitlines()
+    truncated = tmp_path / "truncated.csv"
+    truncated.write_text("\n".join(lines[:-1]) + "\n" + lines[-1][: len(lines[-1]) // 2])
+    channels = {n: log[n] for n in log.measured_names}
+    no_airspeed = FlightLog(log.time, {k: v for k, v in channels.items()
+                                       if k != "pitot_airspeed"}, units=log.units)
+    nan = dict(channels)
+    nan["vane_alpha"] = nan["vane_alpha"].copy()
+    nan["vane_alpha"][500:520] = np.nan
+    backwards = log.time.copy()
+    backwards[700] = backwards[698]
+    bad = {"missing": (tmp_path / "missing.csv", "pitot_airspeed"),
+           "nan": (tmp_path / "nan.csv", "vane_alpha"),
+           "backwards": (tmp_path / "backwards.csv", "time"),
+           "truncated": (truncated, "truncated")}
+    no_airspeed.save(bad["missing"][0])
+    FlightLog(log.time, nan, units=log.units, validate=False).save(bad["nan"][0])
+    FlightLog(backwards, channels, units=log.units, validate=False).save(bad["backwards"][0])
+    return bad
+
+
+def test_bad_logs_fail_clearly_and_write_no_report(short_log, tmp_path):
+    for name, (path, word) in _bad_logs(short_log, tmp_path).items():
+        out = tmp_path / f"report_{name}"
+        done = _run("identify", str(path), "--out", str(out))
+        assert done.returncode != 0, name
+        assert "error:" in done.stderr and word in done.stderr.lower(), (name, done.stderr)
+        assert "Traceback" not in done.stderr, name
+        assert not out.exists(), name
+    done = _run("identify", str(tmp_path / "absent.bin"))
+    assert done.returncode != 0 and "absent.bin" in done.stderr
