@@ -58,7 +58,9 @@ class IdentificationRun:
                 {"name": f.name, "kind": f.kind, "explanation": f.explanation,
                  "coefficients": list(f.coefficients),
                  "evidence": [dataclasses.asdict(e) for e in f.evidence],
-                 "measured_coefficient_sigma_monte_carlo": self.coefficient_sigma,
+                 "reconstruction_divergences": {"before": self.reconstruction_before.divergences,
+                                           "after": self.reconstruction_after.divergences},
+            "measured_coefficient_sigma_monte_carlo": self.coefficient_sigma,
             "parameters": {k: {"estimate": v[0], "sigma": v[1]}
                                 for k, v in f.parameters.items()}}
                 for f in d.found
@@ -69,6 +71,8 @@ class IdentificationRun:
                 for name, unit, b, a in zip(_OUTPUTS, ("m/s", "rad", "rad", "rad/s", "rad/s",
                                                        "rad/s"), mae_b, mae_a, strict=True)
             },
+            "reconstruction_divergences": {"before": self.reconstruction_before.divergences,
+                                           "after": self.reconstruction_after.divergences},
             "measured_coefficient_sigma_monte_carlo": self.coefficient_sigma,
             "parameters": {
                 k: {n: {"estimate": float(fit.result.estimate[i]),
@@ -163,12 +167,15 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
                        "change": (a - b) / b if b else 0.0}
                       for k, (b, a) in d.rms_change().items()], formats={"change": "+.1%"})
     mae_b, mae_a = run.reconstruction_before.mae, run.reconstruction_after.mae
+    rec_b_div = run.reconstruction_before.divergences
+    rec_a_div = run.reconstruction_after.divergences
     report.add_table([{"variable": f"{name} [{_OUTPUT_UNITS[name]}]",
                        "MAE before": b * (1.0 if name == "airspeed" else np.degrees(1.0)),
                        "MAE after": a * (1.0 if name == "airspeed" else np.degrees(1.0))}
                       for name, b, a in zip(_OUTPUTS, mae_b, mae_a, strict=True)],
                      caption="Output-error reconstruction (seed S0 Table 11 reports 1.2 m/s, "
-                             "0.87 deg, 0.52 deg on its flight)")
+                             "0.87 deg, 0.52 deg on its flight); integrations restarted early "
+                             f"after blowing up: {rec_b_div} before, {rec_a_div} after")
     test_time = run.samples.time[-len(d.final["CL"].holdout_residual):]
     report.add_figure(lambda: figures.residual_time_series(
         test_time, {k: f.holdout_residual for k, f in d.baseline.items()},

@@ -54,11 +54,14 @@ class Reconstruction:
     """(N, 6) the integrated model."""
     reset_interval: float
     """[s]."""
+    divergences: int = 0
+    """Integrations that blew up (non-finite or airspeed beyond twice the logged maximum)
+    and were restarted early from the measurements; their samples are left out."""
 
     @property
     def mae(self) -> np.ndarray:
         """Mean absolute error of Va [m/s], alpha, beta [rad], p, q, r [rad/s]."""
-        return np.mean(np.abs(self.reconstructed - self.measured), axis=0)
+        return np.nanmean(np.abs(self.reconstructed - self.measured), axis=0)
 
 
 def _split_terms(names, estimate, design, exclude_prefixes):
@@ -128,16 +131,23 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
 
     out = np.empty((n, 6))
     next_reset = t[0]
+    speed_limit = 2.0 * float(np.max(c.airspeed))
+    divergences = 0
     y = None
-    for i in range(n):
-        if t[i] >= next_reset - 1e-9:
-            y = np.array([*velocity_from_air_data(*measured[i, :3]), *measured[i, 3:]])
-            next_reset += reset_interval
-        out[i] = (*air_data_from_velocity(*y[:3]), *y[3:])
-        if i + 1 < n:
-            dt = t[i + 1] - t[i]
-            k1 = derivative(i, y)
-            k2 = derivative(i + 1, y + dt * k1)
-            y = y + 0.5 * dt * (k1 + k2)
+    with np.errstate(all="ignore"):
+        for i in range(n):
+            if t[i] >= next_reset - 1e-9 or y is None:
+                y = np.array([*velocity_from_air_data(*measured[i, :3]), *measured[i, 3:]])
+                next_reset = t[i] + reset_interval
+            out[i] = (*air_data_from_velocity(*y[:3]), *y[3:])
+            if i + 1 < n:
+                dt = t[i + 1] - t[i]
+                k1 = derivative(i, y)
+                k2 = derivative(i + 1, y + dt * k1)
+                y = y + 0.5 * dt * (k1 + k2)
+                if not np.all(np.isfinite(y)) or np.linalg.norm(y[:3]) > speed_limit:
+                    divergences += 1
+                    out[i] = np.nan
+                    y = None
     return Reconstruction(time=t.copy(), measured=measured, reconstructed=out,
-                          reset_interval=reset_interval)
+                          reset_interval=reset_interval, divergences=divergences)
