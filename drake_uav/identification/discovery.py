@@ -42,7 +42,7 @@ from scipy import stats
 
 from drake_uav.identification.effects import Effect, effect_library, product_candidates
 from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.regression import RegressionResult, _finish
+from drake_uav.identification.regression import RegressionResult, regression_result
 from drake_uav.identification.residuals import (
     ResidualDiagnosis,
     diagnose,
@@ -270,7 +270,7 @@ class _Design:
         covariance = sigma2 * A_inv @ (self.X.T @ self.X) @ A_inv
         s = np.linalg.svd(self.X / np.maximum(np.linalg.norm(self.X, axis=0), 1e-300),
                           compute_uv=False)
-        return _finish(method="BCLS", names=tuple(self.names), theta=theta,
+        return regression_result(method="BCLS", names=tuple(self.names), theta=theta,
                        covariance=covariance, noise_std=np.sqrt(sigma2), residual=residual,
                        z=self.z, dof=n - p, rank=p, singular_values=s, threshold=0.0,
                        condition=s[0] / max(s[-1], 1e-300), directions=np.zeros((0, p)),

@@ -43,6 +43,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = [
+    "regression_result",
     "IdentificationWarning",
     "InsufficientExcitationWarning",
     "RegressionResult",
@@ -289,7 +290,7 @@ def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND)
     noise_var = float(residual @ residual) / dof
     info_equilibrated = R[:n, :n].T @ R[:n, :n]
     cov_unit = _restricted_inverse(info_equilibrated, directions, scale)
-    return _finish(
+    return regression_result(
         method="OLS",
         names=names,
         theta=theta,
@@ -328,7 +329,7 @@ def _restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.nd
     return 0.5 * (cov + cov.T)
 
 
-def _finish(
+def regression_result(
     *,
     method,
     names,
@@ -345,6 +346,7 @@ def _finish(
     directions,
     confidence,
 ):
+    """The common RegressionResult (significance, R^2, identifiability) of an estimate."""
     n = theta.size
     identifiable = unidentifiable_loading(directions, n) <= LOADING_TOL
     sigma = np.where(identifiable, np.sqrt(np.clip(np.diag(covariance), 0.0, None)), np.inf)
@@ -511,7 +513,7 @@ def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_
                 stacklevel=3,
             )
     covariance, s2 = tls_covariance(s, V, C, theta, k, directions, N, scale)
-    return _finish(
+    return regression_result(
         method=method,
         names=names,
         theta=theta,
