@@ -351,17 +351,11 @@ def aerosonde_mavsim() -> FixedWingParams:
         "Cn_aileron": -0.011, "Cn_rudder": -0.069,
     }
     kv = 60.0 / (2 * math.pi * 145.0)  # 145 rpm/V in V s/rad
-    return FixedWingParams(
+    # Inertia, geometry and air density are the book's (aerosonde()).
+    return dataclasses.replace(
+        aerosonde(),
         name="aerosonde_mavsim",
         mass=11.0,
-        Jx=0.8244,
-        Jy=1.135,
-        Jz=1.759,
-        Jxz=0.1204,
-        S=S,
-        b=b,
-        c=0.18994,
-        rho=1.2682,
         gravity=9.81,
         derivatives=derivatives,
         propulsion=MotorPropeller(
