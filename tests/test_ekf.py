@@ -11,8 +11,8 @@ from pydrake.math import min as smin
 from scipy.linalg import expm
 from scipy.stats import chi2
 
+from drake_uav.compiled import CompiledFunction
 from drake_uav.estimation.ekf import (
-    CompiledFunction,
     EkfModel,
     EkfNoise,
     ExtendedKalmanFilter,

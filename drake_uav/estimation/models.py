@@ -29,7 +29,8 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.math import sqrt
 
-from drake_uav.estimation.ekf import CompiledFunction, EkfModel, EkfNoise
+from drake_uav.compiled import CompiledFunction
+from drake_uav.estimation.ekf import EkfModel, EkfNoise
 from drake_uav.identification.isolation import differentiate
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.rotations import euler_rates, euler_to_quat, euler_to_rotmat
