@@ -147,10 +147,18 @@ def euler_to_quat(rpy) -> np.ndarray:
 
 
 def quat_to_euler(q) -> np.ndarray:
-    """3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad] of a unit quaternion."""
+    """3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad] of a unit quaternion.
+
+    ``q`` is one quaternion (4) of any scalar type, or float samples (4, N)
+    giving angles (3, N).
+    """
     w, x, y, z = q[0], q[1], q[2], q[3]
     sin_pitch = 2 * (w * y - x * z)
-    if _is_numeric(sin_pitch):
+    batch = isinstance(sin_pitch, np.ndarray)
+    arctan2, arcsin = (np.arctan2, np.arcsin) if batch else (atan2, asin)
+    if batch:
+        sin_pitch = np.clip(sin_pitch, -1.0, 1.0)
+    elif _is_numeric(sin_pitch):
         # Clamp the argument against round-off beyond +-1 (gimbal lock).
         sp = _value(sin_pitch)
         if sp > 1.0:
@@ -159,9 +167,9 @@ def quat_to_euler(q) -> np.ndarray:
             sin_pitch = sin_pitch - (sp + 1.0)
     return _array(
         [
-            atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-            asin(sin_pitch),
-            atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
+            arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+            arcsin(sin_pitch),
+            arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
         ]
     )
 

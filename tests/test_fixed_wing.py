@@ -200,3 +200,46 @@ def test_controls_saturate_at_the_limits(trim25):
 def test_invalid_params_name_the_field(change, field):
     with pytest.raises(ValueError, match=field):
         dataclasses.replace(aerosonde(), **change)
+
+
+def _random_points(rng, n):
+    x = rng.normal(size=(n, 13)) * [50, 50, 20, 1, 1, 1, 1, 3, 2, 2, 0.5, 0.5, 0.5]
+    x[:, 7] += 25.0
+    u = rng.normal(size=(n, 4)) * 0.3
+    u[:, 3] = rng.uniform(-0.2, 1.2, n)  # beyond the throttle limits too: saturation
+    return x, u, rng.normal(size=(n, 3)) * 4.0, rng.normal(size=(n, 6))
+
+
+@pytest.mark.parametrize("derivatives", [{}, {"CL_alphadot": 1.5, "Cm_alphadot": -6.0}],
+                         ids=["aerosonde", "with_alpha_dot"])
+def test_compiled_model_equals_the_generic_model(derivatives):
+    params = aerosonde()
+    if derivatives:
+        params = dataclasses.replace(params, derivatives={**params.derivatives, **derivatives})
+    model = FixedWingModel(params)
+    x, u, wind, wrench = _random_points(np.random.default_rng(7), 40)
+    batch = model.compiled.evaluate_batch(x, u, wind, wrench)
+    for k in range(len(x)):
+        generic = model.evaluate(x[k], u[k], wind[k], wrench[k])
+        compiled = model.compiled.evaluate(x[k], u[k], wind[k], wrench[k])
+        for field in generic._fields:
+            reference = np.asarray(getattr(generic, field), float)
+            tolerance = 1e-12 * (1.0 + np.abs(reference).max())
+            np.testing.assert_allclose(getattr(compiled, field), reference, atol=tolerance)
+            np.testing.assert_allclose(getattr(batch, field)[k], reference, atol=tolerance)
+    # No wrench is the zero wrench.
+    no_wrench = model.compiled.evaluate(x[0], u[0], wind[0])
+    np.testing.assert_array_equal(no_wrench.state_derivative,
+                                  model.compiled.evaluate(x[0], u[0], wind[0], np.zeros(6))
+                                  .state_derivative)
+
+
+def test_float_plant_matches_the_model_away_from_trim():
+    plant = FixedWingPlant(aerosonde())
+    x, u, wind, wrench = _random_points(np.random.default_rng(8), 1)
+    context = _plant_context(plant, x[0], u[0], wind[0], wrench[0])
+    expected = plant.model.evaluate(x[0], u[0], wind[0], wrench[0])
+    np.testing.assert_allclose(plant.EvalTimeDerivatives(context).CopyToVector(),
+                               expected.state_derivative, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(plant.GetOutputPort("specific_force").Eval(context),
+                               expected.specific_force, rtol=1e-12, atol=1e-12)

@@ -29,6 +29,16 @@ def test_euler_quat_rotmat_round_trips(rpy):
     np.testing.assert_allclose(q_back * np.sign(q_back[0] * q[0]), q, atol=1e-12)
 
 
+def test_quat_to_euler_on_a_batch_of_samples():
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[0] = [np.sqrt(0.5), 0.0, np.sqrt(0.5) * (1 + 1e-15), 0.0]  # gimbal lock, round-off
+    batch = rot.quat_to_euler(q.T)
+    assert batch.shape == (3, 50)
+    np.testing.assert_allclose(batch.T, [rot.quat_to_euler(row) for row in q], atol=1e-14)
+
+
 def test_matches_drake_roll_pitch_yaw_convention():
     rpy = np.array([0.3, -0.2, 1.1])
     R_drake = RotationMatrix(RollPitchYaw(rpy)).matrix()

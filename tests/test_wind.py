@@ -14,6 +14,7 @@ from scipy.signal import freqs, welch
 from drake_uav.rotations import euler_to_quat, quat_to_rotmat
 from drake_uav.systems.wind import (
     TURBULENCE_LEVELS,
+    WIND_HOLDS,
     DrydenFilter,
     DrydenParams,
     DrydenWind,
@@ -129,6 +130,7 @@ def test_seed_table_rows():
         ({"airspeed": -3.0}, "airspeed"),
         ({"steady_wind_ned": (1.0, 2.0)}, "steady_wind_ned"),
         ({"min_airspeed": 0.0}, "min_airspeed"),
+        ({"hold": "cubic"}, "hold"),
     ],
 )
 def test_bad_parameters_name_the_field(kwargs, field):
@@ -203,6 +205,39 @@ def test_dryden_wind_system_long_run():
     ratio = _log_average_ratio(gust, dt, scales, airspeed, nperseg=2**11)
     np.testing.assert_allclose(ratio, 1.0, atol=0.25)
     np.testing.assert_allclose(gust.var(axis=0) / scales.sigmas**2, 1.0, atol=0.10)
+
+
+@pytest.mark.parametrize("hold", WIND_HOLDS)
+def test_hold_between_filter_samples(hold):
+    """First-order hold: continuous, linear between the samples, one period late;
+    zero-order hold: each sample held for a period."""
+    dt, fine = 0.05, 5
+    steady = np.array([2.0, -1.0, 0.0])
+    builder = DiagramBuilder()
+    wind = builder.AddSystem(DrydenWind(DrydenParams(
+        "moderate", airspeed=20.0, altitude=80.0, update_period=dt, steady_wind_ned=steady,
+        hold=hold)))
+    wind_log = LogVectorOutput(wind.GetOutputPort("wind_ned"), builder, dt / fine)
+    gust_log = LogVectorOutput(wind.GetOutputPort("gust_body"), builder, dt)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    diagram.SetRandomContext(simulator.get_mutable_context(), RandomGenerator(5))
+    simulator.AdvanceTo(2.0)
+    context = simulator.get_context()
+    # A sample drawn at t_k is logged from t_(k+1) (loggers publish before the updates).
+    samples = steady + gust_log.FindLog(context).data()[:, 1:].T
+    fine_wind = wind_log.FindLog(context).data().T[fine:]
+    n = len(samples) - 1
+    for j in range(fine):
+        # Logged at t_(k+1) + j dt / fine, k = 0..n-1; sample k is W_k.
+        rows = fine_wind[j::fine][:n]
+        if hold == "first_order":  # W_k at t_(k+1), then straight on to W_(k+1)
+            expected = samples[:n] + (j / fine) * (samples[1:n + 1] - samples[:n])
+        else:  # W_k until the update at t_(k+1) replaces it
+            expected = samples[:n] if j == 0 else samples[1:n + 1]
+        np.testing.assert_allclose(rows, expected, atol=1e-9)
+    jumps = np.abs(np.diff(fine_wind, axis=0)).max()
+    assert (jumps < 0.5 * np.abs(np.diff(samples, axis=0)).max()) == (hold == "first_order")
 
 
 def test_filter_reproduces_exact_recursion_and_is_seeded():

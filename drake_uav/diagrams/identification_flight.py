@@ -64,7 +64,7 @@ __all__ = [
     "fly",
 ]
 
-# Truth channels: logger name -> (channel names, units).
+# Truth channels: group -> (channel names, units).
 _TRUTH = {
     "state": (("pn", "pe", "pd", "qw", "qx", "qy", "qz", "u", "v", "w", "p", "q", "r"),
               ("m",) * 3 + ("1",) * 4 + ("m/s",) * 3 + ("rad/s",) * 3),
@@ -77,8 +77,6 @@ _TRUTH = {
     "specific_force": (("ax", "ay", "az"), ("m/s^2",) * 3),
     "controls": (SURFACES, ("rad", "rad", "rad", "1")),
 }
-_PLANT_TRUTH = ("state", "euler", "air_data", "aero_coefficients", "forces_moments",
-                "specific_force")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -176,7 +174,8 @@ class IdentificationFlight:
     excitation: ExcitationSource
     pilot: SafetyPilot | None
     loggers: Mapping[str, object]
-    """VectorLogSink per signal: "measurements", "commands" and the truth names."""
+    """VectorLogSink per signal: "measurements", "commands", "surfaces" (the plant's
+    controls), "state", "wind_ned" and, with a disturbance, "wrench"."""
     aircraft: FixedWingParams
     trim: TrimResult
     initial_state: np.ndarray
@@ -204,7 +203,7 @@ class IdentificationFlight:
     def _flight_log(self, context, n: int, seed: int) -> FlightLog:
         logs = {name: logger.FindLog(context) for name, logger in self.loggers.items()}
         time = logs["measurements"].sample_times()[:n]
-        measured, truth, units = {}, {}, {}
+        measured, units = {}, {}
         data = logs["measurements"].data()[:, 1:n + 1]
         for name, row in zip(self.sensors.channel_names, data, strict=True):
             measured[name], units[name] = row, self.sensors.channel_units[name]
@@ -213,18 +212,44 @@ class IdentificationFlight:
         for i, surface in enumerate(SURFACES):
             name = f"cmd_{surface}"
             measured[name], units[name] = commands[i], _TRUTH["controls"][1][i]
-        limits = self.aircraft.limits
-        for key, (names, channel_units) in _TRUTH.items():
-            if key == "controls":
-                values = np.clip(logs["surfaces"].data()[:, :n].T, limits.lower(),
-                                 limits.upper()).T
-            elif key in logs:
-                values = logs[key].data()[:, :n]
-            else:  # no turbulence: no gust
-                values = np.zeros((len(names), n))
+        truth = {}
+        for key, values in self._truth(logs, n).items():
+            names, channel_units = _TRUTH[key]
             for name, unit, row in zip(names, channel_units, values, strict=True):
                 truth[name], units[name] = row, unit
         return FlightLog(time, measured, truth, units, {**self.metadata, "seed": seed})
+
+    def _truth(self, logs, n: int) -> dict[str, np.ndarray]:
+        """Truth groups (rows of samples) at the log times, before the events there.
+
+        The loggers keep the plant's inputs and state; everything else is the
+        plant model evaluated on them afterwards, all samples at once (the same
+        compiled equations the plant ran).
+        """
+        state = logs["state"].data()[:, :n]
+        surfaces = logs["surfaces"].data()[:, :n]
+        wind = logs["wind_ned"].data()[:, :n]
+        model = self.plant.model.compiled
+        evaluation = model.evaluate_batch(state.T, surfaces.T, wind.T)
+        forces = evaluation
+        if "wrench" in logs:  # the coefficients stay those of the model (no effect)
+            wrench = logs["wrench"].data()[:, :n]
+            forces = model.evaluate_batch(state.T, surfaces.T, wind.T, wrench.T)
+        rotation = quat_to_rotmat(state[3:7] / np.linalg.norm(state[3:7], axis=0))
+        steady = np.asarray(self.metadata["steady_wind_ned"])[:, None]
+        gust = np.einsum("jin,jn->in", rotation, wind - steady)
+        return {
+            "state": state,
+            "euler": quat_to_euler(state[3:7]),
+            "air_data": evaluation.air_data.T,
+            "wind_ned": wind,
+            "gust_body": gust,
+            "aero_coefficients": evaluation.coefficients.T,
+            "forces_moments": forces.forces_moments.T,
+            "specific_force": forces.specific_force.T,
+            "controls": np.clip(surfaces.T, self.aircraft.limits.lower(),
+                                self.aircraft.limits.upper()).T,
+        }
 
 
 def _check_seed(seed) -> int:
@@ -277,13 +302,14 @@ def _turbulence_params(turbulence, steady_wind, sample_period: float) -> DrydenP
     if not isinstance(turbulence, str):
         raise ValueError(f"turbulence: use a level name, DrydenParams or None, got {turbulence!r}")
     wind = (0.0, 0.0, 0.0) if steady_wind is None else tuple(float(w) for w in steady_wind)
-    # Gust steps half a period after the sensor samples (see DrydenParams.update_offset).
-    return DrydenParams(level=turbulence, steady_wind_ned=wind, update_period=sample_period,
-                        update_offset=0.5 * sample_period).validate()
+    # Continuous (first-order hold) wind: no wind step meets a sensor sample.
+    return DrydenParams(level=turbulence, steady_wind_ned=wind,
+                        update_period=sample_period).validate()
 
 
-def _connect_disturbance(builder, plant, params, disturbance, commands) -> None:
-    """Feeds an effect the model lacks into the plant's ``external_wrench``."""
+def _connect_disturbance(builder, plant, params, disturbance, commands):
+    """Feeds an effect the model lacks into the plant's ``external_wrench``; returns
+    the wrench output port."""
     if callable(disturbance):
         effect = builder.AddNamedSystem("disturbance",
                                         AerodynamicIncrement(params, disturbance))
@@ -298,6 +324,7 @@ def _connect_disturbance(builder, plant, params, disturbance, commands) -> None:
         wrench = builder.AddNamedSystem("disturbance", ConstantVectorSource(value)
                                         ).get_output_port(0)
     builder.Connect(wrench, plant.GetInputPort("external_wrench"))
+    return wrench
 
 
 def build_identification_flight(
@@ -385,8 +412,9 @@ def build_identification_flight(
         builder.Connect(commands, delay.get_input_port())
         plant_commands = delay.get_output_port()
     builder.Connect(plant_commands, plant.GetInputPort("controls"))
+    wrench = None
     if disturbance is not None:
-        _connect_disturbance(builder, plant, params, disturbance, plant_commands)
+        wrench = _connect_disturbance(builder, plant, params, disturbance, plant_commands)
 
     wind = None
     if wind_params is not None:
@@ -402,16 +430,14 @@ def build_identification_flight(
     for name in ("state", "euler", "air_data", "specific_force"):
         builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
 
-    loggers = {
-        "measurements": LogVectorOutput(suite.GetOutputPort("measurements"), builder, dt),
-        "commands": LogVectorOutput(commands, builder, dt),
-        "surfaces": LogVectorOutput(plant_commands, builder, dt),
-        "wind_ned": LogVectorOutput(wind_port, builder, dt),
-    }
-    if wind is not None:
-        loggers["gust_body"] = LogVectorOutput(wind.GetOutputPort("gust_body"), builder, dt)
-    for name in _PLANT_TRUTH:
-        loggers[name] = LogVectorOutput(plant.GetOutputPort(name), builder, dt)
+    # The plant's state and inputs are logged; the other truth channels are
+    # computed from them after the flight (IdentificationFlight._truth).
+    logged = {"measurements": suite.GetOutputPort("measurements"), "commands": commands,
+              "surfaces": plant_commands, "state": plant.GetOutputPort("state"),
+              "wind_ned": wind_port}
+    if wrench is not None:
+        logged["wrench"] = wrench
+    loggers = {name: LogVectorOutput(port, builder, dt) for name, port in logged.items()}
     diagram = builder.Build()
 
     metadata = {

@@ -316,24 +316,21 @@ class SampledSensors(LeafSystem):
         self._euler = self.DeclareVectorInputPort("euler", 3)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._force = self.DeclareVectorInputPort("specific_force", 3)
-        # Discrete state: [tick, outputs (m), bias walk (n), truth delay line (depth n)].
-        self._out = slice(1, 1 + m)
-        self._walk = slice(1 + m, 1 + m + n)
-        self._line = slice(1 + m + n, 1 + m + n + self._depth * n)
-        self._xd = self.DeclareDiscreteState(1 + m + n + self._depth * n)
+        # Discrete state: the held outputs (m); [tick, bias walk (n), truth delay line
+        # (depth n)].
+        self._held_state = self.DeclareDiscreteState(m)
+        self._walk = slice(1, 1 + n)
+        self._line = slice(1 + n, 1 + n + self._depth * n)
+        self._xd = self.DeclareDiscreteState(1 + n + self._depth * n)
         self.DeclarePeriodicDiscreteUpdateEvent(self.base_period, 0.0, self._update)
-        deps = {self.xd_ticket()}
+        deps = {self.discrete_state_ticket(self._held_state)}
         for sensor, index in self._port_slices.items():
             self.DeclareVectorOutputPort(
                 sensor, index.stop - index.start,
                 lambda context, output, s=index: output.SetFromVector(self._held(context)[s]),
                 prerequisites_of_calc=deps,
             )
-        self.DeclareVectorOutputPort(
-            "measurements", m,
-            lambda context, output: output.SetFromVector(self._held(context)),
-            prerequisites_of_calc=deps,
-        )
+        self.DeclareStateOutputPort("measurements", self._held_state)
 
     def _build_tables(self) -> None:
         p = self.params
@@ -393,7 +390,7 @@ class SampledSensors(LeafSystem):
         self._density = p.pitot.air_density if p.pitot is not None else 0.0
 
     def _held(self, context) -> np.ndarray:
-        return context.get_discrete_state(self._xd).get_value()[self._out]
+        return context.get_discrete_state(self._held_state).get_value()
 
     def _truth(self, context) -> np.ndarray:
         """True values of every quantity some fitted sensor measures (N).
@@ -436,18 +433,18 @@ class SampledSensors(LeafSystem):
         noise = self._noise.Eval(context)
         walk = x[self._walk]
         measured = self._scale * delayed + self._bias + walk + self._sigma * noise[n:]
-        out = x[self._out]
+        out = self._held(context).copy()
         out[self._out_idx] = np.where(due, measured, out[self._out_idx])
         if self._yaw is not None:
             out[self._yaw] = (out[self._yaw] + math.pi) % (2.0 * math.pi) - math.pi
         if self.params.pitot is not None:
             q = out[self._airspeed_index - 1]
             out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self.params.pitot.air_density)
-        x[self._out] = out
         x[self._walk] = walk + np.where(due, self._walk_step * noise[:n], 0.0)
         x[self._line] = line.ravel()
         x[0] = tick + 1
-        discrete_state.set_value(x)
+        discrete_state.get_mutable_vector(self._held_state).SetFromVector(out)
+        discrete_state.get_mutable_vector(self._xd).SetFromVector(x)
 
 
 class SensorSuite(Diagram):

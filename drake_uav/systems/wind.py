@@ -21,6 +21,13 @@ z2 = z1/(s + a) and advanced with its exact transition matrix and the exact
 covariance of the integrated white noise. Sampled gusts therefore have the
 continuous process's variance and autocorrelation for any update period. The
 filter starts in its stationary distribution (drawn from the first noise sample).
+
+Hold: real wind is continuous. With ``hold="first_order"`` (default) the wind
+reaching the plant is the piecewise-linear interpolation of the filter samples,
+one update period late (a Drake ``Integrator`` of the held slope between two
+samples), so no step of the wind ever coincides with a sensor sample and a
+fixed-step integrator needs no extra step boundary. ``hold="zero_order"`` holds
+each sample for a period (steps at the updates).
 """
 
 from __future__ import annotations
@@ -31,13 +38,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import RandomSource
+from pydrake.systems.primitives import Integrator, RandomSource
 
 from drake_uav.rotations import quat_to_rotmat
 
 __all__ = [
     "TURBULENCE_LEVELS",
     "TURBULENCE_MODELS",
+    "WIND_HOLDS",
     "TurbulenceScales",
     "DrydenParams",
     "dryden_scales",
@@ -51,6 +59,7 @@ __all__ = [
 
 TURBULENCE_LEVELS = ("light", "moderate", "severe")
 TURBULENCE_MODELS = ("mil-f-8785c", "seed")
+WIND_HOLDS = ("first_order", "zero_order")
 
 _FT = 0.3048  # m per ft
 _KT = 0.514444  # m/s per knot
@@ -288,11 +297,13 @@ class DrydenParams:
         airspeed: fixed airspeed [m/s] for the filters; None: from ``plant_state``.
         altitude: fixed altitude [m] for the scales; None: -pD from ``plant_state``.
         update_period: filter and output sample period [s].
-        update_offset: time of the first update [s], 0 <= offset < update_period. A
-            flight diagram whose sensors sample at the period's start sets half a
-            period, so that the held gust steps fall between sensor samples (real
-            wind is continuous; a step exactly at a sample would reach the sampled
-            air data and the sampled forces half a step apart).
+        update_offset: time of the first update [s], 0 <= offset < update_period.
+            With ``hold="zero_order"`` a flight diagram whose sensors sample at
+            the period's start sets half a period, so that the wind steps fall
+            between sensor samples (a step exactly at a sample would reach the
+            sampled air data and the sampled forces half a step apart).
+        hold: "first_order" (continuous, piecewise-linear wind, one period late)
+            or "zero_order" (each sample held for a period).
         min_airspeed: floor on the filter airspeed [m/s] (keeps V/L > 0).
     """
 
@@ -303,6 +314,7 @@ class DrydenParams:
     altitude: float | None = None
     update_period: float = 0.01
     update_offset: float = 0.0
+    hold: str = "first_order"
     min_airspeed: float = 1.0
 
     def validate(self) -> DrydenParams:
@@ -320,6 +332,8 @@ class DrydenParams:
         if not 0.0 <= self.update_offset < self.update_period:
             raise ValueError(f"update_offset: must be in [0, update_period), got "
                              f"{self.update_offset}")
+        if self.hold not in WIND_HOLDS:
+            raise ValueError(f"hold: unknown wind hold {self.hold!r}; use one of {WIND_HOLDS}")
         if not self.min_airspeed > 0:
             raise ValueError(f"min_airspeed: must be positive, got {self.min_airspeed}")
         return self
@@ -343,8 +357,9 @@ class DrydenFilter(LeafSystem):
 
     | port (out)    | size | units                                               |
     |---------------|------|-----------------------------------------------------|
-    | wind_ned      | 3    | steady + gust wind, NED [m/s]                       |
+    | wind_ned      | 3    | steady + gust wind, NED [m/s] (the latest sample)   |
     | gust_body     | 3    | gust (u_g, v_g, w_g), body FRD [m/s]                |
+    | wind_slope    | 3    | (latest - previous wind sample) / period [m/s^2]    |
 
     ``plant_state`` may stay unconnected when ``airspeed`` and ``altitude`` are
     fixed; the gust is then rotated with the identity attitude (NED = body).
@@ -364,10 +379,13 @@ class DrydenFilter(LeafSystem):
         self._filter = self.DeclareDiscreteState(7)
         gust = self.DeclareDiscreteState(3)
         wind = self.DeclareDiscreteState(self._steady)
+        slope = self.DeclareDiscreteState(3)
         self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, params.update_offset,
                                                 self._update)
         self.DeclareStateOutputPort("wind_ned", wind)
         self.DeclareStateOutputPort("gust_body", gust)
+        self.DeclareStateOutputPort("wind_slope", slope)
+        self._wind = wind
         self._fixed = None
         if not params.needs_plant_state:
             self._fixed = self._coefficients(params.airspeed, params.altitude)
@@ -382,11 +400,12 @@ class DrydenFilter(LeafSystem):
         p = self._params
         l_u, l_v, l_w, s_u, s_v, s_w = _scale_values(p.level, altitude, p.model)
         speed = max(airspeed, p.min_airspeed)
-        out = []
+        out, terms = [], {}
         for i, (length, sigma) in enumerate(((l_u, s_u), (l_v, s_v), (l_w, s_w))):
             a = speed / length
-            out.append((sigma, a, *_transition_terms(a, p.update_period, math),
-                        float(_GAIN_K[i]), float(_GAIN_G[i])))
+            if a not in terms:  # L_u = L_v in both models: one transition for u and v
+                terms[a] = _transition_terms(a, p.update_period, math)
+            out.append((sigma, a, *terms[a], float(_GAIN_K[i]), float(_GAIN_G[i])))
         return out
 
     def _update(self, context, discrete_state) -> None:
@@ -426,17 +445,21 @@ class DrydenFilter(LeafSystem):
             gust.append(_output(z1, z2, a, sigma, k, g, math))
         z.append(1.0)
         gust = np.array(gust)
+        wind = self._steady + (gust if rot is None else rot @ gust)
+        previous = context.get_discrete_state(self._wind).get_value()
         discrete_state.get_mutable_vector(0).SetFromVector(z)
         discrete_state.get_mutable_vector(1).SetFromVector(gust)
-        discrete_state.get_mutable_vector(2).SetFromVector(
-            self._steady + (gust if rot is None else rot @ gust))
+        discrete_state.get_mutable_vector(2).SetFromVector(wind)
+        discrete_state.get_mutable_vector(3).SetFromVector((wind - previous) / dt)
 
 
 class DrydenWind(Diagram):
     """Steady wind plus Dryden turbulence with its own Gaussian noise source.
 
     A small diagram: a Drake ``RandomSource`` (6 unit Gaussians per period)
-    feeding a :class:`DrydenFilter`. Seed it through the root context with
+    feeding a :class:`DrydenFilter`, and for ``hold="first_order"`` an
+    ``Integrator`` of the filter's ``wind_slope`` that starts at the steady wind.
+    Seed it through the root context with
     ``diagram.SetRandomContext(context, RandomGenerator(seed))``.
 
     | port (in)     | size | units                                               |
@@ -446,7 +469,10 @@ class DrydenWind(Diagram):
     | port (out)    | size | units                                               |
     |---------------|------|-----------------------------------------------------|
     | wind_ned      | 3    | steady + gust wind, NED [m/s] -> plant ``wind_ned`` |
-    | gust_body     | 3    | gust (u_g, v_g, w_g), body FRD [m/s]                |
+    | gust_body     | 3    | latest gust sample (u_g, v_g, w_g), body FRD [m/s]  |
+
+    With the first-order hold, ``wind_ned`` passes each filter sample one
+    update period after it was drawn (``gust_body`` is the filter sample itself).
     """
 
     def __init__(self, params: DrydenParams = DrydenParams()):
@@ -460,7 +486,13 @@ class DrydenWind(Diagram):
         self.filter = builder.AddNamedSystem("dryden_filter", DrydenFilter(params))
         builder.Connect(noise.get_output_port(0), self.filter.GetInputPort("noise"))
         builder.ExportInput(self.filter.GetInputPort("plant_state"), "plant_state")
-        builder.ExportOutput(self.filter.GetOutputPort("wind_ned"), "wind_ned")
+        wind = self.filter.GetOutputPort("wind_ned")
+        if params.hold == "first_order":
+            hold = builder.AddNamedSystem(
+                "first_order_hold", Integrator(np.asarray(params.steady_wind_ned, float)))
+            builder.Connect(self.filter.GetOutputPort("wind_slope"), hold.get_input_port())
+            wind = hold.get_output_port()
+        builder.ExportOutput(wind, "wind_ned")
         builder.ExportOutput(self.filter.GetOutputPort("gust_body"), "gust_body")
         builder.BuildInto(self)
 
