@@ -7,8 +7,10 @@ from scipy import signal
 from drake_uav.identification.residuals import (
     MIN_SAMPLES,
     autocorrelation,
+    correlation_lag,
     diagnose,
     effective_sample_size,
+    long_run_covariance,
 )
 
 FS = 100.0  # Hz
@@ -194,6 +196,42 @@ def test_same_input_same_result():
     x = np.random.default_rng(12).standard_normal(3000)
     a, b = diagnose(x, FS), diagnose(x, FS)
     assert json.dumps(a.to_dict(include_series=True)) == json.dumps(b.to_dict(include_series=True))
+
+
+def test_long_run_covariance_of_correlated_series_matches_theory():
+    """Var(sum psi_t): N (sum h)^2 for white noise through a filter h, where the white
+    formula N var(psi) is (sum h)^2 / sum h^2 times too small (11 for an 11-sample mean);
+    N / (1 - phi)^2 for AR(1), shared between correlated columns."""
+    n = 100000
+    rng = np.random.default_rng(11)
+    smoothed = np.convolve(rng.standard_normal(n + 10), np.ones(11) / 11, mode="valid")
+    assert correlation_lag(smoothed) >= 10 and correlation_lag(rng.standard_normal(n)) <= 4
+    assert long_run_covariance(smoothed)[0, 0] / n == pytest.approx(1.0, rel=0.15)
+    assert n * smoothed.var() / long_run_covariance(smoothed)[0, 0] == pytest.approx(
+        1 / 11, rel=0.15)
+    phi = 0.9
+    u, w = _ar1(rng, n, phi), rng.standard_normal(n)
+    S = long_run_covariance(np.column_stack([u, u + w])) / n
+    expected = 1.0 / (1.0 - phi) ** 2
+    np.testing.assert_allclose(S, [[expected, expected], [expected, expected + 1.0]],
+                               rtol=0.15)
+    assert np.all(np.linalg.eigvalsh(S) >= 0.0)
+    # Lag 0 only: the centred sum of squares and products.
+    x = rng.standard_normal((500, 3)) + 5.0
+    centred = x - x.mean(axis=0)
+    np.testing.assert_allclose(long_run_covariance(x, max_lag=0), centred.T @ centred)
+
+
+@pytest.mark.parametrize(("scores", "kwargs", "message"), [
+    (np.ones((1, 2)), {}, "scores"),
+    (np.r_[np.arange(9.0), np.nan], {}, "scores"),
+    (np.ones((10, 2, 2)), {}, "scores"),
+    (np.arange(10.0), {"max_lag": -1}, "max_lag"),
+    (np.arange(10.0), {"max_lag": 1.5}, "max_lag"),
+])
+def test_long_run_covariance_bad_input(scores, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        long_run_covariance(scores, **kwargs)
 
 
 @pytest.mark.parametrize(

@@ -52,8 +52,10 @@ __all__ = [
     "ResidualDiagnosis",
     "SpectralPeak",
     "autocorrelation",
+    "correlation_lag",
     "diagnose",
     "effective_sample_size",
+    "long_run_covariance",
 ]
 
 #: Shortest residual :func:`diagnose` accepts [samples].
@@ -61,6 +63,9 @@ MIN_SAMPLES = 64
 
 #: Autocorrelations up to this lag are computed by direct dot products instead of an FFT.
 DIRECT_LAGS = 32
+
+#: Bandwidth of :func:`long_run_covariance` in units of the scores' correlation lag.
+LONG_RUN_BANDWIDTH = 4
 
 #: Number of equal segments of the segment-variance test.
 N_SEGMENTS = 8
@@ -349,6 +354,41 @@ def effective_sample_size(x: np.ndarray) -> float:
     x = np.asarray(x, dtype=float)
     tau, _ = _geyer_tau(autocorrelation(x))
     return x.size / tau
+
+
+def correlation_lag(x: np.ndarray) -> int:
+    """Lags over which ``x`` is correlated: the length of Geyer's initial monotone sequence."""
+    return _geyer_tau(autocorrelation(np.asarray(x, dtype=float)))[1]
+
+
+def long_run_covariance(scores: np.ndarray, max_lag: int | None = None) -> np.ndarray:
+    """Covariance of the sum of a correlated (N, m) series, ``Var(sum_t psi_t)`` (m, m).
+
+    Newey-West estimate: ``G_0 + sum_l w_l (G_l + G_l^T)`` with ``G_l = sum_t psi_t
+    psi_(t+l)^T`` of the centred series and Bartlett weights ``w_l = 1 - l / (L + 1)``
+    (positive semi-definite). For white scores it is ``G_0``; with correlated ones it is
+    what the sandwich covariance of a regression needs (the white formula understates it
+    by about the integrated autocorrelation time). ``L`` defaults to
+    :data:`LONG_RUN_BANDWIDTH` times the longest :func:`correlation_lag` of the columns;
+    the weights then keep at least 3/4 of every correlation inside that lag.
+    """
+    psi = np.asarray(scores, dtype=float)
+    if psi.ndim == 1:
+        psi = psi[:, None]
+    if psi.ndim != 2 or psi.shape[0] < 2 or not np.isfinite(psi).all():
+        raise ValueError(f"scores must be a finite (N, m) array with N >= 2, got {psi.shape}")
+    psi = psi - psi.mean(axis=0)
+    n = psi.shape[0]
+    if max_lag is None:
+        max_lag = LONG_RUN_BANDWIDTH * max(
+            (correlation_lag(c) for c in psi.T if np.any(c != 0.0)), default=0)
+    elif not (isinstance(max_lag, int | np.integer) and max_lag >= 0):
+        raise ValueError(f"max_lag must be a non-negative integer, got {max_lag!r}")
+    S = psi.T @ psi
+    for lag in range(1, min(int(max_lag), n - 1) + 1):
+        G = psi[:-lag].T @ psi[lag:]
+        S += (1.0 - lag / (max_lag + 1.0)) * (G + G.T)
+    return S
 
 
 def _holm(p: np.ndarray) -> np.ndarray:
