@@ -19,9 +19,15 @@ NOISE = {"specific_force": 0.05, "rates": np.radians(0.1), "airspeed": 0.1,
 
 def synthetic_samples(increment=None, seed=0, duration=100.0, noise=True):
     """(params, AeroSamples, truth dict) of a 50 Hz flight."""
+    rng = np.random.default_rng(seed)
+    params, truth = synthetic_flight(rng, increment, duration)
+    return params, measured_samples(params, truth, rng if noise else None), truth
+
+
+def synthetic_flight(rng, increment=None, duration=100.0):
+    """(params, truth dict) of a 50 Hz flight; ``rng`` draws the multisine phases."""
     params = aerosonde()
     level = trim(params, 25.0)
-    rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration + 0.02, 0.02)
     u = np.tile(level.controls[:, None], (1, len(t)))
     for j, amplitude in enumerate((0.05, 0.06, 0.05, 0.15)):
@@ -50,16 +56,24 @@ def synthetic_samples(increment=None, seed=0, duration=100.0, noise=True):
     context = simulator.get_context()
     d = {k: log.FindLog(context).data().T for k, log in logs.items()}
     time = logs["state"].FindLog(context).sample_times()
-    truth = dict(d, controls=control_log.FindLog(context).data().T, time=time)
+    return params, dict(d, controls=control_log.FindLog(context).data().T, time=time)
+
+
+def measured_samples(params, truth, rng=None):
+    """AeroSamples of the ``truth`` flight with white sensor noise drawn by ``rng``
+    (None: exact sensors)."""
+    d = truth
     force, rates, air = d["specific_force"], d["state"][:, 10:13], d["air_data"]
-    if noise:
+    if rng is not None:
         force = force + rng.normal(0, NOISE["specific_force"], force.shape)
         rates = rates + rng.normal(0, NOISE["rates"], rates.shape)
         air = air + rng.normal(0, 1, air.shape) * np.array(
             [NOISE["airspeed"], NOISE["angles"], NOISE["angles"]])
     euler = d["euler"]
-    samples = isolate_coefficients(
-        params, time, force, rates, air, truth["controls"],
+    u = d["controls"]
+    # The controls are linear between the samples: the trapezoid is their interval average.
+    interval_controls = np.vstack([0.5 * (u[1:] + u[:-1]), u[-1:]])
+    return isolate_coefficients(
+        params, d["time"], force, rates, air, u, moment_controls=interval_controls,
         signals={"roll": euler[:, 0], "pitch": euler[:, 1], "yaw": euler[:, 2],
                  "height": -d["state"][:, 2]})
-    return params, samples, truth

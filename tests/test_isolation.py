@@ -12,6 +12,7 @@ from drake_uav.identification.discovery import baseline_names
 from drake_uav.identification.flight_data import held_commands, samples_from_log
 from drake_uav.identification.isolation import (
     differentiate,
+    interval_averages,
     isolate_coefficients,
     monte_carlo_sigma,
 )
@@ -97,6 +98,28 @@ def test_monte_carlo_sigma_matches_linear_propagation():
                                  np.array([[0, 1], [-2, 2], [5, 6]]), sigma,
                                  correlation=np.array([[1, 0.8, 0], [0.8, 1, 0], [0, 0, 1]]))
     assert estimate == pytest.approx(np.sqrt(np.sum((a * sigma) ** 2)), rel=0.01)
+
+
+def test_interval_averages_are_exact_for_cubics_and_fourth_order_for_sinusoids():
+    t = np.linspace(0.0, 1.0, 51)
+    cubic = np.column_stack([1 + t - 2 * t**2 + 3 * t**3, t**2])
+    exact = np.diff(np.column_stack([t + t**2 / 2 - 2 * t**3 / 3 + 3 * t**4 / 4, t**3 / 3]),
+                    axis=0) / np.diff(t)[:, None]
+    # Cubics exactly inside, quadratics up to the ends.
+    np.testing.assert_allclose(interval_averages(cubic)[1:-1], exact[1:-1], rtol=1e-12)
+    np.testing.assert_allclose(interval_averages(cubic[:, 1])[[0, -1]], exact[[0, -1], 1],
+                               rtol=1e-12)
+    # A 1.5 Hz sinusoid at 50 Hz: the trapezoid is (w h)^2 / 12 = 0.3 % short, the cubic
+    # 11 (w h)^4 / 720 = 0.002 %.
+    h, w = 0.02, 2 * np.pi * 1.5
+    t = np.arange(0.0, 4.0, h)
+    exact = np.diff(-np.cos(w * t)) / (w * h)
+    trapezoid = 0.5 * (np.sin(w * t[1:]) + np.sin(w * t[:-1]))
+    assert np.max(np.abs(trapezoid - exact)) == pytest.approx((w * h) ** 2 / 12, rel=0.01)
+    error = np.max(np.abs(interval_averages(np.sin(w * t))[1:-1] - exact[1:-1]))
+    assert error == pytest.approx(11 * (w * h) ** 4 / 720, rel=0.05)
+    with pytest.raises(ValueError, match="interval_averages"):
+        interval_averages(np.ones(2))
 
 
 def test_held_commands_at_instants_and_over_intervals():
