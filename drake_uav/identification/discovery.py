@@ -47,6 +47,7 @@ from drake_uav.identification.residuals import (
     ResidualDiagnosis,
     diagnose,
     effective_sample_size,
+    long_run_covariance,
 )
 from drake_uav.systems.aerodynamics import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -59,6 +60,8 @@ __all__ = [
     "DiscoveryResult",
     "discover",
     "baseline_names",
+    "IdentifiedDerivatives",
+    "fit_derivatives",
 ]
 
 NO_EFFECT_MESSAGE = "no missing effect found"
@@ -259,15 +262,41 @@ class _Design:
             out[:, i] = self.errors(self.solve(mask), idx)
         return out
 
-    def result(self, confidence: float = 0.95) -> RegressionResult:
-        """Bias-compensated estimate with a sandwich covariance (method "BCLS")."""
+    def scores(self, theta: np.ndarray) -> np.ndarray:
+        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``.
+
+        ``x_t (z_t - x_t^T theta)`` plus the sample's expected regressor-noise part
+        ``sum_s var_s J_t (J_t^T theta - dz_t/ds)``; they sum to zero at the estimate.
+        """
+        psi = self.X * (self.z - self.X @ theta)[:, None]
+        for signal, J in self.jac.items():
+            jz = self.z_jac.get(signal, 0.0)
+            psi += self.variance[signal] * J * (J @ theta - jz)[:, None]
+        return psi
+
+    def inverse_normal_matrix(self) -> np.ndarray:
+        """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse)."""
+        return np.linalg.pinv(self.moments()[0])
+
+    def result(self, confidence: float = 0.95,
+               scores_covariance: np.ndarray | None = None) -> RegressionResult:
+        """Bias-compensated estimate with a sandwich covariance (method "BCLS").
+
+        The covariance is ``A^-1 S A^-1`` with ``A`` the noise-corrected normal matrix
+        and ``S`` the long-run covariance of the :meth:`scores` (default: estimated
+        here): the residual of smoothed flight data is correlated over several samples
+        (the smoothing window, turbulence), and the white-residual formula would
+        understate sigma about twofold.
+        """
         theta = self.solve()
         residual = self.z - self.X @ theta
         n, p = self.X.shape
-        A, _ = self.moments()
-        A_inv = np.linalg.pinv(A)
+        A_inv = self.inverse_normal_matrix()
         sigma2 = float(residual @ residual) / max(n - p, 1)
-        covariance = sigma2 * A_inv @ (self.X.T @ self.X) @ A_inv
+        if scores_covariance is None:
+            scores_covariance = long_run_covariance(self.scores(theta))
+        covariance = A_inv @ scores_covariance @ A_inv
+        covariance = 0.5 * (covariance + covariance.T)
         s = np.linalg.svd(self.X / np.maximum(np.linalg.norm(self.X, axis=0), 1e-300),
                           compute_uv=False)
         return regression_result(method="BCLS", names=tuple(self.names), theta=theta,
@@ -303,6 +332,56 @@ def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient:
                if s in jac},
         variance={s: float(variance[s]) for s in jac},
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class IdentifiedDerivatives:
+    """The aircraft model's derivatives identified from one flight (:func:`fit_derivatives`)."""
+
+    fits: Mapping[str, RegressionResult]
+    """Coefficient (``"CL"`` ...) -> its bias-compensated fit (method "BCLS")."""
+    names: tuple[str, ...]
+    """Every derivative name, coefficient after coefficient."""
+    estimate: np.ndarray
+    """(n,) estimates in ``names`` order."""
+    covariance: np.ndarray
+    """(n, n) joint covariance: the six fits share sensor noise (e.g. the sideslip vane
+    enters C_Y, C_l and C_n), so their errors are correlated; the diagonal blocks are
+    the fits' own covariances."""
+
+    def __getitem__(self, coefficient: str) -> RegressionResult:
+        """The fit of one coefficient."""
+        return self.fits[coefficient]
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """(n,) standard errors in ``names`` order."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
+                    coefficients: Sequence[str] = COEFFICIENTS) -> IdentifiedDerivatives:
+    """Fits the aircraft's derivative structure (:func:`baseline_names`) to every sample.
+
+    The same errors-in-variables corrected fits as the discovery loop's baseline, on
+    the whole flight. The long-run covariance of all the fits' scores together gives
+    their joint covariance.
+    """
+    designs = [_baseline_design(samples, params, k) for k in coefficients]
+    scores = np.hstack([d.scores(d.solve()) for d in designs])
+    S = long_run_covariance(scores)
+    edges = np.cumsum([0] + [len(d.names) for d in designs])
+    blocks = [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    fits = {k: d.result(scores_covariance=S[b, b])
+            for k, d, b in zip(coefficients, designs, blocks, strict=True)}
+    A_inv = np.zeros_like(S)
+    for d, b in zip(designs, blocks, strict=True):
+        A_inv[b, b] = d.inverse_normal_matrix()
+    covariance = A_inv @ S @ A_inv
+    return IdentifiedDerivatives(
+        fits=fits, names=tuple(n for d in designs for n in d.names),
+        estimate=np.concatenate([fits[k].estimate for k in coefficients]),
+        covariance=0.5 * (covariance + covariance.T))
 
 
 def _folds(n: int, k: int) -> list[np.ndarray]:

@@ -13,7 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.identification.discovery import DiscoveryResult, EvidenceRule, discover
+from drake_uav.identification.discovery import (
+    DiscoveryResult,
+    EvidenceRule,
+    IdentifiedDerivatives,
+    discover,
+    fit_derivatives,
+)
 from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
@@ -22,7 +28,8 @@ from drake_uav.reporting import Report, figures
 from drake_uav.systems.aerodynamics import body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["IdentificationRun", "identify", "write_report", "coefficient_uncertainty"]
+__all__ = ["IdentificationRun", "identify", "identify_derivatives", "write_report",
+           "coefficient_uncertainty"]
 
 _OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 _OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
@@ -119,6 +126,20 @@ def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed:
     return {name: monte_carlo_sigma(lambda *x, n=name: coefficients(*x)[n], ranges, error_std,
                                     correlation=correlation, samples=draws, seed=seed)
             for name in ("CL", "CD", "CY")}
+
+
+def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
+                         rate_hz: float = 50.0) -> IdentifiedDerivatives:
+    """The aircraft model's derivatives identified from ``log``, with their uncertainty.
+
+    The first steps of :func:`identify` without the search for missing effects: the
+    log is isolated into coefficients (:func:`samples_from_log`) and each coefficient
+    is fitted on the aircraft's own derivative names over the whole flight
+    (:func:`~drake_uav.identification.discovery.fit_derivatives`). Raises
+    :class:`~drake_uav.io.flight_log.FlightLogError` naming the problem when the log
+    cannot be used.
+    """
+    return fit_derivatives(samples_from_log(log, params, rate_hz=rate_hz), params)
 
 
 def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,

@@ -12,6 +12,10 @@ each property with a stated test and decision rule at level ``alpha`` (default 0
   ``tau = -1 + 2 sum_m G_m``, ``G_m = r_{2m} + r_{2m+1}``, summed over Geyer's initial
   monotone sequence (pairs up to the first non-positive one, made non-increasing). ``tau`` is
   floored at 1, so ``N_eff <= N``. It is what F- and t-tests on correlated residuals should use.
+* **Long-run covariance.** :func:`long_run_covariance` gives ``Var(sum_t psi_t)`` of a
+  correlated (N, m) series by Newey-West (Bartlett weights up to 4 times the longest
+  :func:`correlation_lag` of its columns): the middle of the sandwich covariance of a
+  regression whose residual is correlated (smoothed flight data, turbulence).
 * **Normality.** Normal probability plot (S0 4.16-4.17): ordered residuals against
   ``Phi^-1((i - 1/2)/N)``, with the plot's correlation coefficient; D'Agostino-Pearson K^2
   and Jarque-Bera p-values whose skewness and kurtosis parts are divided by the variance
