@@ -122,6 +122,13 @@ class _Tracer:
     def _div(self, numerator: str, denominator: str) -> str:
         return _ZERO if numerator == _ZERO else self._new(f"{numerator} / {denominator}")
 
+    def _quotient(self, a: str, b: str, c: str, d: str) -> str:
+        """``(a - b c) / d`` in one statement (``a``, ``c`` may be zero)."""
+        if c == _ZERO:
+            return self._div(a, d)
+        product = f"{b} * {c}"
+        return self._new(f"-{product} / {d}" if a == _ZERO else f"({a} - {product}) / {d}")
+
     def derivatives(self, name: str) -> dict[int, str]:
         """Sparse partial derivatives of an emitted node by seed index."""
         return self._derivatives.get(name, {})
@@ -225,9 +232,19 @@ class _Tracer:
         if isinstance(kind, FormulaKind) or kind in (_K.Floor, _K.Ceil):
             return {}
         d = [self.derivatives(a) for a in args]
-        out = {}
+        out, cofactors = {}, {}
         for j in sorted(set().union(*d)):
-            value = self._partial(kind, args, t, [di.get(j, _ZERO) for di in d])
+            if kind == _K.Mul:
+                # d(c f_1 ... f_n) = sum_i (c prod_{l != i} f_l) df_i: one cofactor per factor.
+                terms = []
+                for i in range(1, len(args)):
+                    if j in d[i]:
+                        if i not in cofactors:
+                            cofactors[i] = self._mul(*args[:i], *args[i + 1:])
+                        terms.append(self._mul(cofactors[i], d[i][j]))
+                value = self._sum(terms)
+            else:
+                value = self._partial(kind, args, t, [di.get(j, _ZERO) for di in d])
             if value != _ZERO:
                 out[j] = value
         return out
@@ -236,12 +253,8 @@ class _Tracer:
         a = args[0]
         if kind == _K.Add:
             return self._sum(da[1:])
-        if kind == _K.Mul:
-            factors = args[1:]
-            return self._sum([self._mul(args[0], *factors[:i], *factors[i + 1:], da[1 + i])
-                              for i in range(len(factors))])
         if kind == _K.Div:
-            return self._div(self._sum([da[0], self._neg(self._mul(t, da[1]))]), args[1])
+            return self._quotient(da[0], t, da[1], args[1])
         if kind == _K.Pow:
             base, exponent = args
             if _is_literal(exponent):
@@ -261,7 +274,6 @@ class _Tracer:
         slopes = {
             _K.Sqrt: lambda: f"0.5 / {t}",
             _K.Sin: lambda: f"_cos({a})",
-            _K.Cos: lambda: f"-_sin({a})",
             _K.Tan: lambda: f"1.0 + {t} * {t}",
             _K.Asin: lambda: f"1.0 / _sqrt(1.0 - {a} * {a})",
             _K.Acos: lambda: f"-1.0 / _sqrt(1.0 - {a} * {a})",
@@ -274,12 +286,14 @@ class _Tracer:
         }
         if kind == _K.Exp:
             return self._mul(t, da[0])
+        if kind == _K.Cos:  # shares sin(a) with a sine of the same argument
+            return self._neg(self._mul(self._new(f"_sin({a})"), da[0]))
         if kind in slopes:
             return self._mul(self._new(slopes[kind]()), da[0])
         if kind == _K.Atan2:
             y, x = args
-            numerator = self._sum([self._mul(x, da[0]), self._neg(self._mul(y, da[1]))])
-            return self._div(numerator, self._new(f"{x} * {x} + {y} * {y}"))
+            return self._quotient(self._mul(x, da[0]), y, da[1],
+                                  self._new(f"{x} * {x} + {y} * {y}"))
         if kind in (_K.Max, _K.Min):
             op = ">=" if kind == _K.Max else "<="
             return self._new(f"_where({args[0]} {op} {args[1]}, {da[0]}, {da[1]})")
@@ -376,11 +390,22 @@ class CompiledFunction:
         elif not with_jacobians:
             lines.append(f"    return _array([{', '.join(values)}])")
         else:
-            entries = [p.get(j, _ZERO) for p in partials for j in range(k)]
-            lines.append(f"    return _array([{', '.join(values)}]), "
-                         f"_array([{', '.join(entries)}]).reshape({m}, {k})")
+            # One flat array [value, Jacobian row-major]: literal entries (mostly zeros)
+            # come from a template, the others are written in one call.
+            entries = values + [p.get(j, _ZERO) for p in partials for j in range(k)]
+            template = np.array([_constant(e) if _is_literal(e) else 0.0 for e in entries])
+            computed = [i for i, e in enumerate(entries) if not _is_literal(e)]
+            lines.append("    _out = _template.copy()")
+            if computed:
+                written = ", ".join(entries[i] for i in computed)
+                lines.append(f"    _out[_computed] = _fromiter(({written},), float, "
+                             f"{len(computed)})")
+            lines.append("    return _out")
         scope = {"math": math, "_array": _float_array, "_empty": np.empty, "_zeros": np.zeros,
+                 "_fromiter": np.fromiter,
                  **(_VECTOR_SCOPE if vector else _SCALAR_SCOPE)}
+        if with_jacobians and not vector:
+            scope.update(_template=template, _computed=np.array(computed, dtype=np.intp))
         label = f"{'batch' if vector else 'scalar'}{' jacobians' if with_jacobians else ''}"
         exec(compile("\n".join(lines), f"<compiled {self.name} ({label})>", "exec"), scope)
         return scope["compiled"]
@@ -396,23 +421,34 @@ class CompiledFunction:
         """:meth:`value` for (B, size) arguments, run once on numpy arrays: (B, m)."""
         return self._program(True, False)(*[np.asarray(a, float) for a in args])
 
+    def value_and_jacobian(self, *args) -> tuple[np.ndarray, np.ndarray]:
+        """Value (m,) and the Jacobian (m, k) w.r.t. all ``wrt`` entries side by side
+        (in the order of ``wrt``) for one sample: the compiled code's single result."""
+        out = self._program(False, True)(*[as_list(a) for a in args])
+        m = self.output_size
+        return out[:m], out[m:].reshape(m, self._n_seeds)
+
     def jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
         """Value and the Jacobians w.r.t. the ``wrt`` entries for one sample (compiled)."""
-        value, J = self._program(False, True)(*[as_list(a) for a in args])
+        value, J = self.value_and_jacobian(*args)
         return value, self._split(J)
 
-    def batch_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
-        """:meth:`jacobians` for (B, size) arguments: values (B, m), Jacobians (B, m, k).
+    def batch_value_and_jacobian(self, *args) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`value_and_jacobian` for (B, size) arguments: (B, m) and (B, m, k).
 
         Small batches run the float code per sample; from ``VECTOR_BATCH``
         samples on, the same code runs once on numpy arrays.
         """
         if len(args[0]) < VECTOR_BATCH:
             scalar = self._program(False, True)
-            results = [scalar(*[as_list(a[b]) for a in args]) for b in range(len(args[0]))]
-            value = np.array([r[0] for r in results])
-            return value, self._split(np.array([r[1] for r in results]))
-        value, J = self._program(True, True)(*[np.asarray(a, float) for a in args])
+            out = np.array([scalar(*[as_list(a[b]) for a in args]) for b in range(len(args[0]))])
+            m = self.output_size
+            return out[:, :m], out[:, m:].reshape(len(out), m, self._n_seeds)
+        return self._program(True, True)(*[np.asarray(a, float) for a in args])
+
+    def batch_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:
+        """:meth:`jacobians` for (B, size) arguments: values (B, m), Jacobians (B, m, k)."""
+        value, J = self.batch_value_and_jacobian(*args)
         return value, self._split(J)
 
     def autodiff_jacobians(self, *args) -> tuple[np.ndarray, list[np.ndarray]]:

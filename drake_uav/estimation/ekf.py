@@ -43,6 +43,7 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
+from scipy.linalg.lapack import dposv as _posv
 from scipy.stats import chi2
 
 from drake_uav.compiled import CompiledFunction
@@ -80,6 +81,15 @@ def _diagonal(M: np.ndarray) -> np.ndarray:
 def _t(M: np.ndarray) -> np.ndarray:
     """Transpose of the last two axes."""
     return M.swapaxes(-1, -2)
+
+
+def _index(indices: tuple[int, ...]) -> slice | list[int] | None:
+    """A slice for consecutive indices (a view), else the list; None when empty."""
+    if not indices:
+        return None
+    if list(indices) == list(range(indices[0], indices[-1] + 1)):
+        return slice(indices[0], indices[-1] + 1)
+    return list(indices)
 
 
 # --------------------------------------------------------------------------------------
@@ -141,18 +151,26 @@ class EkfNoise:
             named are exact) [unit of the input].
         measurement_std: standard deviation of each measurement [its unit].
         initial_std: standard deviation of each initial state [its unit].
+        measurement_input_std: standard deviation of a noisy input where it
+            enters the measurements, when it differs from ``input_std`` (an
+            input smoothed over a short time: its sample-to-sample noise, seen
+            by ``h``, is smaller than the samples', while its low-frequency
+            noise, which drives the prediction, is that of the samples)
+            [unit of the input].
     """
 
     process_psd: Mapping[str, float]
     input_std: Mapping[str, float]
     measurement_std: Mapping[str, float]
     initial_std: Mapping[str, float]
+    measurement_input_std: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
     def validate(self, model: EkfModel | None = None) -> EkfNoise:
         """Raises ``ValueError`` naming the field; checks names against ``model``."""
         checks = (("process_psd", "noise_names", True), ("input_std", "input_names", False),
                   ("measurement_std", "measurement_names", True),
-                  ("initial_std", "state_names", True))
+                  ("initial_std", "state_names", True),
+                  ("measurement_input_std", "input_names", False))
         for field, attribute, complete in checks:
             values = getattr(self, field)
             for key, value in values.items():
@@ -169,6 +187,10 @@ class EkfNoise:
             missing = [n for n in names if n not in values]
             if complete and missing:
                 raise ValueError(f"EkfNoise.{field}: missing {missing}")
+        for name in self.measurement_input_std:
+            if not self.input_std.get(name, 0.0) > 0:
+                raise ValueError(f"EkfNoise.measurement_input_std['{name}']: the input has no "
+                                 "noise in input_std")
         if model is not None:
             for field, names in (("measurement_std", model.measurement_names),
                                  ("initial_std", model.state_names)):
@@ -236,16 +258,23 @@ class ExtendedKalmanFilter:
         self.model, self.noise, self.backend = model, noise, backend
         nx, nu, nw, ny = model.sizes
         self.n_states, self.n_inputs, self.n_measurements = nx, nu, ny
-        noisy = tuple(i for i, n in enumerate(model.input_names)
-                      if noise.input_std.get(n, 0.0) > 0)
-        self._input_var = np.array([noise.input_std[model.input_names[i]] for i in noisy]) ** 2
-        self._qc = np.array([noise.process_psd[n] for n in model.noise_names])
+        noisy = tuple(n for n in model.input_names if noise.input_std.get(n, 0.0) > 0)
+        input_std = np.array([noise.input_std[n] for n in noisy])
+        self._input_var = input_std**2
+        # Noise of the inputs where they enter h (smaller for smoothed inputs).
+        self._h_input_std = np.array([noise.measurement_input_std.get(n, noise.input_std[n])
+                                      for n in noisy])
+        # Scale of the columns of [B | G] in Qd / 2 = L L^T: sqrt(1/2) [sigma_u dt, sqrt(Qc dt)].
+        self._input_std, self._qc_std = input_std, np.sqrt(
+            [noise.process_psd[n] for n in model.noise_names])
+        self._process_scale_dt, self._process_scale = None, None
         self._r = np.array([noise.measurement_std[n] for n in model.measurement_names]) ** 2
         self.initial_covariance = np.diag(
             [noise.initial_std[n] ** 2 for n in model.state_names])
+        noisy_index = tuple(model.input_names.index(n) for n in noisy)
         self.dynamics = CompiledFunction(model.dynamics, (nx, nu, nw),
-                                         {0: None, 1: noisy, 2: None}, "dynamics")
-        self.measurement = CompiledFunction(model.measurement, (nx, nu), {0: None, 1: noisy},
+                                         {0: None, 1: noisy_index, 2: None}, "dynamics")
+        self.measurement = CompiledFunction(model.measurement, (nx, nu), {0: None, 1: noisy_index},
                                             "measurement")
         self.group_names = tuple(model.groups)
         self._membership = np.zeros((ny, len(self.group_names)))
@@ -253,57 +282,78 @@ class ExtendedKalmanFilter:
             self._membership[list(model.groups[name]), g] = 1.0
         if not np.array_equal(self._membership.sum(axis=1), np.ones(ny)):
             raise ValueError(f"{type(model).__name__}.groups must cover every measurement once")
+        self._group_of = self._membership.argmax(axis=1)
         self.gate_probability = gate_probability
         self._gate = chi2.ppf(gate_probability, 1) if gate_probability < 1 else np.inf
-        self._angle_inputs = list(model.angle_inputs)
-        self._held = list(model.held_inputs)
-        self._angle_y = list(model.angle_measurements)
-        self._w0 = np.zeros((1, nw))
+        self._angle_inputs = _index(model.angle_inputs)
+        self._held = _index(model.held_inputs)
+        self._angle_y = _index(model.angle_measurements)
+        self._w0 = np.zeros(nw)
         self._eye = np.eye(nx)
+        self._eye_half, self._eye_sixth = 0.5 * self._eye, self._eye / 6.0
+        self._patterns: dict[bytes, tuple] = {}
 
     # -------------------------------------------------------------- pieces
-    def _jacobians(self, function: CompiledFunction, *args):
-        """Value and Jacobians for one sample (1-D args) or a batch (2-D args)."""
-        if args[0].ndim == 1:
-            if self.backend == "compiled":
-                return function.jacobians(*args)
-            return function.autodiff_jacobians(*args)
+    def _value_and_jacobian(self, function: CompiledFunction, *args):
+        """Value and Jacobian ``[d/dx | d/du (noisy) | d/dw]`` for one sample (1-D args)
+        or a batch (2-D args)."""
         if self.backend == "compiled":
-            return function.batch_jacobians(*args)
-        results = [function.autodiff_jacobians(*[a[b] for a in args])
-                   for b in range(len(args[0]))]
-        return (np.array([r[0] for r in results]),
-                [np.array([r[1][i] for r in results]) for i in range(len(results[0][1]))])
+            if args[0].ndim == 1:
+                return function.value_and_jacobian(*args)
+            return function.batch_value_and_jacobian(*args)
+        samples = [args] if args[0].ndim == 1 else [[a[b] for a in args]
+                                                    for b in range(len(args[0]))]
+        results = [function.autodiff_jacobians(*sample) for sample in samples]
+        value = np.array([r[0] for r in results])
+        J = np.array([np.concatenate(r[1], axis=1) for r in results])
+        return (value[0], J[0]) if args[0].ndim == 1 else (value, J)
 
     def midpoint_input(self, u_previous: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Input held over a step: the mean of two samples (angles wrapped); held inputs
         (commands) take their current value."""
-        delta = np.asarray(u, float) - u_previous
-        if self._angle_inputs:
+        delta = np.subtract(u, u_previous)
+        if self._angle_inputs is not None:
             delta[..., self._angle_inputs] = wrap_angle(delta[..., self._angle_inputs])
-        if self._held:
+        if self._held is not None:
             delta[..., self._held] *= 2.0
         return u_previous + 0.5 * delta
+
+    def _noise_scale(self, dt):
+        """Column scale of ``[B | G]``: ``sqrt(1/2) [sigma_u dt, sqrt(Qc dt)]``."""
+        if np.ndim(dt) == 0:
+            if dt != self._process_scale_dt:
+                self._process_scale_dt = dt
+                self._process_scale = math.sqrt(0.5) * np.concatenate(
+                    [self._input_std * dt, self._qc_std * math.sqrt(dt)])
+            return self._process_scale
+        return math.sqrt(0.5) * np.concatenate(
+            [self._input_std * dt, np.broadcast_to(self._qc_std * np.sqrt(dt),
+                                                   dt.shape[:-1] + self._qc_std.shape)],
+            axis=-1)
 
     def predict(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
         """Time update over ``dt`` [s] (scalar, or one per filter of a batch) with ``u`` held."""
         if x.ndim == 1:
-            w0 = self._w0[0]
+            w0 = self._w0
         else:
-            w0 = np.broadcast_to(self._w0, (len(x), self._w0.shape[1]))
+            w0 = np.broadcast_to(self._w0, (len(x), len(self._w0)))
             dt = np.broadcast_to(np.asarray(dt, float), (len(x),))[:, None, None]
-        fx, (F, B, G) = self._jacobians(self.dynamics, x, u, w0)
-        A = F * dt
-        A2 = A @ A
-        A3 = A2 @ A
-        f = fx[..., None]
-        # Exponential integrator: x + dt phi1(A) f, phi1(A) = I + A/2 + A^2/6 + A^3/24 + ...
-        x_new = x + ((f + A @ (0.5 * f) + A2 @ (f / 6.0) + A3 @ (f / 24.0)) * dt)[..., 0]
-        Phi = self._eye + A + 0.5 * A2 + A3 / 6.0
-        Bdt = B * dt
-        half = 0.5 * ((G * self._qc) @ _t(G) * dt + (Bdt * self._input_var) @ _t(Bdt))
+        f, J = self._value_and_jacobian(self.dynamics, x, u, w0)
+        nx = self.n_states
+        A = J[..., :nx] * dt
+        # phi1(A) = I + A/2 + A^2/6 + A^3/24 (Horner); Phi = I + A phi1(A).
+        phi1 = A @ (A @ (A * (1.0 / 24.0) + self._eye_sixth) + self._eye_half) + self._eye
+        Phi = A @ phi1 + self._eye
+        if x.ndim == 1:
+            x_new = x + dt * (phi1 @ f)
+        else:
+            x_new = x + dt[..., 0] * (phi1 @ f[..., None])[..., 0]
+        L = J[..., nx:] * self._noise_scale(dt)
+        half = L @ _t(L)
         P_new = Phi @ (P + half) @ _t(Phi) + half
-        return x_new, 0.5 * (P_new + _t(P_new))
+        P_new += _t(P_new)
+        P_new *= 0.5
+        return x_new, P_new
 
     def update(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndarray,
                available: np.ndarray | None = None) -> UpdateResult:
@@ -312,16 +362,77 @@ class ExtendedKalmanFilter:
         ``available`` (bool, default all) is the seed's D matrix; NaN samples are
         never used. Batched inputs (leading axis) give batched results.
         """
-        mask = np.isfinite(y)
+        yhat, J = self._value_and_jacobian(self.measurement, x, u)
+        nu = y - yhat
+        if self._angle_y is not None:
+            nu[..., self._angle_y] = wrap_angle(nu[..., self._angle_y])
+        mask = np.isfinite(nu)
         if available is not None:
             mask &= available
-        yhat, (H, D) = self._jacobians(self.measurement, x, u)
-        nu = y - yhat
-        if self._angle_y:
-            nu[..., self._angle_y] = wrap_angle(nu[..., self._angle_y])
+        if x.ndim == 1:
+            return self._update_one(x, P, J, nu, mask)
+        return self._update_batch(x, P, J, nu, mask)
+
+    def _rows(self, mask: np.ndarray) -> tuple:
+        """(used channels, their sensor-noise covariance) of an availability pattern
+        (cached: a flight repeats few patterns)."""
+        key = mask.tobytes()
+        rows = self._patterns.get(key)
+        if rows is None:
+            used = mask.nonzero()[0]
+            rows = self._patterns[key] = (used, np.diag(self._r[used]))
+        return rows
+
+    def _update_one(self, x, P, J, nu, mask) -> UpdateResult:
+        """Update of one filter on the rows of the channels in use."""
+        used, R_sensor = self._rows(mask)
+        rejected = np.zeros(len(self.group_names), bool)
+        innovation = np.where(mask, nu, np.nan)
+        innovation_var = np.full(self.n_measurements, np.nan)
+        if not used.size:
+            return UpdateResult(x, P, np.nan, 0, mask, rejected, innovation, innovation_var)
+        nx = self.n_states
+        J = J.take(used, axis=0)
+        H = J[:, :nx]
+        D = J[:, nx:] * self._h_input_std
+        R = D @ D.T + R_sensor
+        PHt = P @ H.T
+        S = H @ PHt + R
+        S_diag = S.diagonal()
+        innovation_var[used] = S_diag
+        nu = nu.take(used)
+        bad = nu * nu > self._gate * S_diag
+        if np.count_nonzero(bad):
+            rejected[self._group_of[used[bad]]] = True
+            keep = ~rejected[self._group_of[used]]
+            mask[used[~keep]] = False
+            used, H, PHt, nu = used[keep], H[keep], PHt[:, keep], nu[keep]
+            if not used.size:
+                return UpdateResult(x, P, np.nan, 0, mask, rejected, innovation,
+                                    innovation_var)
+            kept = keep.nonzero()[0]
+            S, R = S.take(kept, 0).take(kept, 1), R.take(kept, 0).take(kept, 1)
+        # S [K^T | z] = [H P | nu] (Cholesky): gain K and NIS nu^T z.
+        _, solution, info = _posv(S, np.concatenate((PHt.T, nu[:, None]), axis=1))
+        if info:
+            raise np.linalg.LinAlgError("EKF update: innovation covariance not positive "
+                                        "definite")
+        K = solution[:, :nx].T
+        A = self._eye - K @ H
+        P_new = A @ P @ A.T + K @ R @ K.T
+        P_new += P_new.T
+        P_new *= 0.5
+        return UpdateResult(x + K @ nu, P_new, nu @ solution[:, nx], len(used), mask,
+                            rejected, innovation, innovation_var)
+
+    def _update_batch(self, x, P, J, nu, mask) -> UpdateResult:
+        """Update of a batch of filters: unused channels get zero rows (seed's D matrix)."""
+        nx = self.n_states
+        H = J[..., :nx]
+        D = J[..., nx:] * self._h_input_std
         Ht = _t(H)
         PHt = P @ Ht
-        R = (D * self._input_var) @ _t(D)
+        R = D @ _t(D)
         _diagonal(R)[...] += self._r
         S = H @ PHt + R
         S_diag = _diagonal(S).copy()
@@ -343,9 +454,9 @@ class ExtendedKalmanFilter:
             S = S * outer
             _diagonal(S)[...] += 1.0 - m
             R = R * outer
-        S_inv = np.linalg.inv(S)
-        K = PHt @ S_inv
-        nis = (nu[..., None, :] @ S_inv @ nu[..., :, None])[..., 0, 0]
+        solution = np.linalg.solve(S, np.concatenate([_t(PHt), nu[..., None]], axis=-1))
+        K = _t(solution[..., :nx])
+        nis = np.einsum("bi,bi->b", nu, solution[..., nx])
         dof = mask.sum(axis=-1)
         A = self._eye - K @ H
         P_new = A @ P @ _t(A) + K @ R @ _t(K)

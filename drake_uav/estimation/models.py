@@ -628,7 +628,7 @@ def gps_latency_correction(time: np.ndarray, specific_force: np.ndarray, euler: 
     ``latency`` seconds ago it gives the velocity now.
     """
     time = np.asarray(time, float)
-    accel, _ = _ned_acceleration_function(float(gravity)).batch_jacobians(
+    accel = _ned_acceleration_function(float(gravity)).batch_value(
         np.column_stack([specific_force, euler]))
     increments = np.zeros_like(accel)
     increments[1:] = 0.5 * (accel[1:] + accel[:-1]) * np.diff(time)[:, None]
