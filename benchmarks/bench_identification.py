@@ -6,6 +6,8 @@ Prints
 * batch OLS / GTLS / PCA-TLS on 150,000 samples x 7 regressors (target <= 0.5 s);
 * recursive update cost per sample for RLS and recursive TLS, CFF and VFF (target <= 50 us);
 * the RecursiveIdentifier in a small diagram at 100 Hz (simulated / wall-clock time);
+* the RecursiveIdentifier inside the identification flight (plant, Dryden, sensors), fed
+  by AeroRegressors: real-time factor with one and with six identifiers (target >= 50x);
 * seed S0 sec. 4.3.9: a C_m model whose parameters change at t = 300 s (100 Hz, 600 s):
   re-convergence time and steady-state variance of the VFF estimator and of CFF estimators,
   and the best CFF of equal (or lower) steady-state variance.
@@ -22,6 +24,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_uav.diagrams.identification_flight import build_identification_flight
 from drake_uav.identification.recursive import (
     RecursiveOLS,
     RecursiveTLS,
@@ -29,10 +32,17 @@ from drake_uav.identification.recursive import (
     reconvergence_time,
 )
 from drake_uav.identification.regression import InsufficientExcitationWarning, ols, pca_tls, tls
-from drake_uav.systems.identification import RecursiveIdentifier, RecursiveIdentifierParams
+from drake_uav.systems.aerodynamics import COEFFICIENTS
+from drake_uav.systems.identification import (
+    AeroRegressors,
+    RecursiveIdentifier,
+    RecursiveIdentifierParams,
+)
+from drake_uav.vehicles.fixed_wing import aerosonde
 
 BATCH_TARGET = 0.5  # s for 150,000 x 7
 RECURSIVE_TARGET = 50e-6  # s per sample
+IN_FLIGHT_TARGET = 50.0  # real-time factor of the flight with the identifier inside
 
 
 def filtered_noise(n, m, tau_samples, rng):
@@ -155,6 +165,49 @@ def bench_system():
         )
 
 
+def _identifiers(coefficients):
+    """``extend`` hook: one AeroRegressors + RecursiveIdentifier (VFF TLS) per coefficient."""
+    params = aerosonde()
+
+    def extend(builder, ports):
+        for coefficient in coefficients:
+            regressors = builder.AddSystem(AeroRegressors(params, coefficient))
+            for name in ("air_data", "state", "aero_coefficients"):
+                builder.Connect(ports[name], regressors.GetInputPort(name))
+            builder.Connect(ports["surfaces"], regressors.GetInputPort("controls"))
+            identifier = builder.AddSystem(RecursiveIdentifier(RecursiveIdentifierParams(
+                names=regressors.names, error_std=(1e-4,) * (len(regressors.names) + 1),
+                variable_forgetting=VariableForgetting())))
+            builder.Connect(regressors.GetOutputPort("regressors"),
+                            identifier.GetInputPort("regressors"))
+            builder.Connect(regressors.GetOutputPort("observation"),
+                            identifier.GetInputPort("observation"))
+
+    return extend
+
+
+def bench_in_flight(duration=120.0, repeats=2):
+    print(f"\nRecursiveIdentifier inside the identification flight ({duration:.0f} s, light "
+          f"turbulence, 100 Hz), best of {repeats}:")
+    rtf = {}
+    for label, coefficients in (("flight alone", ()), ("with a C_m identifier", ("Cm",)),
+                                ("with six identifiers", COEFFICIENTS)):
+        flight = build_identification_flight(
+            "aerosonde", "light", duration=duration,
+            extend=_identifiers(coefficients) if coefficients else None)
+        walls = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            flight.simulate()
+            walls.append(time.perf_counter() - start)
+        rtf[label] = duration / min(walls)
+        print(f"  {label:24s} {rtf[label]:6.1f}x real time")
+    one = rtf["with a C_m identifier"]
+    print(f"  one identifier costs {1e6 / 100 * (1 / one - 1 / rtf['flight alone']):.0f} us "
+          f"per 10 ms tick; target >= {IN_FLIGHT_TARGET:.0f}x: "
+          f"{'met' if one >= IN_FLIGHT_TARGET else 'missed'}")
+
+
 def bench_forgetting():
     rate, duration, t_change = 100.0, 600.0, 300.0
     n = int(rate * duration)
@@ -212,6 +265,7 @@ def main():
     bench_batch()
     bench_recursive()
     bench_system()
+    bench_in_flight()
     bench_forgetting()
 
 

@@ -8,7 +8,15 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.identification.recursive import VariableForgetting
-from drake_uav.systems.identification import RecursiveIdentifier, RecursiveIdentifierParams
+from drake_uav.optimization.trim import trim
+from drake_uav.systems.aerodynamics import COEFFICIENTS
+from drake_uav.systems.fixed_wing import FixedWingPlant
+from drake_uav.systems.identification import (
+    AeroRegressors,
+    RecursiveIdentifier,
+    RecursiveIdentifierParams,
+)
+from drake_uav.vehicles.fixed_wing import aerosonde
 
 PERIOD = 0.01  # s
 NAMES = ("C_m0", "C_malpha", "C_mqn", "C_mde")
@@ -155,3 +163,36 @@ def test_invalid_parameters_name_the_field(change, field):
     kwargs = {"names": NAMES, "error_std": ERROR_STD, **change}
     with pytest.raises(ValueError, match=field):
         RecursiveIdentifierParams(**kwargs).validate()
+
+
+def test_aero_regressors_reproduce_the_plant_coefficients():
+    """Regressor row times the true derivatives is the plant's coefficient, for all six
+    (off trim: rates, sideslip, wind, saturated throttle)."""
+    params = aerosonde()
+    plant = FixedWingPlant(params)
+    state = trim(params, 25.0).state.copy()
+    state[8:13] += [1.5, -0.8, 0.3, -0.2, 0.25]
+    controls = np.array([-0.1, 0.05, -0.03, 1.3])
+    builder = DiagramBuilder()
+    builder.AddSystem(plant)
+    systems = {c: builder.AddSystem(AeroRegressors(params, c)) for c in COEFFICIENTS}
+    for regressors in systems.values():
+        for name in ("air_data", "state", "aero_coefficients"):
+            builder.Connect(plant.GetOutputPort(name), regressors.GetInputPort(name))
+        builder.ExportInput(regressors.GetInputPort("controls"))
+    builder.ExportInput(plant.GetInputPort("controls"))
+    builder.ExportInput(plant.GetInputPort("wind_ned"))
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant.set_state(plant.GetMyMutableContextFromRoot(context), state)
+    for i in range(diagram.num_input_ports() - 1):
+        diagram.get_input_port(i).FixValue(context, controls)
+    diagram.get_input_port(diagram.num_input_ports() - 1).FixValue(context, [2.0, -3.0, 0.5])
+    for coefficient, system in systems.items():
+        sub = system.GetMyContextFromRoot(context)
+        row = system.GetOutputPort("regressors").Eval(sub)
+        theta = np.array([params.derivatives[n] for n in system.names])
+        observed = system.GetOutputPort("observation").Eval(sub)[0]
+        assert row @ theta == pytest.approx(observed, abs=1e-12), coefficient
+    with pytest.raises(ValueError, match="^coefficient:"):
+        AeroRegressors(params, "CQ")

@@ -7,8 +7,12 @@
                                                             v   | wind_ned
                                                          DrydenWind
 
-and adds loggers for every measured and truth signal. :func:`fly` builds and
-simulates it and returns a :class:`~drake_uav.io.flight_log.FlightLog`.
+and logs the measurements, the commands, the plant's state and inputs; the
+other truth channels (air data, Euler angles, coefficients, forces, body gust)
+are computed from those after the flight with the plant's own compiled model.
+:func:`fly` builds and simulates it and returns a
+:class:`~drake_uav.io.flight_log.FlightLog`. ``extend`` adds your own systems
+(an estimator, an on-line identifier) to the same diagram.
 
 Timing: everything runs at the sensor suite's base rate (default 100 Hz). Row k
 of the log holds the sensor samples taken at t_k, the command issued at t_k, and
@@ -25,12 +29,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, OutputPort
 from pydrake.systems.primitives import (
     Adder,
     ConstantVectorSource,
@@ -187,6 +191,11 @@ class IdentificationFlight:
 
     def simulate(self, seed: int | None = None) -> FlightLog:
         """Flies ``duration`` seconds from the trim state; the same seed gives the same log."""
+        return self.simulate_with_context(seed)[0]
+
+    def simulate_with_context(self, seed: int | None = None) -> tuple[FlightLog, Context]:
+        """:meth:`simulate`, also returning the final root context (to read the loggers
+        of systems added through ``extend``)."""
         seed = self.seed if seed is None else _check_seed(seed)
         simulator = Simulator(self.diagram)
         ApplySimulatorConfig(self.simulator_config, simulator)
@@ -198,7 +207,7 @@ class IdentificationFlight:
         n = int(round(self.duration / dt)) + 1
         # One extra period: the samples taken at t_k are logged at t_(k+1).
         simulator.AdvanceTo((n + 0.5) * dt)
-        return self._flight_log(context, n, seed)
+        return self._flight_log(context, n, seed), context
 
     def _flight_log(self, context, n: int, seed: int) -> FlightLog:
         logs = {name: logger.FindLog(context) for name, logger in self.loggers.items()}
@@ -343,6 +352,7 @@ def build_identification_flight(
     integrator: str = "runge_kutta2",
     disturbance=None,
     actuator_delay: float = 0.0,
+    extend: Callable[[DiagramBuilder, Mapping[str, OutputPort]], None] | None = None,
 ) -> IdentificationFlight:
     """Builds the identification-flight diagram with its loggers.
 
@@ -363,6 +373,12 @@ def build_identification_flight(
             (:class:`AerodynamicIncrement`) or a constant body wrench (6: N, N m).
         actuator_delay: pure delay [s] between the logged commands and the
             surfaces (rounded to whole sample periods, at least two).
+        extend: ``extend(builder, ports)`` adds systems to the flight before it is
+            built (an estimator, an on-line identifier, their loggers). ``ports``
+            maps names to output ports: every plant output by its name, every
+            sensor output (``measurements``, ``imu``, ``gps``, ``pitot``, ``vanes``,
+            ``attitude``, ``baro``, as fitted), ``commands`` (logged commands),
+            ``surfaces`` (the plant's controls) and ``wind_ned``.
     """
     params = load_fixed_wing(aircraft) if isinstance(aircraft, str) else aircraft
     if not (duration > 0 and math.isfinite(duration)):
@@ -438,6 +454,13 @@ def build_identification_flight(
     if wrench is not None:
         logged["wrench"] = wrench
     loggers = {name: LogVectorOutput(port, builder, dt) for name, port in logged.items()}
+    if extend is not None:
+        ports = {plant.get_output_port(i).get_name(): plant.get_output_port(i)
+                 for i in range(plant.num_output_ports())}
+        ports.update({suite.get_output_port(i).get_name(): suite.get_output_port(i)
+                      for i in range(suite.num_output_ports())})
+        ports.update(commands=commands, surfaces=plant_commands, wind_ned=wind_port)
+        extend(builder, ports)
     diagram = builder.Build()
 
     metadata = {

@@ -15,6 +15,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.systems.aerodynamics import AeroCondition, lift_drag_to_body
+from drake_uav.systems.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["AerodynamicIncrement"]
@@ -41,13 +42,15 @@ class AerodynamicIncrement(LeafSystem):
     ==========  =====  ==============================================
 
     ``increment(condition)`` returns ``(dCL, dCD, dCY, dCl, dCm, dCn)``; the
-    condition carries the air data, body rates, surfaces and the thrust
-    coefficient of the params' propulsion model.
+    condition (:meth:`FixedWingModel.aero_condition`) carries the air data,
+    body rates, surfaces (saturated as in the plant) and the thrust coefficient of
+    the params' propulsion model.
     """
 
     def __init__(self, params: FixedWingParams, increment: IncrementFunction):
         super().__init__()
         self._params = params
+        self._model = FixedWingModel(params)
         self._increment = increment
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._state = self.DeclareVectorInputPort("state", 13)
@@ -56,14 +59,10 @@ class AerodynamicIncrement(LeafSystem):
 
     def _calc_wrench(self, context, output: BasicVector) -> None:
         prm = self._params
-        Va, alpha, beta = self._air.Eval(context).tolist()
-        x = self._state.Eval(context)
-        u = self._controls.Eval(context).tolist()
-        thrust, _ = prm.propulsion.thrust_torque(Va, u[3], prm.rho)
-        q_bar_s = 0.5 * prm.rho * Va * Va * prm.S
-        cond = AeroCondition(Va, alpha, beta, float(x[10]), float(x[11]), float(x[12]),
-                             u[0], u[1], u[2], 0.0, 0.0, thrust / max(q_bar_s, 1e-9))
+        cond = self._model.aero_condition(self._air.Eval(context).tolist(),
+                                          self._state.Eval(context)[10:13].tolist(),
+                                          self._controls.Eval(context).tolist())
         dCL, dCD, dCY, dCl, dCm, dCn = self._increment(cond)
-        dCX, dCZ = lift_drag_to_body(dCL, dCD, alpha)
-        output.SetFromVector(q_bar_s * np.array(
+        dCX, dCZ = lift_drag_to_body(dCL, dCD, cond.alpha)
+        output.SetFromVector(self._model.dynamic_pressure_area(cond.airspeed) * np.array(
             [dCX, dCY, dCZ, prm.b * dCl, prm.c * dCm, prm.b * dCn]))

@@ -115,6 +115,26 @@ class FixedWingModel:
         """Propeller thrust [N] and reaction torque [N m] of the params' propulsion model."""
         return self.params.propulsion.thrust_torque(airspeed, throttle, self.params.rho)
 
+    def dynamic_pressure_area(self, airspeed):
+        """Dynamic pressure times wing area, qbar S = rho Va^2 S / 2 [N]."""
+        return 0.5 * self.params.rho * airspeed * airspeed * self.params.S
+
+    def thrust_coefficient(self, thrust, airspeed):
+        """T / (qbar S) [-] (qbar S floored at 1e-9 N)."""
+        return thrust / smax(self.dynamic_pressure_area(airspeed), 1e-9)
+
+    def aero_condition(self, air_data, omega, controls) -> AeroCondition:
+        """The aerodynamic condition at air data [Va (m/s), alpha, beta (rad)], body rates
+        [rad/s] and controls (saturated; thrust coefficient from the propulsion model)."""
+        airspeed = air_data[0]
+        elevator, aileron, rudder, throttle = self.saturate(controls)
+        thrust = self.thrust(airspeed, throttle)[0] if self.propulsion else 0.0 * airspeed
+        return AeroCondition(
+            airspeed=airspeed, alpha=air_data[1], beta=air_data[2], p=omega[0], q=omega[1],
+            r=omega[2], elevator=elevator, aileron=aileron, rudder=rudder,
+            thrust_coefficient=self.thrust_coefficient(thrust, airspeed),
+        )
+
     def angular_acceleration(self, omega, moment) -> list:
         """Body angular acceleration [rad/s^2] from J w_dot = M - w x J w (Gamma form)."""
         g1, g2, g3, g4, g5, g6, g7, g8 = self._gamma
@@ -184,12 +204,12 @@ class FixedWingModel:
         # Gravity per unit mass in body axes: g R^T e_down = g * (third row of R) (S0 eq. 3.20).
         gravity_body = (g * R[2][0], g * R[2][1], g * R[2][2])
         coefficients = [0.0 * u] * 6
-        q_bar_s = 0.5 * prm.rho * airspeed * airspeed * prm.S
+        q_bar_s = self.dynamic_pressure_area(airspeed)
         if self.aerodynamics:
             cond = AeroCondition(
                 airspeed=airspeed, alpha=alpha, beta=beta, p=omega[0], q=omega[1], r=omega[2],
                 elevator=elevator, aileron=aileron, rudder=rudder,
-                thrust_coefficient=thrust / smax(q_bar_s, 1e-9),
+                thrust_coefficient=self.thrust_coefficient(thrust, airspeed),
             )
             model = self.coefficient_model
             CL, CD, CY, Cl, Cm, Cn = model.evaluate(cond, prm.b, prm.c)

@@ -1,5 +1,9 @@
 """RecursiveIdentifier: on-line identification of a model linear in its parameters.
 
+:class:`AeroRegressors` turns the aircraft's air data, rates, controls and body
+coefficients into the regressor row and observation of one coefficient of the
+aircraft's coefficient model, so the identifier can run inside a flight diagram.
+
 The system samples a regressor row x (the terms of a coefficient model such as
 1, alpha, q_n, delta_e) and an observation z (the measured coefficient) every ``period`` seconds
 and updates a recursive estimator of ``identification.recursive``: recursive PCA-GTLS
@@ -17,8 +21,17 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from drake_uav.identification.recursive import RecursiveOLS, RecursiveTLS, VariableForgetting
+from drake_uav.systems.aerodynamics import (
+    COEFFICIENTS,
+    AeroCondition,
+    CoefficientModel,
+    body_to_lift_drag,
+    regressor_matrix,
+)
+from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams"]
+__all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams", "AeroRegressors"]
 
 
 @dataclass(frozen=True)
@@ -172,3 +185,56 @@ class RecursiveIdentifier(LeafSystem):
 
     def _calc_forgetting(self, context, output) -> None:
         output.SetFromVector([self._load(context).forgetting_factor])
+
+
+class AeroRegressors(LeafSystem):
+    """Regressor row and observed value of one aerodynamic coefficient (direct feedthrough).
+
+    ===================  ====  ==============================================================
+    port                 size  meaning [units]
+    ===================  ====  ==============================================================
+    air_data             3     input: Va [m/s], alpha, beta [rad]
+    state                13    input: plant state (body rates p, q, r [rad/s] are used)
+    controls             4     input: elevator, aileron, rudder [rad], throttle [0..1]
+    aero_coefficients    6     input: body-axis C_X, C_Y, C_Z, C_l, C_m, C_n [-]
+    regressors           n     output: the signals of ``names`` (``regressor_matrix``) [-]
+    observation          1     output: the coefficient (C_L, C_D from C_X, C_Z and alpha) [-]
+    ===================  ====  ==============================================================
+
+    ``names`` defaults to the terms of ``coefficient`` in the aircraft's
+    coefficient model. The condition is :meth:`FixedWingModel.aero_condition`
+    (controls saturated, thrust coefficient from the propulsion model), as in
+    the plant.
+    """
+
+    def __init__(self, aircraft: FixedWingParams, coefficient: str,
+                 names: tuple[str, ...] | None = None):
+        super().__init__()
+        if coefficient not in COEFFICIENTS:
+            raise ValueError(f"coefficient: unknown {coefficient!r}; use one of {COEFFICIENTS}")
+        self.names = tuple(CoefficientModel(aircraft.derivatives).term_names(coefficient)
+                           if names is None else names)
+        regressor_matrix(self.names, AeroCondition(25.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                         aircraft.b, aircraft.c)  # raises ValueError for an unknown name
+        self.coefficient = coefficient
+        self._aircraft = aircraft
+        self._model = FixedWingModel(aircraft)
+        self._air = self.DeclareVectorInputPort("air_data", 3)
+        self._state = self.DeclareVectorInputPort("state", 13)
+        self._controls = self.DeclareVectorInputPort("controls", 4)
+        self._coefficients = self.DeclareVectorInputPort("aero_coefficients", 6)
+        self.DeclareVectorOutputPort("regressors", len(self.names), self._calc_regressors)
+        self.DeclareVectorOutputPort("observation", 1, self._calc_observation)
+
+    def _calc_regressors(self, context, output) -> None:
+        cond = self._model.aero_condition(self._air.Eval(context).tolist(),
+                                          self._state.Eval(context)[10:13].tolist(),
+                                          self._controls.Eval(context).tolist())
+        output.SetFromVector(regressor_matrix(self.names, cond, self._aircraft.b,
+                                              self._aircraft.c))
+
+    def _calc_observation(self, context, output) -> None:
+        cx, cy, cz, cl, cm, cn = self._coefficients.Eval(context).tolist()
+        lift, drag = body_to_lift_drag(cx, cz, self._air.Eval(context)[1])
+        values = {"CL": lift, "CD": drag, "CY": cy, "Cl": cl, "Cm": cm, "Cn": cn}
+        output.SetFromVector([values[self.coefficient]])
