@@ -298,6 +298,16 @@ def test_coupling_reads_airspeed_altitude_and_attitude():
     np.testing.assert_allclose(gust, dryden_gust(z, a, scales.sigmas), rtol=1e-12)
 
 
+def test_diverged_plant_state_is_reported_not_divided_by():
+    dryden = DrydenFilter(DrydenParams("light"))
+    context = dryden.CreateDefaultContext()
+    dryden.GetInputPort("noise").FixValue(context, np.zeros(6))
+    state = np.concatenate([[0.0, 0.0, -100.0], [1.0, 0, 0, 0], [np.inf, 0.0, 0.0], np.zeros(3)])
+    dryden.GetInputPort("plant_state").FixValue(context, state)
+    with pytest.raises(RuntimeError, match="plant_state.*diverged"):
+        dryden.EvalUniquePeriodicDiscreteUpdate(context)
+
+
 def test_unconnected_state_with_free_airspeed_is_an_error():
     dryden = DrydenFilter(DrydenParams("light"))
     context = dryden.CreateDefaultContext()

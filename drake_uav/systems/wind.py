@@ -429,6 +429,11 @@ class DrydenFilter(LeafSystem):
                 v = (s[7:10] - rot.T @ self._steady if self._has_steady else s[7:10]).tolist()
                 airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
             altitude = -float(s[2]) if p.altitude is None else p.altitude
+            if not (math.isfinite(airspeed) and math.isfinite(altitude)):
+                raise RuntimeError(
+                    f"DrydenFilter: input 'plant_state' gives airspeed {airspeed} m/s and "
+                    f"altitude {altitude} m at t = {context.get_time():.3f} s; the aircraft "
+                    "state is no longer finite (the simulation diverged)")
             coefficients = self._coefficients(airspeed, altitude)
         started = x[6] > 0
         dt = p.update_period
