@@ -108,7 +108,9 @@ class EkfModel:
     wrap at +-pi. Inputs are samples of continuous signals (held at the mean
     of the two samples around a step) except ``held_inputs`` (commands held
     over the step; their current value is the one in effect during the step
-    that ends at the sample).
+    that ends at the sample). ``smoothed_inputs`` are replaced by
+    :meth:`smooth_inputs` before the filter uses them (the offline runs and the
+    LeafSystems both do).
     """
 
     state_names: tuple[str, ...] = ()
@@ -120,6 +122,7 @@ class EkfModel:
     angle_states: tuple[int, ...] = ()
     angle_measurements: tuple[int, ...] = ()
     held_inputs: tuple[int, ...] = ()
+    smoothed_inputs: tuple[int, ...] = ()
 
     def dynamics(self, x, u, w):
         """State derivative (scalar-generic)."""
@@ -131,6 +134,13 @@ class EkfModel:
 
     def initial_state(self, u: np.ndarray, y: np.ndarray, available: np.ndarray) -> np.ndarray:
         """First state estimate from the first input and measurement samples."""
+        raise NotImplementedError
+
+    def smooth_inputs(self, previous: np.ndarray, u: np.ndarray, dt) -> np.ndarray:
+        """Input vector the filter uses at a sample (``(n_inputs,)`` or ``(B, n_inputs)``):
+        the sample ``u`` with its ``smoothed_inputs`` entries smoothed from ``previous``
+        (the vector used ``dt`` [s] earlier). Only called when ``smoothed_inputs`` is
+        not empty."""
         raise NotImplementedError
 
     @property
@@ -313,14 +323,20 @@ class ExtendedKalmanFilter:
         (commands) take their current value."""
         delta = np.subtract(u, u_previous)
         if self._angle_inputs is not None:
-            delta[..., self._angle_inputs] = wrap_angle(delta[..., self._angle_inputs])
+            angles = delta[..., self._angle_inputs]
+            angles += math.pi  # wrap_angle in place
+            angles %= 2.0 * math.pi
+            angles -= math.pi
+            delta[..., self._angle_inputs] = angles
         if self._held is not None:
             delta[..., self._held] *= 2.0
-        return u_previous + 0.5 * delta
+        delta *= 0.5
+        delta += u_previous
+        return delta
 
     def _noise_scale(self, dt):
         """Column scale of ``[B | G]``: ``sqrt(1/2) [sigma_u dt, sqrt(Qc dt)]``."""
-        if np.ndim(dt) == 0:
+        if not isinstance(dt, np.ndarray):
             if dt != self._process_scale_dt:
                 self._process_scale_dt = dt
                 self._process_scale = math.sqrt(0.5) * np.concatenate(
@@ -521,7 +537,8 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
     Args:
         time: sample times [s] (N), strictly increasing.
         inputs: ([B,] N, n_inputs); a NaN entry is replaced by the previous
-            sample of that input and counted.
+            value of that input and counted. The model's ``smoothed_inputs`` are
+            smoothed here, sample by sample, as in the LeafSystems.
         measurements: ([B,] N, n_measurements); NaN samples are skipped and
             counted (where ``available`` flagged a sample).
         available: same shape, bool, True where a new sample exists (multi-rate
@@ -550,8 +567,17 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
     nan_inputs = bad_u.sum(axis=1)
     if bad_u[:, 0].any():
         raise ValueError("run_filter: the first input sample must be finite")
-    for k in np.flatnonzero(bad_u.any(axis=(0, 2))):
-        U[:, k] = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
+    if model.smoothed_inputs:
+        # Sample by sample, as the LeafSystem: a NaN input takes the previous value used.
+        for k in range(1, n):
+            row = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
+            if batch == 1:
+                U[0, k] = model.smooth_inputs(U[0, k - 1], row[0], time[k] - time[k - 1])
+            else:
+                U[:, k] = model.smooth_inputs(U[:, k - 1], row, time[k] - time[k - 1])
+    else:
+        for k in np.flatnonzero(bad_u.any(axis=(0, 2))):
+            U[:, k] = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
     if x0 is None:
         X = np.array([model.initial_state(U[b, 0], Y[b, 0], avail[b, 0]) for b in range(batch)])
         if not np.all(np.isfinite(X)):

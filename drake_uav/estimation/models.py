@@ -27,13 +27,14 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.math import sqrt
+from pydrake.math import atan2, cos, sin, sqrt
 
 from drake_uav.compiled import CompiledFunction
 from drake_uav.estimation.ekf import EkfModel, EkfNoise
 from drake_uav.identification.isolation import differentiate
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.rotations import euler_rates, euler_to_quat, euler_to_rotmat
+from drake_uav.scalar import as_list
 from drake_uav.systems.aerodynamics import (
     COEFFICIENTS,
     AeroCondition,
@@ -45,12 +46,18 @@ from drake_uav.systems.aerodynamics import (
 )
 from drake_uav.systems.fixed_wing import FixedWingModel
 from drake_uav.systems.sensors import GpsParams, SensorSuiteParams
+from drake_uav.systems.wind import dryden_scales
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
     "DEFAULT_GPS_LATENCY",
     "MIN_START_AIRSPEED",
+    "ATTITUDE_TIME_CONSTANT",
+    "smoothed_attitude",
+    "smoothed_attitude_std",
     "WIND_PSD",
+    "TURBULENT_DERIVATIVE_WALK",
+    "gust_rate_psd",
     "sensor_std",
     "FilterData",
     "is_new_sample",
@@ -87,6 +94,117 @@ MIN_START_AIRSPEED = 3.0
 WIND_PSD = {"wind_n": 0.3, "wind_e": 0.3, "wind_d": 0.45}
 """Wind random-walk density [m^2/s^3] for light low-altitude turbulence: about
 ``3 a sigma^2`` of the Dryden filters (a = Va / L) at 25 m/s and 100 m."""
+
+
+ATTITUDE_TIME_CONSTANT = 0.05
+"""Time constant [s] of the attitude smoothing of the air-data filters: the GPS sample
+period of the default suite, so consecutive GPS samples see nearly independent
+attitude errors (correlation e^-1)."""
+
+
+def smoothed_attitude(z):
+    """One step of the attitude smoothing (scalar-generic): ``z`` = previous smoothed
+    roll, pitch, yaw [rad], body rates over the step [rad/s], attitude sample [rad],
+    gain [-], step [s].
+
+    The previous attitude is carried forward with the Euler-angle rates of the
+    gyro (seed S0 eq. 3.3) and pulled towards the sample by ``gain`` (a
+    complementary filter, time constant ``step / gain``). Angles wrapped to
+    (-pi, pi].
+    """
+    previous, rates = z[0:3], euler_rates(z[0:3], z[3:6])
+    out = []
+    for i in range(3):
+        predicted = previous[i] + z[10] * rates[i]
+        difference = z[6 + i] - predicted
+        angle = predicted + z[9] * atan2(sin(difference), cos(difference))
+        out.append(atan2(sin(angle), cos(angle)))
+    return out
+
+
+@functools.cache
+def _attitude_smoother() -> CompiledFunction:
+    return CompiledFunction(smoothed_attitude, (11,), {}, "smoothed_attitude")
+
+
+def smoothed_attitude_std(gyro_std: float, attitude_std: float, dt: float,
+                          time_constant: float) -> float:
+    """Steady-state error std [rad] of :func:`smoothed_attitude` (gain ``dt / time_constant``)
+    on white gyro noise ``gyro_std`` [rad/s] and attitude noise ``attitude_std`` [rad]:
+    ``((1 - K)^2 (gyro_std dt)^2 + K^2 attitude_std^2) / (1 - (1 - K)^2)``."""
+    gain = min(dt / time_constant, 1.0) if time_constant > 0 else 1.0
+    if gain >= 1.0:
+        return attitude_std
+    keep = (1.0 - gain) ** 2
+    return math.sqrt((keep * (gyro_std * dt) ** 2 + gain**2 * attitude_std**2) / (1.0 - keep))
+
+
+class _SmoothedAttitude:
+    """Attitude inputs smoothed with the gyro inputs (:func:`smoothed_attitude`).
+
+    The GPS rows see the attitude through ``R(euler)``: the raw samples' noise
+    (0.75 deg at 25 m/s: 0.33 m/s across the air velocity) would make a GPS
+    spike of 20 receiver sigmas only 3 innovation sigmas. Smoothed, the error
+    seen by ``h`` is :func:`smoothed_attitude_std`; its low-frequency part, which
+    drives the prediction, is still that of the samples (``input_std``).
+    """
+
+    _rates: slice
+    _angles: slice
+
+    def _init_smoothing(self, time_constant: float) -> None:
+        if not (math.isfinite(time_constant) and time_constant >= 0):
+            raise ValueError(f"attitude_time_constant must be >= 0, got {time_constant}")
+        self.attitude_time_constant = time_constant
+        self.smoothed_inputs = tuple(range(self._angles.start, self._angles.stop)) if (
+            time_constant > 0) else ()
+
+    def smooth_inputs(self, previous, u, dt):
+        gain = min(dt / self.attitude_time_constant, 1.0)
+        rates, angles = self._rates, self._angles
+        out = np.array(u, float)
+        if out.ndim == 1:
+            p, q = previous.tolist(), out.tolist()
+            z = (p[angles] + [0.5 * (a + b) for a, b in zip(p[rates], q[rates], strict=True)]
+                 + q[angles] + [gain, dt])
+            out[angles] = _attitude_smoother().value(z)
+        else:
+            z = np.concatenate([previous[:, angles], 0.5 * (previous[:, rates] + out[:, rates]),
+                                out[:, angles], np.broadcast_to([gain, dt], (len(out), 2))],
+                               axis=1)
+            out[:, angles] = _attitude_smoother().batch_value(z)
+        return out
+
+    def _attitude_noise(self, std: dict[str, float], period: float) -> dict[str, float]:
+        """``measurement_input_std`` of the smoothed attitude (empty without smoothing)."""
+        if not self.smoothed_inputs:
+            return {}
+        gyro = max(std["p"], std["q"], std["r"])
+        return {n: smoothed_attitude_std(gyro, std[n], period, self.attitude_time_constant)
+                for n in _ATTITUDE}
+
+
+TURBULENT_DERIVATIVE_WALK = 1e-5
+"""Random-walk density of the derivatives of the parameter filter in turbulence, as a
+fraction of their initial variance per second [1/s]. The white gust rates are an
+approximation of the coloured Dryden gusts, and the controls of a stabilised flight
+react to the gusts: with constant derivatives the joint filter's standard deviations
+shrink below its remaining bias (up to 3.6 sigma on the roll-moment derivatives over
+300 s of light turbulence); this walk keeps the filter's memory finite."""
+
+
+def gust_rate_psd(level: str, airspeed: float, altitude: float) -> tuple[float, float, float]:
+    """Density [m^2/s^3] of the Dryden gust rates (u, v, w) above the break frequencies.
+
+    The spectra of ``s H(s)`` for the filters of seed S0 eq. 2.11 level off at
+    ``2 sigma_u^2 a_u`` (first order) and ``3 sigma^2 a`` (second order), with
+    ``a = airspeed / L``; MIL-F-8785C scales at ``altitude`` [m].
+    """
+    scales = dryden_scales(level, altitude)
+    a = airspeed / scales.lengths
+    sigma = scales.sigmas
+    return (float(2.0 * sigma[0] ** 2 * a[0]), float(3.0 * sigma[1] ** 2 * a[1]),
+            float(3.0 * sigma[2] ** 2 * a[2]))
 
 
 def sensor_std(sensors: SensorSuiteParams | None = None) -> dict[str, float]:
@@ -167,7 +285,7 @@ def _start_values(y: np.ndarray, available: np.ndarray, gps_idx: Sequence[int], 
     return gps, airspeed, vane
 
 
-class AirDataModel(EkfModel):
+class AirDataModel(_SmoothedAttitude, EkfModel):
     """Model-free air-data and wind filter model (seed S0 sec. 5.4.3).
 
     ===========  ============================================================  =========
@@ -183,7 +301,8 @@ class AirDataModel(EkfModel):
 
     Dynamics (seed eq. 5.21, corrected, plus the wind-change term):
     ``v_r_dot = a + g_B - omega x v_r - R^T w``, ``W_dot = w``. Measurements:
-    eq. 5.26-5.28 (corrected).
+    eq. 5.26-5.28 (corrected). The attitude inputs are smoothed with the gyro
+    (time constant ``attitude_time_constant`` [s], 0: raw samples).
     """
 
     state_names = ("u_r", "v_r", "w_r", "W_N", "W_E", "W_D")
@@ -193,9 +312,13 @@ class AirDataModel(EkfModel):
     groups = {"gps_velocity": (0, 1, 2), "pitot": (3,), "vanes": (4, 5)}
     angle_inputs = (6, 7, 8)
 
-    def __init__(self, params: FixedWingParams):
+    _rates, _angles = slice(3, 6), slice(6, 9)
+
+    def __init__(self, params: FixedWingParams,
+                 attitude_time_constant: float = ATTITUDE_TIME_CONSTANT):
         self.rho = params.rho
         self.gravity = params.gravity
+        self._init_smoothing(attitude_time_constant)
 
     def dynamics(self, x, u, w):
         R = euler_to_rotmat(u[6:9])
@@ -222,16 +345,19 @@ class AirDataModel(EkfModel):
         v_r, wind = _wind_triangle_start(R, gps, airspeed, vanes)
         return np.concatenate([v_r, wind])
 
-    def default_noise(self, sensors: SensorSuiteParams | None = None) -> EkfNoise:
-        """Noise of ``sensors`` (default Table 7), :data:`WIND_PSD`, and a loose start
-        (2 m/s on the air-relative velocity, 3 m/s horizontal / 1 m/s vertical wind)."""
+    def default_noise(self, sensors: SensorSuiteParams | None = None,
+                      period: float = 0.01) -> EkfNoise:
+        """Noise of ``sensors`` (default Table 7), :data:`WIND_PSD`, the smoothed attitude
+        at the update ``period`` [s], and a loose start (2 m/s on the air-relative
+        velocity, 3 m/s horizontal / 1 m/s vertical wind)."""
         std = sensor_std(sensors)
         return EkfNoise(
             process_psd=dict(WIND_PSD),
             input_std={n: std[n] for n in self.input_names},
             measurement_std={n: std[n] for n in self.measurement_names},
             initial_std={"u_r": 2.0, "v_r": 2.0, "w_r": 2.0, "W_N": 3.0, "W_E": 3.0,
-                         "W_D": 1.0})
+                         "W_D": 1.0},
+            measurement_input_std=self._attitude_noise(std, period))
 
     def log_data(self, log: FlightLog, gps_latency: float = DEFAULT_GPS_LATENCY) -> FilterData:
         """Filter arrays of a flight log (truth from its air-data and wind channels)."""
@@ -243,7 +369,7 @@ class AirDataModel(EkfModel):
         return FilterData(reader.time, reader.inputs(self.input_names), y, fresh, truth)
 
 
-class ModelBasedAirDataModel(EkfModel):
+class ModelBasedAirDataModel(_SmoothedAttitude, EkfModel):
     """Model-based air-data and wind filter model (seed S0 sec. 5.4.5).
 
     ===========  ============================================================  =========
@@ -263,7 +389,8 @@ class ModelBasedAirDataModel(EkfModel):
     one) at the estimated air-relative velocity: seed eq. 5.31 with the
     corrected thrust sign, written as the body-axis equations followed by
     :func:`air_data_rates`. The accelerometer row is the model's specific force
-    (eq. 5.34), the others eq. 5.36-5.39.
+    (eq. 5.34), the others eq. 5.36-5.39. The attitude inputs are smoothed with
+    the gyro (time constant ``attitude_time_constant`` [s], 0: raw samples).
     """
 
     state_names = ("Va", "alpha", "beta", "W_N", "W_E", "W_D")
@@ -275,9 +402,13 @@ class ModelBasedAirDataModel(EkfModel):
     angle_inputs = (3, 4, 5)
     held_inputs = (6, 7, 8, 9)
 
-    def __init__(self, params: FixedWingParams):
+    _rates, _angles = slice(0, 3), slice(3, 6)
+
+    def __init__(self, params: FixedWingParams,
+                 attitude_time_constant: float = ATTITUDE_TIME_CONSTANT):
         self.params = params
         self.aircraft = FixedWingModel(params)
+        self._init_smoothing(attitude_time_constant)
 
     def _evaluate(self, x, u):
         v_r = velocity_from_air_data(x[0], x[1], x[2])
@@ -310,10 +441,11 @@ class ModelBasedAirDataModel(EkfModel):
         return np.array([*air_data_from_velocity(*v_r), *wind], float)
 
     def default_noise(self, sensors: SensorSuiteParams | None = None,
-                      model_error: float = 0.003) -> EkfNoise:
+                      model_error: float = 0.003, period: float = 0.01) -> EkfNoise:
         """Noise of ``sensors`` (default Table 7), :data:`WIND_PSD`, a specific-force
-        model error of density ``model_error`` [m^2/s^3] per axis, and a loose start
-        (2 m/s, 3 deg on the air data, 3 m/s horizontal / 1 m/s vertical wind)."""
+        model error of density ``model_error`` [m^2/s^3] per axis, the smoothed
+        attitude at the update ``period`` [s], and a loose start (2 m/s, 3 deg on
+        the air data, 3 m/s horizontal / 1 m/s vertical wind)."""
         std = sensor_std(sensors)
         return EkfNoise(
             process_psd={**WIND_PSD, "force_x": model_error, "force_y": model_error,
@@ -321,7 +453,8 @@ class ModelBasedAirDataModel(EkfModel):
             input_std={n: std[n] for n in self.input_names if n in std},
             measurement_std={n: std[n] for n in self.measurement_names},
             initial_std={"Va": 2.0, "alpha": math.radians(3.0), "beta": math.radians(3.0),
-                         "W_N": 3.0, "W_E": 3.0, "W_D": 1.0})
+                         "W_N": 3.0, "W_E": 3.0, "W_D": 1.0},
+            measurement_input_std=self._attitude_noise(std, period))
 
     def log_data(self, log: FlightLog, gps_latency: float = DEFAULT_GPS_LATENCY) -> FilterData:
         """Filter arrays of a flight log (truth from its air-data and wind channels)."""
@@ -492,17 +625,21 @@ class ParameterModel(EkfModel):
         return np.array(physical + theta, float)
 
     def default_noise(self, sensors: SensorSuiteParams | None = None, airspeed: float = 25.0,
-                      gust_psd: float = 0.0) -> EkfNoise:
-        """Noise of ``sensors`` (default Table 7) and the tuning of the steady-wind case.
+                      turbulence: str | None = None, altitude: float = 100.0) -> EkfNoise:
+        """Noise of ``sensors`` (default Table 7) and the tuning for steady wind or for
+        Dryden ``turbulence`` ("light", "moderate", "severe"; MIL-F-8785C at ``altitude``
+        [m] and ``airspeed`` [m/s]).
 
-        The physical states get a small process noise (1e-6 rad^2/s on angles
-        and air-flow angles, 1e-5 rad^2/s^3 on rates, 1e-3 m^2/s^3 on V), the
-        derivatives none (constant, seed S1); ``gust_psd`` [m^2/s^3] adds a
-        gust density to V and, divided by ``airspeed``^2, to alpha and beta.
+        Steady wind (seed S1): the physical states get a small process noise
+        (1e-6 rad^2/s on angles and air-flow angles, 1e-5 rad^2/s^3 on rates,
+        1e-3 m^2/s^3 on V), the derivatives none (constant). Turbulence adds
+        the gust rates (:func:`gust_rate_psd`) to V and, divided by
+        ``airspeed``^2, the lateral and vertical ones to beta and alpha, and a
+        slow random walk of the derivatives (:data:`TURBULENT_DERIVATIVE_WALK`).
         The pitot's airspeed noise is its dynamic-pressure noise at
-        ``airspeed`` [m/s]. Initial uncertainty: half of each prior derivative
-        (at least 0.05), 1 m/s, 3 deg and 3 deg/s on the physical states.
-        Angular accelerations (when supplied) are trusted to 0.1 rad/s^2.
+        ``airspeed``. Initial uncertainty: half of each prior derivative (at
+        least 0.05), 1 m/s, 3 deg and 3 deg/s on the physical states. Angular
+        accelerations (when supplied) are trusted to 0.1 rad/s^2.
         """
         std = sensor_std(sensors)
         pitot_density = (sensors.pitot.air_density if sensors is not None and sensors.pitot
@@ -510,22 +647,25 @@ class ParameterModel(EkfModel):
         std.update(airspeed=std["pitot"] / (pitot_density * airspeed),
                    alpha=std["alpha_vane"], beta=std["beta_vane"],
                    p_dot=0.1, q_dot=0.1, r_dot=0.1)
-        angle_psd = 1e-6 + gust_psd / airspeed**2
-        physical_psd = {"airspeed": 1e-3 + gust_psd, "alpha": angle_psd, "beta": angle_psd,
-                        "p": 1e-5, "q": 1e-5, "r": 1e-5, "roll": 1e-6, "pitch": 1e-6,
-                        "yaw": 1e-6}
+        gust_u, gust_v, gust_w = (gust_rate_psd(turbulence, airspeed, altitude)
+                                  if turbulence is not None else (0.0, 0.0, 0.0))
+        physical_psd = {"airspeed": 1e-3 + gust_u, "alpha": 1e-6 + gust_w / airspeed**2,
+                        "beta": 1e-6 + gust_v / airspeed**2, "p": 1e-5, "q": 1e-5, "r": 1e-5,
+                        "roll": 1e-6, "pitch": 1e-6, "yaw": 1e-6}
         physical_std = {"airspeed": 1.0, "alpha": math.radians(3.0), "beta": math.radians(3.0),
                         "p": math.radians(3.0), "q": math.radians(3.0), "r": math.radians(3.0),
                         "roll": math.radians(3.0), "pitch": math.radians(3.0),
                         "yaw": math.radians(3.0)}
+        parameter_std = {n: max(0.5 * abs(self.params.derivative(n)), 0.05)
+                         for n in self.parameter_names}
+        walk = TURBULENT_DERIVATIVE_WALK if turbulence is not None else 0.0
         return EkfNoise(
             process_psd={**{n: physical_psd[n] for n in self.physical_names},
-                         **dict.fromkeys(self.parameter_names, 0.0)},
+                         **{n: walk * parameter_std[n] ** 2 for n in self.parameter_names}},
             input_std={n: std[n] for n in self.input_names if n in std},
             measurement_std={n: std[n] for n in self.measurement_names},
             initial_std={**{n: physical_std[n] for n in self.physical_names},
-                         **{n: max(0.5 * abs(self.params.derivative(n)), 0.05)
-                            for n in self.parameter_names}})
+                         **parameter_std})
 
     def log_data(self, log: FlightLog, air_data: np.ndarray | None = None,
                  truth_params: FixedWingParams | None = None,
@@ -616,7 +756,7 @@ def _ned_acceleration_function(gravity: float) -> CompiledFunction:
 def ned_acceleration(specific_force, euler, gravity: float) -> np.ndarray:
     """Ground acceleration NED [m/s^2] of one IMU sample: ``R(euler) a + g e_D``."""
     return _ned_acceleration_function(float(gravity)).value(
-        np.concatenate([specific_force, euler]))
+        as_list(specific_force) + as_list(euler))
 
 
 def gps_latency_correction(time: np.ndarray, specific_force: np.ndarray, euler: np.ndarray,

@@ -127,12 +127,19 @@ class _Slot:
              dt: float) -> None:
         """Advances the filter stored in ``state`` (modified in place) by one period."""
         ekf, sl = self.ekf, self.slices
-        bad_u = ~np.isfinite(u)
-        state[sl["nan_u"]] += bad_u
-        u = np.where(bad_u, state[sl["u_prev"]], u)
-        fresh = is_new_sample(raw, state[sl["raw_prev"]])
-        state[sl["raw_prev"]] = raw
-        state[sl["nan_y"]] += fresh & np.isnan(raw)
+        u_prev = state[sl["u_prev"]]
+        finite_u = np.isfinite(u)
+        if np.count_nonzero(finite_u) < len(u):
+            state[sl["nan_u"]] += ~finite_u
+            u = np.where(finite_u, u, u_prev)
+        raw_prev = state[sl["raw_prev"]]
+        nan_raw = np.isnan(raw)
+        if np.count_nonzero(nan_raw) or np.count_nonzero(np.isnan(raw_prev)):
+            fresh = is_new_sample(raw, raw_prev)
+            state[sl["nan_y"]] += fresh & nan_raw
+        else:
+            fresh = raw != raw_prev
+        raw_prev[:] = raw
         available = fresh & np.isfinite(y)
         if not self.started(state):
             if not np.all(np.isfinite(u)):
@@ -142,13 +149,16 @@ class _Slot:
                 return
             x, P = x0, ekf.initial_covariance
         else:
+            if ekf.model.smoothed_inputs:
+                u = ekf.model.smooth_inputs(u_prev, u, dt)
             x, P = ekf.predict(state[sl["x"]], self.covariance(state),
-                               ekf.midpoint_input(state[sl["u_prev"]], u), dt)
+                               ekf.midpoint_input(u_prev, u), dt)
         result = ekf.update(x, P, u, y, available)
         state[sl["x"]] = result.x
-        state[sl["P"]] = result.P.ravel()
-        state[sl["u_prev"]] = u
-        state[sl["rejected"]] += result.rejected
+        state[sl["P"]] = result.P.reshape(-1)
+        u_prev[:] = u
+        if np.count_nonzero(result.rejected):
+            state[sl["rejected"]] += result.rejected
         state[sl["scalars"]] = (result.nis, result.dof, 1.0)
 
 
@@ -161,21 +171,26 @@ class _GpsDelay:
         # cumulative velocity change (3), previous NED acceleration (3), ring (lag + 1, 3), index
         self.start, self.stop = start, start + 6 + 3 * (self.lag + 1) + 1
 
-    def correction(self, state: np.ndarray, specific_force, euler, dt: float) -> np.ndarray:
-        """Adds this period's velocity change; returns the change over the latency."""
+    def correction(self, state: np.ndarray, specific_force, euler, dt: float) -> list[float]:
+        """Adds this period's velocity change; returns the change over the latency [m/s]."""
         if self.lag == 0:
-            return np.zeros(3)
+            return [0.0, 0.0, 0.0]
         s = state[self.start:self.stop]
-        accel = ned_acceleration(specific_force, euler, self.gravity)
-        index = int(s[-1])
-        ring = s[6:-1].reshape(self.lag + 1, 3)
+        values = s.tolist()  # three-vectors: float arithmetic beats numpy
+        accel = ned_acceleration(specific_force, euler, self.gravity).tolist()
+        index, slots = int(values[-1]), self.lag + 1
+        cumulative = values[0:3]
         if index > 0:
-            s[0:3] += 0.5 * (accel + s[3:6]) * dt
-        s[3:6] = accel
-        ring[index % (self.lag + 1)] = s[0:3]
-        oldest = ring[(index + 1) % (self.lag + 1)] if index >= self.lag else ring[0]
+            cumulative = [c + 0.5 * (a + b) * dt
+                          for c, a, b in zip(cumulative, accel, values[3:6], strict=True)]
+        s[0:6] = cumulative + accel
+        start = 6 + 3 * (index % slots)
+        s[start:start + 3] = cumulative
         s[-1] = index + 1
-        return s[0:3] - oldest
+        if index < self.lag:  # the ring's first entry is the start (zero change)
+            return cumulative
+        oldest = 6 + 3 * ((index + 1) % slots)
+        return [c - o for c, o in zip(cumulative, values[oldest:oldest + 3], strict=True)]
 
 
 class _AirDataSystem(LeafSystem):
@@ -184,7 +199,7 @@ class _AirDataSystem(LeafSystem):
     def __init__(self, params: EkfSystemParams, model, needs_controls: bool):
         super().__init__()
         self.params = params.validate()
-        noise = params.noise or model.default_noise(params.sensors)
+        noise = params.noise or model.default_noise(params.sensors, period=params.period)
         self.ekf = ExtendedKalmanFilter(model, noise, params.gate_probability)
         self._imu = self.DeclareVectorInputPort("imu", 6)
         self._attitude = self.DeclareVectorInputPort("attitude", 3)
@@ -215,22 +230,20 @@ class _AirDataSystem(LeafSystem):
     def _optional(self, port, context, size: int) -> np.ndarray:
         return port.Eval(context) if port.HasValue(context) else np.full(size, np.nan)
 
-    def _measurements(self, context, state, imu, attitude) -> tuple[np.ndarray, np.ndarray]:
-        """(raw sensor values, corrected measurements) in the model's order, minus accel."""
-        gps = self._optional(self._gps, context, 6)[3:6]
-        pitot = self._optional(self._pitot, context, 2)[0]
-        vanes = self._optional(self._vanes, context, 2)
-        raw = np.concatenate([gps, [pitot], vanes])
-        shift = self._delay.correction(state, imu[0:3], attitude, self.params.period)
-        return raw, np.concatenate([gps + shift, [pitot], vanes])
-
     def _update(self, context, discrete_state) -> None:
         state = context.get_discrete_state(self._xd).get_value().copy()
         imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
-        raw, y = self._measurements(context, state, imu, attitude)
+        # Sensor values in the model's measurement order (accelerometer first in the
+        # model-based filter); the GPS velocity moved forward by its latency.
+        gps = self._optional(self._gps, context, 6)
+        parts = (gps[3:6], self._optional(self._pitot, context, 2)[:1],
+                 self._optional(self._vanes, context, 2))
+        raw = np.concatenate(((imu[0:3],) + parts) if self._controls is not None else parts)
+        y = raw.copy()
+        first = 3 if self._controls is not None else 0
+        y[first:first + 3] += self._delay.correction(state, imu[0:3], attitude,
+                                                     self.params.period)
         u = self._inputs(context, state, imu, attitude)
-        if self._controls is not None:
-            raw, y = np.concatenate([imu[0:3], raw]), np.concatenate([imu[0:3], y])
         self._slot.step(state, u, raw, y, self.params.period)
         discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
 
@@ -356,7 +369,9 @@ class ParameterEkf(LeafSystem):
 
     Two filters on :class:`ParameterModel` (``axis="longitudinal"`` and
     ``"lateral"``), started from the derivatives of ``params.aircraft`` (the
-    prior model) once the air data are available.
+    prior model) once the air data are available; ``turbulence`` (a Dryden
+    level, e.g. "light") selects the turbulent-air tuning of
+    :meth:`ParameterModel.default_noise`.
 
     ========================  ====  ================================================
     Input port                size  content [unit]
@@ -384,20 +399,28 @@ class ParameterEkf(LeafSystem):
     All outputs depend on the discrete state only.
     """
 
+    # The input ports stacked: air_data, imu, attitude, controls, angular_acceleration.
+    _SIGNALS = ("airspeed", "alpha", "beta", "ax", "ay", "az", "p", "q", "r", "roll", "pitch",
+                "yaw", "elevator", "aileron", "rudder", "throttle", "p_dot", "q_dot", "r_dot")
+
     def __init__(self, params: EkfSystemParams, longitudinal: tuple[str, ...] | None = None,
-                 lateral: tuple[str, ...] | None = None):
+                 lateral: tuple[str, ...] | None = None, turbulence: str | None = None):
         super().__init__()
         self.params = params.validate()
         self.ekfs, self._slots, start = [], [], 0
         for axis, names in (("longitudinal", longitudinal), ("lateral", lateral)):
             model = ParameterModel(params.aircraft, axis, names)
             noise = params.noise if params.noise is not None else model.default_noise(
-                params.sensors)
+                params.sensors, turbulence=turbulence)
             ekf = ExtendedKalmanFilter(model, noise, params.gate_probability)
             self.ekfs.append(ekf)
             self._slots.append(_Slot(ekf, start))
             start = self._slots[-1].stop
         self._held = start
+        # Each filter's inputs and measurements as indices into the stacked ports.
+        self._inputs, self._measurements = (
+            tuple(np.array([self._SIGNALS.index(n) for n in getattr(e.model, names)])
+                  for e in self.ekfs) for names in ("input_names", "measurement_names"))
         self.derivative_names = tuple(n for e in self.ekfs for n in e.model.parameter_names)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._imu = self.DeclareVectorInputPort("imu", 6)
@@ -426,15 +449,11 @@ class ParameterEkf(LeafSystem):
         state[self._held:self._held + 4] = current
         omega_dot = (self._omega_dot.Eval(context) if self._omega_dot.HasValue(context)
                      else np.full(3, np.nan))
-        airspeed, alpha, beta = air
-        ax, ay, az, p, q, r = imu
-        roll, pitch, yaw = attitude
-        longitudinal = (np.array([beta, p, r, roll, *controls]),
-                        np.array([airspeed, alpha, q, pitch, ax, az, omega_dot[1]]))
-        lateral = (np.array([airspeed, alpha, q, pitch, *controls]),
-                   np.array([beta, p, r, roll, yaw, ay, omega_dot[0], omega_dot[2]]))
-        for slot, (u, y) in zip(self._slots, (longitudinal, lateral), strict=True):
-            slot.step(state, u, y, y, self.params.period)
+        signals = np.concatenate((air, imu, attitude, controls, omega_dot))
+        for slot, inputs, measurements in zip(self._slots, self._inputs, self._measurements,
+                                              strict=True):
+            y = signals.take(measurements)
+            slot.step(state, signals.take(inputs), y, y, self.params.period)
         discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
 
     def _value(self, context) -> np.ndarray:
