@@ -10,7 +10,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.diagrams.identification_flight import fly
-from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter
+from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter, wrap_angle
 from drake_uav.estimation.models import (
     AirDataModel,
     ModelBasedAirDataModel,
@@ -18,10 +18,13 @@ from drake_uav.estimation.models import (
     air_data_rates,
     fresh_samples,
     gps_latency_correction,
+    gust_rate_psd,
     is_new_sample,
+    smoothed_attitude,
+    smoothed_attitude_std,
 )
 from drake_uav.optimization.trim import trim
-from drake_uav.rotations import euler_to_quat, euler_to_rotmat
+from drake_uav.rotations import euler_rates, euler_to_quat, euler_to_rotmat
 from drake_uav.systems.aerodynamics import air_data_from_velocity, velocity_from_air_data
 from drake_uav.systems.estimation import (
     AirDataEkf,
@@ -30,6 +33,7 @@ from drake_uav.systems.estimation import (
     ParameterEkf,
 )
 from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.systems.wind import dryden_psd, dryden_scales
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 PARAMS = aerosonde()
@@ -285,3 +289,90 @@ def test_parameter_system_equals_the_offline_runs(log):
                                    rtol=1e-8, atol=1e-10)
         offset += n
     assert isinstance(system.ekfs[0], ExtendedKalmanFilter)
+
+
+def test_attitude_smoothing_reduces_the_noise_the_gps_rows_see(log):
+    """The smoothed attitude's error is the steady state of the complementary filter
+    (formula of smoothed_attitude_std), far below the samples'."""
+    model = AirDataModel(PARAMS)
+    noise = model.default_noise()
+    data = model.log_data(log)
+    smoothed = data.inputs.copy()
+    for k in range(1, len(smoothed)):
+        smoothed[k] = model.smooth_inputs(smoothed[k - 1], data.inputs[k], 0.01)
+    truth = log.stack(["roll", "pitch", "yaw"])
+    keep = data.time > 1.0
+    raw_error = np.std(data.inputs[keep, 6:9] - truth[keep], axis=0)
+    error = np.std(wrap_angle(smoothed[keep, 6:9] - truth[keep]), axis=0)
+    expected = smoothed_attitude_std(noise.input_std["p"], noise.input_std["roll"], 0.01, 0.05)
+    assert noise.measurement_input_std == {"roll": expected, "pitch": expected, "yaw": expected}
+    np.testing.assert_allclose(error, expected, rtol=0.25)
+    assert np.all(error < 0.4 * raw_error)
+    # One step is the Euler-angle kinematics plus the pull towards the sample, wrapped.
+    previous, rates, sample = np.array([0.1, 0.2, 3.1]), np.array([0.1, -0.2, 0.3]), np.array(
+        [0.12, 0.19, -3.13])
+    predicted = previous + 0.01 * np.array(euler_rates(previous, rates), float)
+    expected_step = wrap_angle(predicted + 0.2 * wrap_angle(sample - predicted))
+    step = np.array(smoothed_attitude(np.concatenate([previous, rates, sample, [0.2, 0.01]])),
+                    float)
+    np.testing.assert_allclose(step, expected_step, atol=1e-12)
+    assert AirDataModel(PARAMS, attitude_time_constant=0.0).smoothed_inputs == ()
+    with pytest.raises(ValueError, match="attitude_time_constant"):
+        AirDataModel(PARAMS, attitude_time_constant=-1.0)
+
+
+def test_gust_rate_density_is_the_high_frequency_level_of_the_dryden_spectra():
+    scales = dryden_scales("light", 100.0)
+    omega = np.array([1e3])
+    # One-sided spectra in rad/s of the rates: a white density S reads S / pi.
+    rates = dryden_psd(omega, scales, 25.0)[:, 0] * omega[0] ** 2
+    np.testing.assert_allclose(np.array(gust_rate_psd("light", 25.0, 100.0)) / math.pi, rates,
+                               rtol=1e-3)
+
+
+def _spiked_runs(model, noise, data, start: float):
+    """One filter per measurement channel with a single 20-sigma spike on it (after
+    ``start`` [s]), next to the same spikes' samples dropped instead, and a nominal run."""
+    t = data.time
+    channels = [j for j in range(len(model.measurement_names)) if data.available[:, j].any()]
+    batch = 1 + len(channels)
+    U, Y, A = (np.repeat(a[None], batch, axis=0) for a in (data.inputs, data.measurements,
+                                                           data.available))
+    clean, dropped = Y.copy(), A.copy()
+    spikes = []
+    for b, j in enumerate(channels, start=1):
+        k = int(np.flatnonzero(A[b, :, j] & (t > start + 0.4 * b))[0])
+        name = model.measurement_names[j]
+        Y[b, k, j] += 20.0 * noise.measurement_std[name]
+        group = next(g for g, idx in model.groups.items() if j in idx)
+        dropped[b, k, list(model.groups[group])] = False
+        spikes.append((b, j, k, group))
+    ekf = ExtendedKalmanFilter(model, noise)
+    return ekf, run_filter(ekf, t, U, Y, A), run_filter(ekf, t, U, clean, dropped), spikes
+
+
+@pytest.mark.parametrize("kind", ["model_free", "model_based", "longitudinal", "lateral"])
+def test_a_twenty_sigma_spike_on_any_channel_is_rejected(log, kind):
+    """Every channel of every filter, in light turbulence: a single spike of 20 sensor
+    sigmas is rejected with its group, counted, and the filter carries on exactly as if
+    that sample had been missing."""
+    if kind == "model_free":
+        model, noise = AirDataModel(PARAMS), None
+    elif kind == "model_based":
+        model, noise = ModelBasedAirDataModel(PARAMS), None
+    else:
+        model = ParameterModel(PARAMS, kind)
+        noise = model.default_noise(turbulence="light")
+    noise = noise or model.default_noise()
+    data = model.log_data(log)
+    ekf, spiked, dropped, spikes = _spiked_runs(model, noise, data, start=5.0)
+    gate = math.sqrt(ekf._gate)
+    for b, j, k, group in spikes:
+        name = model.measurement_names[j]
+        size = abs(spiked.innovation[b, k, j]) / math.sqrt(spiked.innovation_var[b, k, j])
+        print(f"\n{kind} 20-sigma spike on {name}: {size:.1f} innovation sigmas (gate "
+              f"{gate:.2f})")
+        assert not spiked.used[b, k, j], name
+        g = ekf.group_names.index(group)
+        assert spiked.rejected[b, g] == spiked.rejected[0, g] + 1, name
+        np.testing.assert_allclose(spiked.state[b], dropped.state[b], rtol=1e-9, atol=1e-12)

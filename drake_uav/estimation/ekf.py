@@ -13,22 +13,27 @@ the trace) as straight-line Python with shared subexpressions. They equal the
 computes those on every call instead.
 
 Time update over a step ``dt``, input held (the mean of the previous and the
-current sample): with ``A = F dt``,
+current sample): with ``A = F dt`` and ``phi1(A) = I + A/2 + A^2/6 + A^3/24``
+(evaluated by Horner's rule),
 
-    x- = x + dt (I + A/2 + A^2/6 + A^3/24) f(x, u),    Phi = I + A + A^2/2 + A^3/6,
+    x- = x + dt phi1(A) f(x, u),    Phi = I + A phi1(A),
     P- = Phi (P + Qd/2) Phi^T + Qd/2,   Qd = G Qc G^T dt + (B dt) Sigma_u (B dt)^T
 
-(exponential integration of the linearised model, Taylor series to third order), ``Qc`` the
-power spectral density of ``w``, ``Sigma_u`` the per-sample covariance of the
-noisy inputs (IMU, attitude), ``F = df/dx``, ``G = df/dw``, ``B = df/du``.
+(exponential integration of the linearised model, Taylor series of ``exp(A)`` to
+fourth order), ``Qc`` the power spectral density of ``w``, ``Sigma_u`` the
+per-sample covariance of the noisy inputs (IMU, attitude), ``F = df/dx``,
+``G = df/dw``, ``B = df/du``. One compiled call gives ``f`` and ``[F | B | G]``;
+``Qd/2 = L L^T`` with the columns of ``[B | G]`` scaled.
 
 Measurement update in Joseph form with the availability mask of seed S0: the
 channels with no new sample at this step, NaN samples, and the sensor groups
-rejected by the innovation gate get zero rows in ``C_k = D_k H_k`` and zero
-innovations, so they contribute nothing. The gate tests each channel's
+rejected by the innovation gate contribute nothing (one filter: the update runs
+on the rows in use, the gain from one Cholesky solve; a batch: zero rows in
+``C_k = D_k H_k`` and zero innovations). The gate tests each channel's
 ``nu_i^2 / S_ii`` against the chi-square(1) quantile and drops the whole group
 of a failing channel. Input noise entering ``h`` (attitude in the GPS rows) is
-added to ``R`` through ``dh/du``. Each update reports its normalised innovation
+added to ``R`` through ``dh/du``, with ``EkfNoise.measurement_input_std`` where
+the model smooths that input. Each update reports its normalised innovation
 squared (NIS) and degrees of freedom.
 
 Everything works on one filter or, with a leading batch axis, on many
