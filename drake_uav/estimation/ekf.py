@@ -236,9 +236,9 @@ class UpdateResult:
     """Channels that entered the update (bool)."""
     rejected: np.ndarray
     """Groups rejected by the innovation gate (bool, one per group)."""
-    innovation: np.ndarray
+    innovation: np.ndarray | None
     """``y - h(x-)`` where a sample was available (NaN elsewhere)."""
-    innovation_var: np.ndarray
+    innovation_var: np.ndarray | None
     """Innovation variance ``S_ii`` where a sample was available (NaN elsewhere)."""
 
 
@@ -363,25 +363,35 @@ class ExtendedKalmanFilter:
         nx = self.n_states
         A = J[..., :nx] * dt
         # phi1(A) = I + A/2 + A^2/6 + A^3/24 (Horner); Phi = I + A phi1(A).
-        phi1 = A @ (A @ (A * (1.0 / 24.0) + self._eye_sixth) + self._eye_half) + self._eye
-        Phi = A @ phi1 + self._eye
+        phi1 = A * (1.0 / 24.0)
+        phi1 += self._eye_sixth
+        phi1 = A @ phi1
+        phi1 += self._eye_half
+        phi1 = A @ phi1
+        phi1 += self._eye
+        Phi = A @ phi1
+        Phi += self._eye
         if x.ndim == 1:
             x_new = x + dt * (phi1 @ f)
         else:
             x_new = x + dt[..., 0] * (phi1 @ f[..., None])[..., 0]
         L = J[..., nx:] * self._noise_scale(dt)
         half = L @ _t(L)
-        P_new = Phi @ (P + half) @ _t(Phi) + half
+        P_new = P + half
+        P_new = Phi @ P_new @ _t(Phi)
+        P_new += half
         P_new += _t(P_new)
         P_new *= 0.5
         return x_new, P_new
 
     def update(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndarray,
-               available: np.ndarray | None = None) -> UpdateResult:
+               available: np.ndarray | None = None, diagnostics: bool = True) -> UpdateResult:
         """Measurement update (Joseph form) with the channels flagged in ``available``.
 
         ``available`` (bool, default all) is the seed's D matrix; NaN samples are
-        never used. Batched inputs (leading axis) give batched results.
+        never used. Batched inputs (leading axis) give batched results. Without
+        ``diagnostics`` (one filter) the result's ``innovation`` and
+        ``innovation_var`` are None.
         """
         yhat, J = self._value_and_jacobian(self.measurement, x, u)
         nu = y - yhat
@@ -391,7 +401,7 @@ class ExtendedKalmanFilter:
         if available is not None:
             mask &= available
         if x.ndim == 1:
-            return self._update_one(x, P, J, nu, mask)
+            return self._update_one(x, P, J, nu, mask, diagnostics)
         return self._update_batch(x, P, J, nu, mask)
 
     def _rows(self, mask: np.ndarray) -> tuple:
@@ -404,12 +414,14 @@ class ExtendedKalmanFilter:
             rows = self._patterns[key] = (used, np.diag(self._r[used]))
         return rows
 
-    def _update_one(self, x, P, J, nu, mask) -> UpdateResult:
+    def _update_one(self, x, P, J, nu, mask, diagnostics: bool) -> UpdateResult:
         """Update of one filter on the rows of the channels in use."""
         used, R_sensor = self._rows(mask)
         rejected = np.zeros(len(self.group_names), bool)
-        innovation = np.where(mask, nu, np.nan)
-        innovation_var = np.full(self.n_measurements, np.nan)
+        innovation = innovation_var = None
+        if diagnostics:
+            innovation = np.where(mask, nu, np.nan)
+            innovation_var = np.full(self.n_measurements, np.nan)
         if not used.size:
             return UpdateResult(x, P, np.nan, 0, mask, rejected, innovation, innovation_var)
         nx = self.n_states
@@ -420,7 +432,8 @@ class ExtendedKalmanFilter:
         PHt = P @ H.T
         S = H @ PHt + R
         S_diag = S.diagonal()
-        innovation_var[used] = S_diag
+        if diagnostics:
+            innovation_var[used] = S_diag
         nu = nu.take(used)
         bad = nu * nu > self._gate * S_diag
         if np.count_nonzero(bad):

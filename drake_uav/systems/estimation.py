@@ -153,7 +153,7 @@ class _Slot:
                 u = ekf.model.smooth_inputs(u_prev, u, dt)
             x, P = ekf.predict(state[sl["x"]], self.covariance(state),
                                ekf.midpoint_input(u_prev, u), dt)
-        result = ekf.update(x, P, u, y, available)
+        result = ekf.update(x, P, u, y, available, diagnostics=False)
         state[sl["x"]] = result.x
         state[sl["P"]] = result.P.reshape(-1)
         u_prev[:] = u
