@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
 from collections.abc import Mapping
 
 import numpy as np
@@ -86,6 +87,9 @@ def _diagonal(M: np.ndarray) -> np.ndarray:
 def _t(M: np.ndarray) -> np.ndarray:
     """Transpose of the last two axes."""
     return M.swapaxes(-1, -2)
+
+
+_transpose = operator.attrgetter("T")
 
 
 def _index(indices: tuple[int, ...]) -> slice | list[int] | None:
@@ -307,6 +311,7 @@ class ExtendedKalmanFilter:
         self._eye = np.eye(nx)
         self._eye_half, self._eye_sixth = 0.5 * self._eye, self._eye / 6.0
         self._patterns: dict[bytes, tuple] = {}
+        self._nan = np.full(ny, np.nan)
 
     # -------------------------------------------------------------- pieces
     def _value_and_jacobian(self, function: CompiledFunction, *args):
@@ -360,27 +365,29 @@ class ExtendedKalmanFilter:
             w0 = np.broadcast_to(self._w0, (len(x), len(self._w0)))
             dt = np.broadcast_to(np.asarray(dt, float), (len(x),))[:, None, None]
         f, J = self._value_and_jacobian(self.dynamics, x, u, w0)
+        # One filter: ndarray.dot (a fraction of matmul's call cost on small matrices).
+        dot, t = (np.ndarray.dot, _transpose) if x.ndim == 1 else (np.matmul, _t)
         nx = self.n_states
         A = J[..., :nx] * dt
         # phi1(A) = I + A/2 + A^2/6 + A^3/24 (Horner); Phi = I + A phi1(A).
         phi1 = A * (1.0 / 24.0)
         phi1 += self._eye_sixth
-        phi1 = A @ phi1
+        phi1 = dot(A, phi1)
         phi1 += self._eye_half
-        phi1 = A @ phi1
+        phi1 = dot(A, phi1)
         phi1 += self._eye
-        Phi = A @ phi1
+        Phi = dot(A, phi1)
         Phi += self._eye
         if x.ndim == 1:
-            x_new = x + dt * (phi1 @ f)
+            x_new = x + dt * phi1.dot(f)
         else:
             x_new = x + dt[..., 0] * (phi1 @ f[..., None])[..., 0]
         L = J[..., nx:] * self._noise_scale(dt)
-        half = L @ _t(L)
+        half = dot(L, t(L))
         P_new = P + half
-        P_new = Phi @ P_new @ _t(Phi)
+        P_new = dot(dot(Phi, P_new), t(Phi))
         P_new += half
-        P_new += _t(P_new)
+        P_new += t(P_new)
         P_new *= 0.5
         return x_new, P_new
 
@@ -405,36 +412,41 @@ class ExtendedKalmanFilter:
         return self._update_batch(x, P, J, nu, mask)
 
     def _rows(self, mask: np.ndarray) -> tuple:
-        """(used channels, their sensor-noise covariance) of an availability pattern
-        (cached: a flight repeats few patterns)."""
+        """(used channels, unused channels, their sensor-noise covariance) of an
+        availability pattern (cached: a flight repeats few patterns)."""
         key = mask.tobytes()
         rows = self._patterns.get(key)
         if rows is None:
             used = mask.nonzero()[0]
-            rows = self._patterns[key] = (used, np.diag(self._r[used]))
+            rows = self._patterns[key] = (used, (~mask).nonzero()[0], np.diag(self._r[used]))
         return rows
 
     def _update_one(self, x, P, J, nu, mask, diagnostics: bool) -> UpdateResult:
         """Update of one filter on the rows of the channels in use."""
-        used, R_sensor = self._rows(mask)
+        used, unused, R_sensor = self._rows(mask)
         rejected = np.zeros(len(self.group_names), bool)
         innovation = innovation_var = None
         if diagnostics:
-            innovation = np.where(mask, nu, np.nan)
-            innovation_var = np.full(self.n_measurements, np.nan)
+            innovation = nu.copy()
+            innovation[unused] = np.nan
+            innovation_var = self._nan.copy()
         if not used.size:
             return UpdateResult(x, P, np.nan, 0, mask, rejected, innovation, innovation_var)
         nx = self.n_states
-        J = J.take(used, axis=0)
+        if unused.size:
+            J = J.take(used, axis=0)
         H = J[:, :nx]
         D = J[:, nx:] * self._h_input_std
-        R = D @ D.T + R_sensor
-        PHt = P @ H.T
-        S = H @ PHt + R
+        R = D.dot(D.T)
+        R += R_sensor
+        PHt = P.dot(H.T)
+        S = H.dot(PHt)
+        S += R
         S_diag = S.diagonal()
         if diagnostics:
             innovation_var[used] = S_diag
-        nu = nu.take(used)
+        if unused.size:
+            nu = nu.take(used)
         bad = nu * nu > self._gate * S_diag
         if np.count_nonzero(bad):
             rejected[self._group_of[used[bad]]] = True
@@ -452,11 +464,12 @@ class ExtendedKalmanFilter:
             raise np.linalg.LinAlgError("EKF update: innovation covariance not positive "
                                         "definite")
         K = solution[:, :nx].T
-        A = self._eye - K @ H
-        P_new = A @ P @ A.T + K @ R @ K.T
+        A = self._eye - K.dot(H)
+        P_new = A.dot(P).dot(A.T)
+        P_new += K.dot(R).dot(K.T)
         P_new += P_new.T
         P_new *= 0.5
-        return UpdateResult(x + K @ nu, P_new, nu @ solution[:, nx], len(used), mask,
+        return UpdateResult(x + K.dot(nu), P_new, nu.dot(solution[:, nx]), len(used), mask,
                             rejected, innovation, innovation_var)
 
     def _update_batch(self, x, P, J, nu, mask) -> UpdateResult:
