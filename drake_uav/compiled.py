@@ -417,6 +417,12 @@ class CompiledFunction:
         """``fn(*args)`` for one sample of float arguments (compiled, no derivatives)."""
         return self._program(False, False)(*[as_list(a) for a in args])
 
+    @property
+    def program(self) -> Callable:
+        """The compiled value code itself: :meth:`value` for arguments that are already
+        Python lists of floats (no conversion)."""
+        return self._program(False, False)
+
     def batch_value(self, *args) -> np.ndarray:
         """:meth:`value` for (B, size) arguments, run once on numpy arrays: (B, m)."""
         return self._program(True, False)(*[np.asarray(a, float) for a in args])

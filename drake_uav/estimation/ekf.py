@@ -337,7 +337,8 @@ class ExtendedKalmanFilter:
             angles += math.pi  # wrap_angle in place
             angles %= 2.0 * math.pi
             angles -= math.pi
-            delta[..., self._angle_inputs] = angles
+            if not isinstance(self._angle_inputs, slice):  # a copy, not a view
+                delta[..., self._angle_inputs] = angles
         if self._held is not None:
             delta[..., self._held] *= 2.0
         delta *= 0.5

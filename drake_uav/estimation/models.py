@@ -167,7 +167,7 @@ class _SmoothedAttitude:
             p, q = previous.tolist(), out.tolist()
             z = (p[angles] + [0.5 * (a + b) for a, b in zip(p[rates], q[rates], strict=True)]
                  + q[angles] + [gain, dt])
-            out[angles] = _attitude_smoother().value(z)
+            out[angles] = _attitude_smoother().program(z)
         else:
             z = np.concatenate([previous[:, angles], 0.5 * (previous[:, rates] + out[:, rates]),
                                 out[:, angles], np.broadcast_to([gain, dt], (len(out), 2))],
