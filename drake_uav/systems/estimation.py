@@ -14,6 +14,9 @@ read it. The sensor ports take the held outputs of
   replaced by the previous value and counted;
 * the GPS velocity is moved forward by the receiver latency with the IMU
   (strapdown integration over the latency window);
+* inputs the model smooths (the air-data filters' attitude, with the gyro) are
+  smoothed sample by sample, as :func:`~drake_uav.estimation.ekf.run_filter`
+  does offline;
 * the filter starts once the sensors it needs for the wind triangle (seed S0
   eq. 5.24-5.25) have delivered a sample.
 
@@ -90,8 +93,8 @@ class EkfSystemParams:
 class _Slot:
     """One filter's bookkeeping packed into a slice of the discrete state.
 
-    Layout: x (n), P (n*n), u_prev (m_u), raw_prev (m_y, last sensor values),
-    rejected (groups), nan_y (m_y), nan_u (m_u), [nis, dof, started].
+    Layout: x (n), P (n*n), u_prev (m_u, last input used), raw_prev (m_y, last sensor
+    values), rejected (groups), nan_y (m_y), nan_u (m_u), [nis, dof, started].
     """
 
     def __init__(self, ekf: ExtendedKalmanFilter, start: int):
