@@ -234,7 +234,8 @@ class _AirDataSystem(LeafSystem):
         return port.Eval(context) if port.HasValue(context) else np.full(size, np.nan)
 
     def _update(self, context, discrete_state) -> None:
-        state = context.get_discrete_state(self._xd).get_value().copy()
+        # Drake hands the update its current values: advance them in place.
+        state = discrete_state.get_mutable_vector(self._xd).get_mutable_value()
         imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
         # Sensor values in the model's measurement order (accelerometer first in the
         # model-based filter); the GPS velocity moved forward by its latency.
@@ -248,7 +249,6 @@ class _AirDataSystem(LeafSystem):
                                                      self.params.period)
         u = self._inputs(context, state, imu, attitude)
         self._slot.step(state, u, raw, y, self.params.period)
-        discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
 
     def _held_controls(self, context, state) -> np.ndarray:
         current = self._controls.Eval(context)
@@ -443,7 +443,8 @@ class ParameterEkf(LeafSystem):
         self.DeclareVectorOutputPort("nis", 4, self._calc_nis, prerequisites_of_calc=deps)
 
     def _update(self, context, discrete_state) -> None:
-        state = context.get_discrete_state(self._xd).get_value().copy()
+        # Drake hands the update its current values: advance them in place.
+        state = discrete_state.get_mutable_vector(self._xd).get_mutable_value()
         air = self._air.Eval(context)
         imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
         current = self._controls.Eval(context)
@@ -457,7 +458,6 @@ class ParameterEkf(LeafSystem):
                                               strict=True):
             y = signals.take(measurements)
             slot.step(state, signals.take(inputs), y, y, self.params.period)
-        discrete_state.get_mutable_vector(self._xd).SetFromVector(state)
 
     def _value(self, context) -> np.ndarray:
         return context.get_discrete_state(self._xd).get_value()
