@@ -349,6 +349,12 @@ class CompiledFunction:
         self._program(vector=False, with_jacobians=bool(self.wrt))
 
     @property
+    def jacobian_structure(self) -> np.ndarray:
+        """(m, k) bool: the Jacobian entries that are not identically zero."""
+        self._program(False, True)
+        return self._structure
+
+    @property
     def operation_count(self) -> int:
         """Generated statements of the value (and Jacobians, when ``wrt`` names any)."""
         return self._statements[bool(self.wrt)]
@@ -395,6 +401,8 @@ class CompiledFunction:
             entries = values + [p.get(j, _ZERO) for p in partials for j in range(k)]
             template = np.array([_constant(e) if _is_literal(e) else 0.0 for e in entries])
             computed = [i for i, e in enumerate(entries) if not _is_literal(e)]
+            self._structure = (np.isin(np.arange(m, m + m * k), computed)
+                               | (template[m:] != 0.0)).reshape(m, k)
             lines.append("    _out = _template.copy()")
             if computed:
                 written = ", ".join(entries[i] for i in computed)

@@ -311,6 +311,8 @@ class ExtendedKalmanFilter:
         self._eye = np.eye(nx)
         self._eye_half, self._eye_sixth = 0.5 * self._eye, self._eye / 6.0
         self._patterns: dict[bytes, tuple] = {}
+        # Measurement rows through which input noise enters (attitude in the GPS rows).
+        self._input_rows = self.measurement.jacobian_structure[:, nx:].any(axis=1)
         self._nan = np.full(ny, np.nan)
 
     # -------------------------------------------------------------- pieces
@@ -413,18 +415,20 @@ class ExtendedKalmanFilter:
         return self._update_batch(x, P, J, nu, mask)
 
     def _rows(self, mask: np.ndarray) -> tuple:
-        """(used channels, unused channels, their sensor-noise covariance) of an
-        availability pattern (cached: a flight repeats few patterns)."""
+        """(used channels, unused channels, their sensor-noise covariance, whether any of
+        them depends on a noisy input) of an availability pattern (cached: a flight
+        repeats few patterns)."""
         key = mask.tobytes()
         rows = self._patterns.get(key)
         if rows is None:
             used = mask.nonzero()[0]
-            rows = self._patterns[key] = (used, (~mask).nonzero()[0], np.diag(self._r[used]))
+            rows = self._patterns[key] = (used, (~mask).nonzero()[0], np.diag(self._r[used]),
+                                          bool(self._input_rows[used].any()))
         return rows
 
     def _update_one(self, x, P, J, nu, mask, diagnostics: bool) -> UpdateResult:
         """Update of one filter on the rows of the channels in use."""
-        used, unused, R_sensor = self._rows(mask)
+        used, unused, R_sensor, input_noise = self._rows(mask)
         rejected = np.zeros(len(self.group_names), bool)
         innovation = innovation_var = None
         if diagnostics:
@@ -437,9 +441,12 @@ class ExtendedKalmanFilter:
         if unused.size:
             J = J.take(used, axis=0)
         H = J[:, :nx]
-        D = J[:, nx:] * self._h_input_std
-        R = D.dot(D.T)
-        R += R_sensor
+        if input_noise:
+            D = J[:, nx:] * self._h_input_std
+            R = D.dot(D.T)
+            R += R_sensor
+        else:
+            R = R_sensor
         PHt = P.dot(H.T)
         S = H.dot(PHt)
         S += R
