@@ -243,3 +243,15 @@ def test_float_plant_matches_the_model_away_from_trim():
                                expected.state_derivative, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(plant.GetOutputPort("specific_force").Eval(context),
                                expected.specific_force, rtol=1e-12, atol=1e-12)
+
+
+def test_compilations_are_shared_only_between_equal_models():
+    params = aerosonde()
+    assert FixedWingModel(params).compiled is FixedWingModel(aerosonde()).compiled
+    heavier = dataclasses.replace(params, mass=params.mass + 1.0)
+    assert FixedWingModel(heavier).compiled is not FixedWingModel(params).compiled
+    assert FixedWingModel(params, gravity=False).compiled is not FixedWingModel(params).compiled
+    x, u = trim(params, 25.0).state, trim(params, 25.0).controls
+    # The heavier aircraft's compiled code has its own mass in it.
+    assert FixedWingModel(heavier).compiled.evaluate(x, u).state_derivative[9] == pytest.approx(
+        FixedWingModel(heavier).evaluate(x, u).state_derivative[9], abs=1e-12)

@@ -275,8 +275,19 @@ class FixedWingModel:
 
     @functools.cached_property
     def compiled(self) -> CompiledFixedWingModel:
-        """:meth:`evaluate` compiled for floats (traced once, on first use)."""
-        return CompiledFixedWingModel(self)
+        """:meth:`evaluate` compiled for floats (traced on first use; models with equal
+        parameters and switches share one compilation)."""
+        key = repr(self)
+        compiled = _COMPILED.pop(key, None) or CompiledFixedWingModel(self)
+        _COMPILED[key] = compiled  # most recently used last
+        while len(_COMPILED) > _COMPILED_KEPT:
+            del _COMPILED[next(iter(_COMPILED))]
+        return compiled
+
+
+_COMPILED: dict[str, CompiledFixedWingModel] = {}
+"""Compiled models by ``repr(FixedWingModel)``, least recently used first."""
+_COMPILED_KEPT = 32
 
 
 # Layout of the flat vector a compiled model returns: FixedWingEvaluation field -> size.
@@ -289,9 +300,8 @@ class CompiledFixedWingModel:
 
     The model is traced once with symbolic inputs (state 13, controls 4, wind
     NED 3, external wrench 6) and written by :class:`~drake_uav.compiled.
-    CompiledFunction`: the same equations, about three times faster per sample
-    than the scalar-generic code, and vectorised over a whole log by
-    :meth:`evaluate_batch`.
+    CompiledFunction`: the same equations, about twice as fast per sample as the
+    scalar-generic code, and vectorised over a whole log by :meth:`evaluate_batch`.
     """
 
     def __init__(self, model: FixedWingModel):
