@@ -372,7 +372,9 @@ class SampledSensors(LeafSystem):
             self._decim * self.base_period
         )
         self._depth = int(self._lag.max()) + 1
-        self._columns = np.arange(self._n)
+        # Flat index into the delay line of each channel's delayed sample, per tick phase.
+        phases = np.arange(self._depth)[:, None]
+        self._delayed_index = ((phases - self._lag) % self._depth) * self._n + np.arange(self._n)
         # Which channels sample at a tick repeats with the lcm of the decimations once
         # every latency has passed: precompute that pattern.
         period = math.lcm(*self._decim.tolist())
@@ -425,7 +427,7 @@ class SampledSensors(LeafSystem):
             line[:] = truth
         else:
             line[tick % self._depth] = truth
-        delayed = line[(tick - self._lag) % self._depth, self._columns]
+        delayed = line.ravel()[self._delayed_index[tick % self._depth]]
         if tick >= self._depth:
             due = self._due_pattern[(tick - self._due_offset) % len(self._due_pattern)]
         else:
@@ -441,7 +443,6 @@ class SampledSensors(LeafSystem):
             q = out[self._airspeed_index - 1]
             out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self.params.pitot.air_density)
         x[self._walk] = walk + np.where(due, self._walk_step * noise[:n], 0.0)
-        x[self._line] = line.ravel()
         x[0] = tick + 1
         discrete_state.get_mutable_vector(self._held_state).SetFromVector(out)
         discrete_state.get_mutable_vector(self._xd).SetFromVector(x)
