@@ -5,9 +5,9 @@ for the core (one filter; a batch of 20 filters in lockstep; the AutoDiffXd back
 reference) and for the LeafSystem's periodic update as the simulator calls it (port
 evaluation, sample bookkeeping, GPS latency, attitude smoothing, predict + update; the
 cost of fixing the input values is measured alone and taken off). Repeated; minimum and
-median. Target: <= 100 us per filter step. Real-time factor: 60 s of plant + Dryden
-wind + sensors + multisine excitation, without and with the AirDataEkf at 100 Hz.
-Target: >= 50x.
+median. Target: <= 100 us per filter step. Real-time factor: 60 s of the identification
+flight (plant, Dryden wind, sensors, safety pilot, multisine excitation, loggers),
+without and with the AirDataEkf at 100 Hz added through ``extend``. Target: >= 50x.
 
 Run: python benchmarks/bench_estimation.py
 """
@@ -15,25 +15,17 @@ Run: python benchmarks/bench_estimation.py
 import time
 
 import numpy as np
-from pydrake.common import RandomGenerator
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
 
-from drake_uav.diagrams.identification_flight import default_excitation, fly
+from drake_uav.diagrams.identification_flight import build_identification_flight, fly
 from drake_uav.estimation.ekf import ExtendedKalmanFilter
 from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
-from drake_uav.optimization.trim import trim
-from drake_uav.rotations import quat_to_rotmat
 from drake_uav.systems.estimation import (
     AirDataEkf,
     EkfSystemParams,
     ModelBasedAirDataEkf,
     ParameterEkf,
 )
-from drake_uav.systems.excitation import ExcitationSource
-from drake_uav.systems.fixed_wing import FixedWingPlant
-from drake_uav.systems.sensors import SensorSuite, SensorSuiteParams
-from drake_uav.systems.wind import DrydenParams, DrydenWind
+from drake_uav.systems.sensors import SensorSuiteParams
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 STEP_TARGET_US = 100.0
@@ -107,43 +99,26 @@ def sensor_rows(log) -> dict[str, np.ndarray]:
     }
 
 
-def flight_rtf(with_ekf: bool, duration: float = 60.0) -> float:
-    """Real-time factor (CPU) of the flight diagram, optionally with an AirDataEkf."""
+def flight_rtf(with_ekf: bool, duration: float = 60.0, repeats: int = 3) -> float:
+    """Real-time factor (CPU, best of ``repeats``) of the identification flight, optionally
+    with an AirDataEkf on its sensors (added through ``extend``)."""
     params = aerosonde()
-    level = trim(params, 25.0)
-    sensors = SensorSuiteParams.seed_table7(air_density=params.rho)
-    builder = DiagramBuilder()
-    plant = builder.AddSystem(FixedWingPlant(params))
-    wind = builder.AddSystem(DrydenWind(DrydenParams("light", steady_wind_ned=STEADY_WIND)))
-    suite = builder.AddSystem(SensorSuite(sensors))
-    source = builder.AddSystem(ExcitationSource(level.controls,
-                                                default_excitation("multisine", duration)))
-    builder.Connect(source.get_output_port(), plant.GetInputPort("controls"))
-    builder.Connect(wind.GetOutputPort("wind_ned"), plant.GetInputPort("wind_ned"))
-    builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
-    for name in ("state", "euler", "air_data", "specific_force"):
-        builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
-    if with_ekf:
+
+    def add_ekf(builder, ports):
+        sensors = SensorSuiteParams.seed_table7(air_density=params.rho)
         ekf = builder.AddSystem(AirDataEkf(EkfSystemParams(params, sensors)))
         for name in ("imu", "attitude", "gps", "pitot", "vanes"):
-            builder.Connect(suite.GetOutputPort(name), ekf.GetInputPort(name))
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
-    diagram.SetRandomContext(context, RandomGenerator(1))
-    x0 = level.state.copy()
-    x0[7:10] += quat_to_rotmat(x0[3:7]).T @ np.array(STEADY_WIND)
-    plant.set_state(plant.GetMyMutableContextFromRoot(context), x0)
-    simulator.Initialize()
-    start = time.process_time()
-    simulator.AdvanceTo(duration)
-    return duration / (time.process_time() - start)
+            builder.Connect(ports[name], ekf.GetInputPort(name))
 
-
-def fly_rtf(duration: float = 60.0) -> float:
-    start = time.process_time()
-    fly(aerosonde(), "light", steady_wind=STEADY_WIND, duration=duration)
-    return duration / (time.process_time() - start)
+    flight = build_identification_flight(params, "light", steady_wind=STEADY_WIND, seed=1,
+                                         duration=duration,
+                                         extend=add_ekf if with_ekf else None)
+    best = np.inf
+    for _ in range(repeats):
+        start = time.process_time()
+        flight.simulate()
+        best = min(best, time.process_time() - start)
+    return duration / best
 
 
 if __name__ == "__main__":
@@ -186,8 +161,8 @@ if __name__ == "__main__":
         print(f"  {label:26s} {low:6.1f} / {median:6.1f} us per step, {low / count:6.1f} us "
               f"per filter ({low / count / STEP_TARGET_US:4.2f} of the target)")
     without, with_ekf = flight_rtf(False), flight_rtf(True)
-    print(f"flight diagram (plant, wind, sensors, excitation), 60 s: {without:6.1f}x real time")
-    print(f"  with the AirDataEkf at 100 Hz:                     {with_ekf:6.1f}x real time "
+    print(f"identification flight (plant, Dryden, sensors, pilot, excitation, loggers), 60 s: "
+          f"{without:6.1f}x real time")
+    print(f"  with the AirDataEkf at 100 Hz:  {with_ekf:6.1f}x real time "
           f"({with_ekf / RTF_TARGET:4.2f} of the {RTF_TARGET:.0f}x target; EKF share "
           f"{1.0 - with_ekf / without:4.0%} of the run time)")
-    print(f"fly() with its loggers, 60 s: {fly_rtf():6.1f}x real time")
