@@ -129,10 +129,14 @@ class FixedWingModel:
         airspeed = air_data[0]
         elevator, aileron, rudder, throttle = self.saturate(controls)
         thrust = self.thrust(airspeed, throttle)[0] if self.propulsion else 0.0 * airspeed
+        return self._condition(air_data, omega, (elevator, aileron, rudder), thrust)
+
+    def _condition(self, air_data, omega, surfaces, thrust) -> AeroCondition:
+        """AeroCondition of saturated surfaces [rad] and a thrust [N]."""
         return AeroCondition(
-            airspeed=airspeed, alpha=air_data[1], beta=air_data[2], p=omega[0], q=omega[1],
-            r=omega[2], elevator=elevator, aileron=aileron, rudder=rudder,
-            thrust_coefficient=self.thrust_coefficient(thrust, airspeed),
+            airspeed=air_data[0], alpha=air_data[1], beta=air_data[2], p=omega[0], q=omega[1],
+            r=omega[2], elevator=surfaces[0], aileron=surfaces[1], rudder=surfaces[2],
+            thrust_coefficient=self.thrust_coefficient(thrust, air_data[0]),
         )
 
     def angular_acceleration(self, omega, moment) -> list:
@@ -206,11 +210,8 @@ class FixedWingModel:
         coefficients = [0.0 * u] * 6
         q_bar_s = self.dynamic_pressure_area(airspeed)
         if self.aerodynamics:
-            cond = AeroCondition(
-                airspeed=airspeed, alpha=alpha, beta=beta, p=omega[0], q=omega[1], r=omega[2],
-                elevator=elevator, aileron=aileron, rudder=rudder,
-                thrust_coefficient=self.thrust_coefficient(thrust, airspeed),
-            )
+            cond = self._condition((airspeed, alpha, beta), omega, (elevator, aileron, rudder),
+                                   thrust)
             model = self.coefficient_model
             CL, CD, CY, Cl, Cm, Cn = model.evaluate(cond, prm.b, prm.c)
             CX, CZ = lift_drag_to_body(CL, CD, alpha)
