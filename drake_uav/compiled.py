@@ -348,6 +348,23 @@ class CompiledFunction:
         self._statements: dict[bool, int] = {}
         self._program(vector=False, with_jacobians=bool(self.wrt))
 
+    def restricted(self, outputs: Sequence[int], name: str | None = None) -> CompiledFunction:
+        """The same function with only the entries ``outputs`` (indices into its
+        result), from the same trace: the generated code computes just what those
+        entries need. Arguments and ``wrt`` are unchanged."""
+        outputs = [int(i) for i in outputs]
+        if not outputs or not all(0 <= i < self.output_size for i in outputs):
+            raise ValueError(f"outputs: need indices in [0, {self.output_size}), got {outputs}")
+        out = object.__new__(CompiledFunction)
+        out.__dict__.update(self.__dict__)
+        out.fn = _Selection(self.fn, outputs)
+        out.name = name or f"{self.name} {outputs}"
+        out._outputs = [self._outputs[i] for i in outputs]
+        out.output_size = len(outputs)
+        out._programs, out._statements = {}, {}
+        out._program(vector=False, with_jacobians=bool(out.wrt))
+        return out
+
     @property
     def jacobian_structure(self) -> np.ndarray:
         """(m, k) bool: the Jacobian entries that are not identically zero."""
@@ -487,6 +504,18 @@ class CompiledFunction:
             blocks.append(gradient[:, k:k + len(idx)])
             k += len(idx)
         return value, blocks
+
+
+class _Selection:
+    """``fn`` with only some entries of its result (the reference of a restricted
+    :class:`CompiledFunction`)."""
+
+    def __init__(self, fn: Callable, outputs: Sequence[int]):
+        self.fn, self.outputs = fn, tuple(outputs)
+
+    def __call__(self, *args) -> list:
+        result = self.fn(*args)
+        return [result[i] for i in self.outputs]
 
 
 def _float_array(values) -> np.ndarray:

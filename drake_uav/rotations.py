@@ -23,6 +23,9 @@ __all__ = [
     "quat_conjugate",
     "quat_normalize",
     "quat_to_rotmat",
+    "unit_quat_rotation",
+    "rotate",
+    "rotate_back",
     "rotmat_to_quat",
     "euler_to_quat",
     "quat_to_euler",
@@ -84,6 +87,28 @@ def quat_to_rotmat(q) -> np.ndarray:
             [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
         ]
     )
+
+
+def unit_quat_rotation(q) -> tuple:
+    """Rows of the body -> NED rotation of ``q / |q|`` (any nonzero ``q``) as nested
+    tuples: no array is built, so float callers inside simulation loops stay cheap."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    k = 1.0 / (w * w + x * x + y * y + z * z)
+    return (
+        ((w * w + x * x - y * y - z * z) * k, 2 * (x * y - w * z) * k, 2 * (x * z + w * y) * k),
+        (2 * (x * y + w * z) * k, (w * w - x * x + y * y - z * z) * k, 2 * (y * z - w * x) * k),
+        (2 * (x * z - w * y) * k, 2 * (y * z + w * x) * k, (w * w - x * x - y * y + z * z) * k),
+    )
+
+
+def rotate(R, v) -> list:
+    """``R v`` for rows ``R`` (e.g. of :func:`unit_quat_rotation`) and a 3-vector."""
+    return [R[i][0] * v[0] + R[i][1] * v[1] + R[i][2] * v[2] for i in range(3)]
+
+
+def rotate_back(R, v) -> list:
+    """``R^T v`` for rows ``R`` and a 3-vector (NED -> body for a body -> NED ``R``)."""
+    return [R[0][i] * v[0] + R[1][i] * v[1] + R[2][i] * v[2] for i in range(3)]
 
 
 def _is_numeric(value) -> bool:

@@ -245,6 +245,51 @@ def test_float_plant_matches_the_model_away_from_trim():
                                expected.specific_force, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("derivatives", [{}, {"CL_alphadot": 1.5, "Cm_alphadot": -6.0}],
+                         ids=["aerosonde", "with_alpha_dot"])
+def test_every_plant_output_matches_the_model_evaluation(derivatives):
+    """Each output has its own compiled code; all of them agree with one model evaluation,
+    and the generic (AutoDiffXd) plant with the float one."""
+    params = aerosonde()
+    if derivatives:
+        params = dataclasses.replace(params, derivatives={**params.derivatives, **derivatives})
+    plant = FixedWingPlant(params)
+    autodiff = plant.ToAutoDiffXd()
+    x, u, wind, wrench = _random_points(np.random.default_rng(9), 3)
+    for k in range(len(x)):
+        expected = plant.model.evaluate(x[k], u[k], wind[k], wrench[k])
+        # The coefficients never read the wrench (no feedthrough from it).
+        unforced = plant.model.evaluate(x[k], u[k], wind[k])
+        context = _plant_context(plant, x[k], u[k], wind[k], wrench[k])
+        outputs = {"air_data": expected.air_data, "specific_force": expected.specific_force,
+                   "aero_coefficients": unforced.coefficients,
+                   "forces_moments": expected.forces_moments,
+                   "euler": plant.model.euler(x[k]), "state": x[k]}
+        for name, reference in outputs.items():
+            np.testing.assert_allclose(plant.GetOutputPort(name).Eval(context), reference,
+                                       rtol=1e-12, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(plant.EvalTimeDerivatives(context).CopyToVector(),
+                                   expected.state_derivative, rtol=1e-12, atol=1e-12)
+        ad_context = autodiff.CreateDefaultContext()
+        ad_context.SetTimeStateAndParametersFrom(context)
+        for port, value in (("controls", u[k]), ("wind_ned", wind[k]),
+                            ("external_wrench", wrench[k])):
+            autodiff.GetInputPort(port).FixValue(ad_context, value.astype(object))
+        ad_air = autodiff.GetOutputPort("air_data").Eval(ad_context)
+        np.testing.assert_allclose([a.value() for a in ad_air], expected.air_data, rtol=1e-12)
+
+
+def test_a_compiled_field_computes_only_what_it_needs():
+    compiled = FixedWingModel(aerosonde()).compiled
+    full = compiled._function.operation_count
+    air = compiled._function.restricted(range(13, 16)).operation_count
+    assert air < full / 3  # air data need the rotation and the wind triangle only
+    with pytest.raises(ValueError, match="^name:"):
+        compiled.field("thrust")
+    with pytest.raises(ValueError, match="^outputs:"):
+        compiled._function.restricted([40])
+
+
 def test_compilations_are_shared_only_between_equal_models():
     params = aerosonde()
     assert FixedWingModel(params).compiled is FixedWingModel(aerosonde()).compiled

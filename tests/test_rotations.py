@@ -118,3 +118,13 @@ def test_rotmat_to_quat_handles_half_turns(axis):
     rpy[axis] = np.pi if axis != 1 else np.pi / 2 - 1e-9
     R = rot.euler_to_rotmat(rpy)
     np.testing.assert_allclose(rot.quat_to_rotmat(rot.rotmat_to_quat(R)), R, atol=1e-9)
+
+
+def test_unit_quat_rotation_normalises_and_rotates_both_ways():
+    q = np.array([0.9, -0.2, 0.35, 0.1]) * 1.7  # not unit: the rotation of q / |q|
+    rows = rot.unit_quat_rotation(q.tolist())
+    R = rot.quat_to_rotmat(q / np.linalg.norm(q))
+    np.testing.assert_allclose(np.array(rows), R, atol=1e-15)
+    v = [1.0, -2.0, 0.5]
+    np.testing.assert_allclose(rot.rotate(rows, v), R @ v, atol=1e-14)
+    np.testing.assert_allclose(rot.rotate_back(rows, v), R.T @ v, atol=1e-14)

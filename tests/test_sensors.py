@@ -212,4 +212,31 @@ def test_same_seed_same_noise_and_partial_suite():
                                              baro=None))
     names = [imu_only.get_output_port(i).get_name() for i in range(imu_only.num_output_ports())]
     assert names == ["imu", "measurements"]
-    assert imu_only.channel_names == ("imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r")
+
+
+def test_per_sensor_ports_are_the_parts_of_measurements():
+    builder = DiagramBuilder()
+    suite = builder.AddSystem(SensorSuite(SensorSuiteParams.seed_table7(air_density=RHO)))
+    for name, value in (("state", STATE), ("euler", EULER), ("air_data", AIR),
+                        ("specific_force", FORCE)):
+        source = builder.AddSystem(ConstantVectorSource(value))
+        builder.Connect(source.get_output_port(0), suite.GetInputPort(name))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    diagram.SetRandomContext(context, RandomGenerator(2))
+    simulator.AdvanceTo(1.0)
+    suite_context = suite.GetMyContextFromRoot(context)
+    measured = dict(zip(suite.channel_names,
+                        suite.GetOutputPort("measurements").Eval(suite_context), strict=True))
+    prefixes = {"imu": "imu_", "gps": "gps_", "pitot": "pitot_", "vanes": "vane_",
+                "attitude": "att_", "baro": "baro_"}
+    covered = []
+    for sensor, prefix in prefixes.items():
+        names = [n for n in suite.channel_names if n.startswith(prefix)]
+        np.testing.assert_array_equal(suite.GetOutputPort(sensor).Eval(suite_context),
+                                      [measured[n] for n in names])
+        covered += names
+    assert sorted(covered) == sorted(suite.channel_names)
+    truth = _truth_by_channel()
+    assert abs(measured["gps_pd"] - truth["gps_pd"]) < 20.0  # a sample, not zeros

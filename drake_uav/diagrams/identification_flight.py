@@ -152,8 +152,8 @@ class SafetyPilot(LeafSystem):
     def _update(self, context, discrete_state) -> None:
         g = self.gains
         pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
-        x = self._state.Eval(context)
-        roll, pitch, yaw = self._euler.Eval(context)
+        x = self._state.Eval(context).tolist()
+        roll, pitch, yaw = self._euler.Eval(context).tolist()
         p, q, r = x[10:13]
         climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
         heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi

@@ -15,15 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import ContinuousStateIndex, LeafSystem_, ValueProducer
+from pydrake.systems.framework import ContinuousStateIndex, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from drake_uav.compiled import CompiledFunction
-from drake_uav.rotations import quat_derivative, quat_to_euler
+from drake_uav.rotations import quat_derivative, quat_to_euler, rotate_back, unit_quat_rotation
 from drake_uav.scalar import as_list, clamp, smax
 from drake_uav.systems.aerodynamics import (
     AeroCondition,
@@ -151,30 +151,16 @@ class FixedWingModel:
         ]
 
     @staticmethod
-    def _rotation(x) -> tuple:
-        """Body->NED rotation of the normalised quaternion x[3:7] (seed S2 eq. A.55)."""
-        qw, qx, qy, qz = x[3], x[4], x[5], x[6]
-        k = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
-        return (
-            ((qw * qw + qx * qx - qy * qy - qz * qz) * k,
-             2 * (qx * qy - qw * qz) * k, 2 * (qx * qz + qw * qy) * k),
-            (2 * (qx * qy + qw * qz) * k, (qw * qw - qx * qx + qy * qy - qz * qz) * k,
-             2 * (qy * qz - qw * qx) * k),
-            (2 * (qx * qz - qw * qy) * k, 2 * (qy * qz + qw * qx) * k,
-             (qw * qw - qx * qx - qy * qy + qz * qz) * k),
-        )
-
-    @staticmethod
     def _relative_velocity(x, R, wind_ned) -> tuple:
         """Air-relative body velocity v - R^T W [m/s]."""
-        wn, we, wd = wind_ned[0], wind_ned[1], wind_ned[2]
-        return tuple(x[7 + i] - (R[0][i] * wn + R[1][i] * we + R[2][i] * wd) for i in range(3))
+        wind_body = rotate_back(R, wind_ned)
+        return tuple(x[7 + i] - wind_body[i] for i in range(3))
 
     def air_data(self, x, wind_ned=(0.0, 0.0, 0.0)) -> np.ndarray:
         """[Va (m/s), alpha (rad), beta (rad)] of state ``x`` in the wind ``wind_ned``."""
         x, wind_ned = as_list(x), as_list(wind_ned)
         return np.array(air_data_from_velocity(
-            *self._relative_velocity(x, self._rotation(x), wind_ned)))
+            *self._relative_velocity(x, unit_quat_rotation(x[3:7]), wind_ned)))
 
     def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None) -> FixedWingEvaluation:
         """Evaluates the model at state ``x`` (13) and controls (4).
@@ -185,7 +171,7 @@ class FixedWingModel:
         prm = self.params
         x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
         qw, qx, qy, qz = x[3], x[4], x[5], x[6]
-        R = self._rotation(x)
+        R = unit_quat_rotation(x[3:7])  # seed S2 eq. A.55, normalised
         u, v, w = x[7], x[8], x[9]
         omega = (x[10], x[11], x[12])
         u_r, v_r, w_r = self._relative_velocity(x, R, wind_ned)
@@ -270,6 +256,14 @@ class FixedWingModel:
                 coefficients[2] + cz_a * alpha_dot, coefficients[3],
                 coefficients[4] + cm_a * alpha_dot, coefficients[5]]
 
+    def field(self, name: str) -> Callable:
+        """``f(x, controls, wind_ned, wrench) -> ndarray``: one field of :meth:`evaluate`
+        (the interface of :meth:`CompiledFixedWingModel.field`, any scalar type)."""
+        if name not in FixedWingEvaluation._fields or name == "thrust":
+            raise ValueError(f"name: no vector field {name!r} of FixedWingEvaluation")
+        return lambda x, controls, wind_ned, wrench: getattr(
+            self.evaluate(x, controls, wind_ned, wrench), name)
+
     def euler(self, x) -> np.ndarray:
         """Roll, pitch, yaw [rad] of a state."""
         return quat_to_euler(x[3:7])
@@ -317,11 +311,27 @@ class CompiledFixedWingModel:
             return values
 
         self._function = CompiledFunction(flat, (13, 4, 3, 6), name=f"{model.params.name} model")
-        bounds, start = [], 0
-        for _, size in _EVALUATION_LAYOUT:
-            bounds.append((start, start + size))
+        bounds, start = {}, 0
+        for field, size in _EVALUATION_LAYOUT:
+            bounds[field] = (start, start + size)
             start += size
         self._bounds = bounds
+        self._fields: dict[str, Callable] = {}
+
+    def field(self, name: str) -> Callable:
+        """``f(x, controls, wind_ned, wrench) -> ndarray``: one field of
+        :class:`FixedWingEvaluation` for one sample given as Python lists (``wrench``
+        may be None), from code that computes just that field (same trace)."""
+        if name not in self._fields:
+            if name not in self._bounds or name == "thrust":
+                raise ValueError(f"name: no vector field {name!r}; use one of "
+                                 f"{[f for f in self._bounds if f != 'thrust']}")
+            program = self._function.restricted(
+                range(*self._bounds[name]), name=f"{self.model.params.name} {name}").program
+            self._fields[name] = (lambda x, controls, wind_ned, wrench, run=program:
+                                  run(x, controls, wind_ned,
+                                      _ZERO_WRENCH if wrench is None else wrench))
+        return self._fields[name]
 
     def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None
                  ) -> FixedWingEvaluation:
@@ -339,10 +349,12 @@ class CompiledFixedWingModel:
 
     def _split(self, flat: np.ndarray) -> FixedWingEvaluation:
         return FixedWingEvaluation(*(flat[..., a:b] if b - a > 1 else flat[..., a]
-                                     for a, b in self._bounds))
+                                     for a, b in self._bounds.values()))
 
 
 _ZERO_WRENCH = (0.0,) * 6
+_ZERO3 = [0.0, 0.0, 0.0]
+_ZERO_CONTROLS = [0.0] * 4  # the air data do not depend on the controls
 
 
 @TemplateSystem.define("FixedWingPlant_")
@@ -381,8 +393,12 @@ def FixedWingPlant_(T):
             LeafSystem_[T].__init__(self, converter)
             self.params = params
             self.model = model if model is not None else FixedWingModel(params)
-            # Floats run the compiled model; AutoDiffXd and Expression the generic one.
-            self._evaluator = self.model.compiled if T is float else self.model
+            # Floats run the compiled model (code per output that computes just that
+            # output); AutoDiffXd and Expression the generic one.
+            evaluator = self.model.compiled if T is float else self.model
+            self._field = {name: evaluator.field(name) for name in (
+                "state_derivative", "air_data", "specific_force", "coefficients",
+                "forces_moments")}
             self.DeclareContinuousState(13)
             controls = self.DeclareVectorInputPort("controls", 4)
             wind = self.DeclareVectorInputPort("wind_ned", 3)
@@ -400,61 +416,49 @@ def FixedWingPlant_(T):
             self.DeclareVectorOutputPort("aero_coefficients", 6, self._calc_coefficients,
                                          prerequisites_of_calc=aero_inputs)
             self.DeclareVectorOutputPort("forces_moments", 6, self._calc_forces_moments)
-            self._evaluation = self.DeclareCacheEntry(
-                description="model evaluation",
-                value_producer=ValueProducer(allocate=lambda: AbstractValue.Make(object()),
-                                             calc=self._calc_evaluation),
-                prerequisites_of_calc={self.all_sources_ticket()})
 
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, other.params, other.model, converter=converter)
 
-        def _wind(self, context):
+        def _state(self, context) -> list:
+            return context.get_continuous_state_vector().CopyToVector().tolist()
+
+        def _wind(self, context) -> list:
             wind_port = self._ports[1]
-            return wind_port.Eval(context) if wind_port.HasValue(context) else (0.0, 0.0, 0.0)
+            return wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3
 
-        def _compute(self, context, with_wrench: bool) -> FixedWingEvaluation:
-            x = context.get_continuous_state_vector().CopyToVector()
+        def _arguments(self, context, with_wrench: bool) -> tuple:
+            """(state, controls, wind, wrench or None) of the context as Python lists."""
             controls_port, _, wrench_port = self._ports
-            wrench = (wrench_port.Eval(context)
+            wrench = (wrench_port.Eval(context).tolist()
                       if with_wrench and wrench_port.HasValue(context) else None)
-            return self._evaluator.evaluate(x, controls_port.Eval(context), self._wind(context),
-                                            wrench)
-
-        def _calc_evaluation(self, context, value) -> None:
-            value.set_value(self._compute(context, with_wrench=True))
-
-        def _evaluate(self, context) -> FixedWingEvaluation:
-            """The model at the context, computed once per state/input change (cached)."""
-            return self._evaluation.Eval(context)
+            return (self._state(context), controls_port.Eval(context).tolist(),
+                    self._wind(context), wrench)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
-            # Integrator stages need the derivative only: no trip through the cache.
-            derivatives.get_mutable_vector().SetFromVector(
-                self._compute(context, with_wrench=True).state_derivative)
+            derivatives.SetFromVector(self._field["state_derivative"](
+                *self._arguments(context, with_wrench=True)))
 
         def _calc_air_data(self, context, output):
-            x = context.get_continuous_state_vector().CopyToVector()
-            output.SetFromVector(self.model.air_data(x, self._wind(context)))
+            output.SetFromVector(self._field["air_data"](
+                self._state(context), _ZERO_CONTROLS, self._wind(context), None))
 
         def _calc_euler(self, context, output):
-            x = context.get_continuous_state_vector().CopyToVector()
-            output.SetFromVector(self.model.euler(x))
+            output.SetFromVector(self.model.euler(self._state(context)))
 
         def _calc_specific_force(self, context, output):
-            output.SetFromVector(self._evaluate(context).specific_force)
+            output.SetFromVector(self._field["specific_force"](
+                *self._arguments(context, with_wrench=True)))
 
         def _calc_coefficients(self, context, output):
-            # Without a wrench the cached evaluation is the same; with one, the
-            # coefficients are computed without reading it (no feedthrough).
-            if self._ports[2].HasValue(context):
-                evaluation = self._compute(context, with_wrench=False)
-            else:
-                evaluation = self._evaluate(context)
-            output.SetFromVector(evaluation.coefficients)
+            # Computed without reading the wrench (no feedthrough from it), so a wrench
+            # made from the coefficients closes no algebraic loop.
+            output.SetFromVector(self._field["coefficients"](
+                *self._arguments(context, with_wrench=False)))
 
         def _calc_forces_moments(self, context, output):
-            output.SetFromVector(self._evaluate(context).forces_moments)
+            output.SetFromVector(self._field["forces_moments"](
+                *self._arguments(context, with_wrench=True)))
 
         def set_state(self, context, state) -> None:
             """Writes a 13-vector into the plant's continuous state."""

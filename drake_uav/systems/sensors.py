@@ -35,9 +35,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import RandomSource
+from pydrake.systems.primitives import Demultiplexer, RandomSource
 
-from drake_uav.rotations import quat_to_rotmat
+from drake_uav.rotations import rotate, unit_quat_rotation
 
 __all__ = [
     "ChannelErrors",
@@ -63,8 +63,8 @@ _TRUTH = {
     "euler": slice(15, 18),
     "altitude": slice(18, 19),
 }
-_ZERO3 = np.zeros(3)
-_ZERO13 = np.zeros(13)
+_ZERO3 = [0.0, 0.0, 0.0]
+_ZERO13 = [0.0] * 13
 
 
 @dataclass(frozen=True)
@@ -290,17 +290,12 @@ class SampledSensors(LeafSystem):
 
     | port (out)      | size | units                                              |
     |-----------------|------|----------------------------------------------------|
-    | imu             | 6    | ax, ay, az [m/s^2], p, q, r [rad/s]                |
-    | gps             | 6    | pN, pE, pD [m], vN, vE, vD [m/s]                   |
-    | pitot           | 2    | dynamic pressure [Pa], airspeed [m/s]              |
-    | vanes           | 2    | alpha, beta [rad]                                  |
-    | attitude        | 3    | roll, pitch, yaw [rad]                             |
-    | baro            | 1    | altitude [m]                                       |
-    | measurements    | M    | all of the above, names from ``channel_names``     |
+    | measurements    | M    | every fitted sensor's channels, names from         |
+    |                 |      | ``channel_names`` (per sensor: ``port_slices``)    |
 
-    Only the ports of fitted sensors exist; inputs that no fitted sensor needs
-    may stay unconnected. N is the number of measured channels without the
-    derived pitot airspeed. Outputs depend on the discrete state only.
+    Inputs that no fitted sensor needs may stay unconnected. N is the number of
+    measured channels without the derived pitot airspeed. The output depends on
+    the discrete state only; :class:`SensorSuite` splits it per sensor.
     """
 
     def __init__(self, params: SensorSuiteParams = SensorSuiteParams()):
@@ -323,14 +318,12 @@ class SampledSensors(LeafSystem):
         self._line = slice(1 + n, 1 + n + self._depth * n)
         self._xd = self.DeclareDiscreteState(1 + n + self._depth * n)
         self.DeclarePeriodicDiscreteUpdateEvent(self.base_period, 0.0, self._update)
-        deps = {self.discrete_state_ticket(self._held_state)}
-        for sensor, index in self._port_slices.items():
-            self.DeclareVectorOutputPort(
-                sensor, index.stop - index.start,
-                lambda context, output, s=index: output.SetFromVector(self._held(context)[s]),
-                prerequisites_of_calc=deps,
-            )
         self.DeclareStateOutputPort("measurements", self._held_state)
+
+    @property
+    def port_slices(self) -> dict[str, slice]:
+        """Entries of ``measurements`` per fitted sensor, in order and contiguous."""
+        return dict(self._port_slices)
 
     def _build_tables(self) -> None:
         p = self.params
@@ -380,6 +373,7 @@ class SampledSensors(LeafSystem):
         period = math.lcm(*self._decim.tolist())
         ticks = self._depth + np.arange(period)[:, None]
         self._due_pattern = (ticks - self._lag) % self._decim == 0
+        self._walk_pattern = self._due_pattern * self._walk_step  # walk steps of due channels
         self._due_offset = self._depth % period
         yaw = [i for i, n in enumerate(self.channel_names) if n == "att_yaw"]
         self._yaw = yaw[0] if yaw else None
@@ -402,57 +396,69 @@ class SampledSensors(LeafSystem):
         """
         need = self._needs
         zero = _ZERO3
-        x = self._state.Eval(context) if need["state"] else _ZERO13
-        velocity = zero
-        if need["velocity"]:
-            q = x[3:7]
-            velocity = quat_to_rotmat(q) @ x[7:10] / (q @ q)
-        air = self._air.Eval(context) if need["air"] else zero
-        truth = np.concatenate((
-            self._force.Eval(context) if need["specific_force"] else zero,
-            x[10:13], x[0:3], velocity,
-            (0.5 * self._density * air[0] * air[0],), air[1:3],
-            self._euler.Eval(context) if need["euler"] else zero,
-            (-x[2],),
-        ))
+        x = self._state.Eval(context).tolist() if need["state"] else _ZERO13
+        velocity = (rotate(unit_quat_rotation(x[3:7]), x[7:10]) if need["velocity"]
+                    else zero)
+        air = self._air.Eval(context).tolist() if need["air"] else zero
+        force = self._force.Eval(context).tolist() if need["specific_force"] else zero
+        euler = self._euler.Eval(context).tolist() if need["euler"] else zero
+        truth = np.array((*force, *x[10:13], *x[0:3], *velocity,
+                          0.5 * self._density * air[0] * air[0], air[1], air[2], *euler, -x[2]))
         return truth[self._truth_idx]
 
     def _update(self, context, discrete_state) -> None:
         x = context.get_discrete_state(self._xd).get_value().copy()
         tick = int(x[0])
         n = self._n
-        line = x[self._line].reshape(self._depth, n)
+        line = x[self._line]  # the delay line, flat: one row of n per tick phase
+        phase = tick % self._depth
         truth = self._truth(context)
         if tick == 0:
-            line[:] = truth
+            line[:] = np.tile(truth, self._depth)
         else:
-            line[tick % self._depth] = truth
-        delayed = line.ravel()[self._delayed_index[tick % self._depth]]
+            line[phase * n:(phase + 1) * n] = truth
+        delayed = line[self._delayed_index[phase]]
         if tick >= self._depth:
-            due = self._due_pattern[(tick - self._due_offset) % len(self._due_pattern)]
+            k = (tick - self._due_offset) % len(self._due_pattern)
+            due, walk_step = self._due_pattern[k], self._walk_pattern[k]
         else:
             due = (tick == 0) | ((tick >= self._lag) & ((tick - self._lag) % self._decim == 0))
+            walk_step = self._walk_step * due
         noise = self._noise.Eval(context)
-        walk = x[self._walk]
+        walk = x[self._walk]  # a view: updated in place below
         measured = self._scale * delayed + self._bias + walk + self._sigma * noise[n:]
         out = self._held(context).copy()
         out[self._out_idx] = np.where(due, measured, out[self._out_idx])
         if self._yaw is not None:
             out[self._yaw] = (out[self._yaw] + math.pi) % (2.0 * math.pi) - math.pi
-        if self.params.pitot is not None:
+        if self._density:
             q = out[self._airspeed_index - 1]
-            out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self.params.pitot.air_density)
-        x[self._walk] = walk + np.where(due, self._walk_step * noise[:n], 0.0)
+            out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self._density)
+        walk += walk_step * noise[:n]
         x[0] = tick + 1
-        discrete_state.get_mutable_vector(self._held_state).SetFromVector(out)
-        discrete_state.get_mutable_vector(self._xd).SetFromVector(x)
+        discrete_state.set_value(self._held_state, out)
+        discrete_state.set_value(self._xd, x)
 
 
 class SensorSuite(Diagram):
     """The fitted sensors with their own Gaussian noise source (a small diagram).
 
-    Ports are those of :class:`SampledSensors` without ``noise``. Seed through
-    the root context: ``diagram.SetRandomContext(context, RandomGenerator(seed))``.
+    Inputs are those of :class:`SampledSensors` without ``noise``. Outputs:
+    ``measurements`` and, for each fitted sensor, its part of it (a Drake
+    ``Demultiplexer``):
+
+    | port (out)      | size | units                                              |
+    |-----------------|------|----------------------------------------------------|
+    | imu             | 6    | ax, ay, az [m/s^2], p, q, r [rad/s]                |
+    | gps             | 6    | pN, pE, pD [m], vN, vE, vD [m/s]                   |
+    | pitot           | 2    | dynamic pressure [Pa], airspeed [m/s]              |
+    | vanes           | 2    | alpha, beta [rad]                                  |
+    | attitude        | 3    | roll, pitch, yaw [rad]                             |
+    | baro            | 1    | altitude [m]                                       |
+    | measurements    | M    | all of the above, names from ``channel_names``     |
+
+    Seed through the root context:
+    ``diagram.SetRandomContext(context, RandomGenerator(seed))``.
     ``channel_names`` / ``channel_units`` describe the ``measurements`` output.
     """
 
@@ -468,9 +474,14 @@ class SensorSuite(Diagram):
         builder.Connect(noise.get_output_port(0), self.sensors.GetInputPort("noise"))
         for name in ("state", "euler", "air_data", "specific_force"):
             builder.ExportInput(self.sensors.GetInputPort(name), name)
-        for i in range(self.sensors.num_output_ports()):
-            port = self.sensors.get_output_port(i)
-            builder.ExportOutput(port, port.get_name())
+        measurements = self.sensors.GetOutputPort("measurements")
+        slices = self.sensors.port_slices
+        split = builder.AddNamedSystem("per_sensor", Demultiplexer(
+            [index.stop - index.start for index in slices.values()]))
+        builder.Connect(measurements, split.get_input_port())
+        for i, sensor in enumerate(slices):
+            builder.ExportOutput(split.get_output_port(i), sensor)
+        builder.ExportOutput(measurements, "measurements")
         builder.BuildInto(self)
 
     @property

@@ -40,7 +40,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Integrator, RandomSource
 
-from drake_uav.rotations import quat_to_rotmat
+from drake_uav.rotations import rotate, rotate_back, unit_quat_rotation
 
 __all__ = [
     "TURBULENCE_LEVELS",
@@ -92,6 +92,7 @@ _SEED_ROW_SPLIT = 325.0
 # Output row of the cascade realisation: y = sigma sqrt(k a) (z1 + g a z2).
 _GAIN_K = np.array([2.0, 3.0, 3.0])
 _GAIN_G = np.array([0.0, 1.0 / math.sqrt(3.0) - 1.0, 1.0 / math.sqrt(3.0) - 1.0])
+_OUTPUT_GAINS = tuple(zip(_GAIN_K.tolist(), _GAIN_G.tolist(), strict=True))  # (k, g) per axis
 
 
 @dataclass(frozen=True)
@@ -200,12 +201,16 @@ _SERIES = tuple(
     tuple((-1) ** n / (math.factorial(n) * (n + m + 1)) for n in reversed(range(6)))
     for m in range(3)
 )
+_SERIES_COLUMNS = tuple(zip(*_SERIES, strict=True))  # (I0, I1, I2) coefficients per power
 
 
 def _exp_moments(x, xp=np):
     """(I0, I1, I2) with I_m = integral of u^m exp(-x u) over u in [0, 1]."""
-    if xp is math and x < _SERIES_BELOW:
-        return tuple(_horner(c, x) for c in _SERIES)
+    if xp is math and x < _SERIES_BELOW:  # the three Horner schemes in one loop
+        i0 = i1 = i2 = 0.0
+        for c0, c1, c2 in _SERIES_COLUMNS:
+            i0, i1, i2 = i0 * x + c0, i1 * x + c1, i2 * x + c2
+        return i0, i1, i2
     safe = xp.maximum(x, _SERIES_BELOW) if xp is np else x
     e = xp.exp(-safe)
     one_minus = -xp.expm1(-safe)
@@ -371,12 +376,14 @@ class DrydenFilter(LeafSystem):
         super().__init__()
         self._params = params.validate()
         self._steady = np.asarray(params.steady_wind_ned, float)
+        self._steady_list = self._steady.tolist()
         self._has_steady = bool(np.any(self._steady))
         self._noise = self.DeclareVectorInputPort("noise", 6)
         self._plant_state = self.DeclareVectorInputPort("plant_state", 13)
-        # Discrete state groups: cascade states (z1, z2) per axis plus a started flag;
-        # the held gust; the held wind. The outputs are the last two groups as they are.
-        self._filter = self.DeclareDiscreteState(7)
+        # Discrete state groups: the filter's own (cascade states (z1, z2) per axis, a
+        # started flag, the latest wind sample for the next slope); the held gust, wind
+        # and slope, which the outputs are as they are.
+        self._filter = self.DeclareDiscreteState([0.0] * 7 + self._steady_list)
         gust = self.DeclareDiscreteState(3)
         wind = self.DeclareDiscreteState(self._steady)
         slope = self.DeclareDiscreteState(3)
@@ -385,7 +392,6 @@ class DrydenFilter(LeafSystem):
         self.DeclareStateOutputPort("wind_ned", wind)
         self.DeclareStateOutputPort("gust_body", gust)
         self.DeclareStateOutputPort("wind_slope", slope)
-        self._wind = wind
         self._fixed = None
         if not params.needs_plant_state:
             self._fixed = self._coefficients(params.airspeed, params.altitude)
@@ -401,22 +407,41 @@ class DrydenFilter(LeafSystem):
         l_u, l_v, l_w, s_u, s_v, s_w = _scale_values(p.level, altitude, p.model)
         speed = max(airspeed, p.min_airspeed)
         out, terms = [], {}
-        for i, (length, sigma) in enumerate(((l_u, s_u), (l_v, s_v), (l_w, s_w))):
+        for length, sigma, gains in zip((l_u, l_v, l_w), (s_u, s_v, s_w), _OUTPUT_GAINS,
+                                        strict=True):
             a = speed / length
             if a not in terms:  # L_u = L_v in both models: one transition for u and v
                 terms[a] = _transition_terms(a, p.update_period, math)
-            out.append((sigma, a, *terms[a], float(_GAIN_K[i]), float(_GAIN_G[i])))
+            out.append((sigma, a, *terms[a], *gains))
         return out
+
+    def _condition(self, context, state: list, rotation) -> tuple[float, float]:
+        """(airspeed relative to the steady wind [m/s], altitude [m]) for the filters."""
+        p = self._params
+        airspeed, altitude = p.airspeed, p.altitude
+        if airspeed is None:
+            v = state[7:10]
+            if self._has_steady:
+                steady_body = rotate_back(rotation, self._steady_list)
+                v = [v[i] - steady_body[i] for i in range(3)]
+            airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if altitude is None:
+            altitude = -state[2]
+        if not (math.isfinite(airspeed) and math.isfinite(altitude)):
+            raise RuntimeError(
+                f"DrydenFilter: input 'plant_state' gives airspeed {airspeed} m/s and "
+                f"altitude {altitude} m at t = {context.get_time():.3f} s; the aircraft "
+                "state is no longer finite (the simulation diverged)")
+        return airspeed, altitude
 
     def _update(self, context, discrete_state) -> None:
         p = self._params
         x = context.get_discrete_state(self._filter).get_value().tolist()
         n = self._noise.Eval(context).tolist()
-        rot = None
+        rotation = None
         if self._plant_state.HasValue(context):
-            s = self._plant_state.Eval(context)
-            q = s[3:7]
-            rot = quat_to_rotmat(q) / (q @ q)  # rotation of the normalised quaternion
+            state = self._plant_state.Eval(context).tolist()
+            rotation = unit_quat_rotation(state[3:7])
         elif p.needs_plant_state:
             raise RuntimeError(
                 "DrydenFilter: input 'plant_state' is not connected but DrydenParams "
@@ -424,17 +449,7 @@ class DrydenFilter(LeafSystem):
             )
         coefficients = self._fixed
         if coefficients is None:
-            airspeed = p.airspeed
-            if airspeed is None:
-                v = (s[7:10] - rot.T @ self._steady if self._has_steady else s[7:10]).tolist()
-                airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            altitude = -float(s[2]) if p.altitude is None else p.altitude
-            if not (math.isfinite(airspeed) and math.isfinite(altitude)):
-                raise RuntimeError(
-                    f"DrydenFilter: input 'plant_state' gives airspeed {airspeed} m/s and "
-                    f"altitude {altitude} m at t = {context.get_time():.3f} s; the aircraft "
-                    "state is no longer finite (the simulation diverged)")
-            coefficients = self._coefficients(airspeed, altitude)
+            coefficients = self._coefficients(*self._condition(context, state, rotation))
         started = x[6] > 0
         dt = p.update_period
         z, gust = [], []
@@ -448,14 +463,14 @@ class DrydenFilter(LeafSystem):
                 z1, z2 = s11 * n1, s21 * n1 + s22 * n2
             z += (z1, z2)
             gust.append(_output(z1, z2, a, sigma, k, g, math))
-        z.append(1.0)
-        gust = np.array(gust)
-        wind = self._steady + (gust if rot is None else rot @ gust)
-        previous = context.get_discrete_state(self._wind).get_value()
-        discrete_state.get_mutable_vector(0).SetFromVector(z)
-        discrete_state.get_mutable_vector(1).SetFromVector(gust)
-        discrete_state.get_mutable_vector(2).SetFromVector(wind)
-        discrete_state.get_mutable_vector(3).SetFromVector((wind - previous) / dt)
+        gust_ned = gust if rotation is None else rotate(rotation, gust)
+        steady = self._steady_list
+        wind = [steady[i] + gust_ned[i] for i in range(3)]
+        previous = x[7:10]
+        discrete_state.set_value(0, [*z, 1.0, *wind])
+        discrete_state.set_value(1, gust)
+        discrete_state.set_value(2, wind)
+        discrete_state.set_value(3, [(wind[i] - previous[i]) / dt for i in range(3)])
 
 
 class DrydenWind(Diagram):
