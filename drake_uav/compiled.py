@@ -12,6 +12,8 @@ in a loop; it is never a second copy of the equations.
 from __future__ import annotations
 
 import math
+import re
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
@@ -396,22 +398,26 @@ class CompiledFunction:
         m, k = self.output_size, self._n_seeds
         params = ", ".join(f"a{i}" for i in range(len(self.arg_sizes)))
         lines = [f"def compiled({params}):"]
-        index = "[:, {}]" if vector else "[{}]"
-        lines += [f"    a{i}_{j} = a{i}{index.format(j)}" for i, n in enumerate(self.arg_sizes)
-                  for j in range(n) if f"a{i}_{j}" in used]
-        lines += body
+        for i, n in enumerate(self.arg_sizes):
+            names = [f"a{i}_{j}" if f"a{i}_{j}" in used else "_" for j in range(n)]
+            if vector:
+                lines += [f"    {name} = a{i}[:, {j}]" for j, name in enumerate(names)
+                          if name != "_"]
+            elif any(name != "_" for name in names):  # one unpacking of the whole argument
+                lines.append(f"    {', '.join(names)}, = a{i}")
+        tail = []
         if vector:
-            lines.append(f"    _y = _empty((len(a0), {m}))")
-            lines += [f"    _y[:, {i}] = {v}" for i, v in enumerate(values)]
+            tail.append(f"    _y = _empty((len(a0), {m}))")
+            tail += [f"    _y[:, {i}] = {v}" for i, v in enumerate(values)]
             if not with_jacobians:
-                lines.append("    return _y")
+                tail.append("    return _y")
             else:
-                lines.append(f"    _J = _zeros((len(a0), {m * k}))")
-                lines += [f"    _J[:, {i * k + j}] = {d}" for i, p in enumerate(partials)
+                tail.append(f"    _J = _zeros((len(a0), {m * k}))")
+                tail += [f"    _J[:, {i * k + j}] = {d}" for i, p in enumerate(partials)
                           for j, d in p.items()]
-                lines.append(f"    return _y, _J.reshape(len(a0), {m}, {k})")
+                tail.append(f"    return _y, _J.reshape(len(a0), {m}, {k})")
         elif not with_jacobians:
-            lines.append(f"    return _array([{', '.join(values)}])")
+            tail.append(f"    return _array([{', '.join(values)}])")
         else:
             # One flat array [value, Jacobian row-major]: literal entries (mostly zeros)
             # come from a template, the others are written in one call.
@@ -420,12 +426,13 @@ class CompiledFunction:
             computed = [i for i, e in enumerate(entries) if not _is_literal(e)]
             self._structure = (np.isin(np.arange(m, m + m * k), computed)
                                | (template[m:] != 0.0)).reshape(m, k)
-            lines.append("    _out = _template.copy()")
+            tail.append("    _out = _template.copy()")
             if computed:
                 written = ", ".join(entries[i] for i in computed)
-                lines.append(f"    _out[_computed] = _fromiter(({written},), float, "
+                tail.append(f"    _out[_computed] = _fromiter(({written},), float, "
                              f"{len(computed)})")
-            lines.append("    return _out")
+            tail.append("    return _out")
+        lines += _inline_single_use(body + tail)
         scope = {"math": math, "_array": _float_array, "_empty": np.empty, "_zeros": np.zeros,
                  "_fromiter": np.fromiter,
                  **(_VECTOR_SCOPE if vector else _SCALAR_SCOPE)}
@@ -504,6 +511,37 @@ class CompiledFunction:
             blocks.append(gradient[:, k:k + len(idx)])
             k += len(idx)
         return value, blocks
+
+
+_DEFINITION = re.compile(r"    (t\d+) = (.*)")
+_TEMPORARY = re.compile(r"\bt\d+\b")
+_INLINE_LENGTH = 160  # longest expression a temporary is folded into (bounds the nesting)
+
+
+def _inline_single_use(lines: list[str]) -> list[str]:
+    """Folds every temporary used exactly once into the expression that uses it.
+
+    The operations and their order inside each expression are unchanged (the same
+    floating-point results); the generated function just stores and loads fewer
+    locals, which is most of the cost of straight-line Python.
+    """
+    uses = Counter()
+    for line in lines:
+        definition = _DEFINITION.fullmatch(line)
+        uses.update(_TEMPORARY.findall(definition.group(2) if definition else line))
+    folded: dict[str, str] = {}
+    out = []
+    for line in lines:
+        definition = _DEFINITION.fullmatch(line)
+        text = definition.group(2) if definition else line
+        text = _TEMPORARY.sub(lambda m: folded.pop(m.group(), m.group()), text)
+        if definition is None:
+            out.append(text)
+        elif uses[definition.group(1)] == 1 and len(text) <= _INLINE_LENGTH:
+            folded[definition.group(1)] = f"({text})"
+        else:
+            out.append(f"    {definition.group(1)} = {text}")
+    return out
 
 
 class _Selection:

@@ -15,6 +15,8 @@ three scalar types.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.math import asin, atan2, cos, sin, sqrt
 
@@ -179,6 +181,12 @@ def quat_to_euler(q) -> np.ndarray:
     """
     w, x, y, z = q[0], q[1], q[2], q[3]
     sin_pitch = 2 * (w * y - x * z)
+    if isinstance(sin_pitch, float):  # plain floats: the math module, clamped against round-off
+        return np.array([
+            math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+            math.asin(min(max(sin_pitch, -1.0), 1.0)),
+            math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
+        ])
     batch = isinstance(sin_pitch, np.ndarray)
     arctan2, arcsin = (np.arctan2, np.arcsin) if batch else (atan2, asin)
     if batch:

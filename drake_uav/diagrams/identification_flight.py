@@ -453,7 +453,12 @@ def build_identification_flight(
               "wind_ned": wind_port}
     if wrench is not None:
         logged["wrench"] = wrench
-    loggers = {name: LogVectorOutput(port, builder, dt) for name, port in logged.items()}
+    loggers, by_port = {}, {}
+    for name, port in logged.items():  # one logger per port ("surfaces" is often "commands")
+        key = (port.get_system().get_name(), port.get_name())
+        if key not in by_port:
+            by_port[key] = LogVectorOutput(port, builder, dt)
+        loggers[name] = by_port[key]
     if extend is not None:
         ports = {plant.get_output_port(i).get_name(): plant.get_output_port(i)
                  for i in range(plant.num_output_ports())}

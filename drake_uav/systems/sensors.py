@@ -312,11 +312,12 @@ class SampledSensors(LeafSystem):
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._force = self.DeclareVectorInputPort("specific_force", 3)
         # Discrete state: the held outputs (m); [tick, bias walk (n), truth delay line
-        # (depth n)].
+        # (depth n), the held outputs again (m, so that one read gets everything)].
         self._held_state = self.DeclareDiscreteState(m)
         self._walk = slice(1, 1 + n)
         self._line = slice(1 + n, 1 + n + self._depth * n)
-        self._xd = self.DeclareDiscreteState(1 + n + self._depth * n)
+        self._held_copy = slice(self._line.stop, self._line.stop + m)
+        self._xd = self.DeclareDiscreteState(self._held_copy.stop)
         self.DeclarePeriodicDiscreteUpdateEvent(self.base_period, 0.0, self._update)
         self.DeclareStateOutputPort("measurements", self._held_state)
 
@@ -354,6 +355,7 @@ class SampledSensors(LeafSystem):
             self._port_slices[sensor] = slice(start, position)
         self._n = len(truth_idx)
         self._truth_idx = np.array(truth_idx)
+        self._all_truths = truth_idx == list(range(_TRUTH["altitude"].stop))
         self._out_idx = np.array(out_idx)
         self._sigma = np.concatenate(cols["noise_std"])
         self._bias = np.concatenate(cols["bias"])
@@ -385,9 +387,6 @@ class SampledSensors(LeafSystem):
         self._needs["air"] = self._needs["dynamic_pressure"] or self._needs["air_angles"]
         self._density = p.pitot.air_density if p.pitot is not None else 0.0
 
-    def _held(self, context) -> np.ndarray:
-        return context.get_discrete_state(self._held_state).get_value()
-
     def _truth(self, context) -> np.ndarray:
         """True values of every quantity some fitted sensor measures (N).
 
@@ -404,7 +403,7 @@ class SampledSensors(LeafSystem):
         euler = self._euler.Eval(context).tolist() if need["euler"] else zero
         truth = np.array((*force, *x[10:13], *x[0:3], *velocity,
                           0.5 * self._density * air[0] * air[0], air[1], air[2], *euler, -x[2]))
-        return truth[self._truth_idx]
+        return truth if self._all_truths else truth[self._truth_idx]
 
     def _update(self, context, discrete_state) -> None:
         x = context.get_discrete_state(self._xd).get_value().copy()
@@ -427,7 +426,7 @@ class SampledSensors(LeafSystem):
         noise = self._noise.Eval(context)
         walk = x[self._walk]  # a view: updated in place below
         measured = self._scale * delayed + self._bias + walk + self._sigma * noise[n:]
-        out = self._held(context).copy()
+        out = x[self._held_copy]  # a view: the held outputs, updated in place
         out[self._out_idx] = np.where(due, measured, out[self._out_idx])
         if self._yaw is not None:
             out[self._yaw] = (out[self._yaw] + math.pi) % (2.0 * math.pi) - math.pi
