@@ -515,30 +515,61 @@ class CompiledFunction:
 
 _DEFINITION = re.compile(r"    (t\d+) = (.*)")
 _TEMPORARY = re.compile(r"\bt\d+\b")
+_INPUT = re.compile(r"a\d+_\d+")
 _INLINE_LENGTH = 160  # longest expression a temporary is folded into (bounds the nesting)
+
+
+def _negated(text: str) -> str | None:
+    """``X`` when ``text`` is the negation ``-X`` of one name or one parenthesised group."""
+    if text.startswith("-(") and text.endswith(")"):
+        depth = 0
+        for i, c in enumerate(text[1:], 1):
+            depth += (c == "(") - (c == ")")
+            if depth == 0:
+                return text[1:] if i == len(text) - 1 else None
+    if text.startswith("-") and (_TEMPORARY.fullmatch(text[1:]) or _INPUT.fullmatch(text[1:])):
+        return text[1:]
+    return None
 
 
 def _inline_single_use(lines: list[str]) -> list[str]:
     """Folds every temporary used exactly once into the expression that uses it.
 
-    The operations and their order inside each expression are unchanged (the same
-    floating-point results); the generated function just stores and loads fewer
-    locals, which is most of the cost of straight-line Python.
+    A folded negation that is added (``a + (-X)``) becomes a subtraction
+    (``a - (X)``), the same IEEE result in one operation fewer. Otherwise the
+    operations and their order are unchanged; the generated function just stores
+    and loads fewer locals, which is most of the cost of straight-line Python.
     """
     uses = Counter()
     for line in lines:
         definition = _DEFINITION.fullmatch(line)
         uses.update(_TEMPORARY.findall(definition.group(2) if definition else line))
     folded: dict[str, str] = {}
+    negations: dict[str, str] = {}  # folded text -> its subtracted form
     out = []
     for line in lines:
         definition = _DEFINITION.fullmatch(line)
         text = definition.group(2) if definition else line
-        text = _TEMPORARY.sub(lambda m: folded.pop(m.group(), m.group()), text)
+        used = []
+
+        def substitute(match):
+            name = match.group()
+            if name in folded:
+                used.append(folded[name])
+                return folded.pop(name)
+            return name
+
+        text = _TEMPORARY.sub(substitute, text)
+        for piece in used:
+            if piece in negations:
+                text = text.replace(f" + {piece}", f" - {negations.pop(piece)}", 1)
         if definition is None:
             out.append(text)
         elif uses[definition.group(1)] == 1 and len(text) <= _INLINE_LENGTH:
             folded[definition.group(1)] = f"({text})"
+            positive = _negated(text)
+            if positive is not None:
+                negations[f"({text})"] = f"({positive})"
         else:
             out.append(f"    {definition.group(1)} = {text}")
     return out

@@ -380,17 +380,20 @@ class DrydenFilter(LeafSystem):
         self._has_steady = bool(np.any(self._steady))
         self._noise = self.DeclareVectorInputPort("noise", 6)
         self._plant_state = self.DeclareVectorInputPort("plant_state", 13)
-        # Discrete state groups: the filter's own (cascade states (z1, z2) per axis, a
-        # started flag, the latest wind sample for the next slope); the held gust, wind
-        # and slope, which the outputs are as they are.
-        self._filter = self.DeclareDiscreteState([0.0] * 7 + self._steady_list)
-        gust = self.DeclareDiscreteState(3)
-        wind = self.DeclareDiscreteState(self._steady)
+        # Discrete state: the filter's own group (cascade states (z1, z2) per axis, a
+        # started flag, the latest wind sample NED and gust sample body) and the slope,
+        # which the Integrator of the first-order hold reads at every step (a state
+        # output port: no Python call). The two samples are output from the first group.
+        self._filter = self.DeclareDiscreteState([0.0] * 7 + self._steady_list + [0.0] * 3)
         slope = self.DeclareDiscreteState(3)
         self.DeclarePeriodicDiscreteUpdateEvent(params.update_period, params.update_offset,
                                                 self._update)
-        self.DeclareStateOutputPort("wind_ned", wind)
-        self.DeclareStateOutputPort("gust_body", gust)
+        samples = {self.discrete_state_ticket(self._filter)}
+        for name, part in (("wind_ned", slice(7, 10)), ("gust_body", slice(10, 13))):
+            self.DeclareVectorOutputPort(
+                name, 3, lambda context, output, part=part: output.SetFromVector(
+                    context.get_discrete_state(self._filter).get_value()[part]),
+                prerequisites_of_calc=samples)
         self.DeclareStateOutputPort("wind_slope", slope)
         self._fixed = None
         if not params.needs_plant_state:
@@ -467,10 +470,8 @@ class DrydenFilter(LeafSystem):
         steady = self._steady_list
         wind = [steady[i] + gust_ned[i] for i in range(3)]
         previous = x[7:10]
-        discrete_state.set_value(0, [*z, 1.0, *wind])
-        discrete_state.set_value(1, gust)
-        discrete_state.set_value(2, wind)
-        discrete_state.set_value(3, [(wind[i] - previous[i]) / dt for i in range(3)])
+        discrete_state.set_value(0, [*z, 1.0, *wind, *gust])
+        discrete_state.set_value(1, [(wind[i] - previous[i]) / dt for i in range(3)])
 
 
 class DrydenWind(Diagram):
