@@ -32,14 +32,18 @@ each sample for a period (steps at the updates).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake import math as drake_math
 from pydrake.common import RandomDistribution
+from pydrake.symbolic import if_then_else
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Integrator, RandomSource
 
+from drake_uav.compiled import CompiledFunction
 from drake_uav.rotations import rotate, rotate_back, unit_quat_rotation
 
 __all__ = [
@@ -204,6 +208,20 @@ _SERIES = tuple(
 _SERIES_COLUMNS = tuple(zip(*_SERIES, strict=True))  # (I0, I1, I2) coefficients per power
 
 
+class _Symbolic:
+    """The ``xp`` namespace of symbolic Expressions: the per-period filter update is
+    traced with it once and runs as compiled code (:class:`CompiledFunction`)."""
+
+    exp = staticmethod(drake_math.exp)
+    sqrt = staticmethod(drake_math.sqrt)
+    maximum = staticmethod(drake_math.max)
+    where = staticmethod(if_then_else)
+
+    @staticmethod
+    def expm1(v):
+        return drake_math.exp(v) - 1.0
+
+
 def _exp_moments(x, xp=np):
     """(I0, I1, I2) with I_m = integral of u^m exp(-x u) over u in [0, 1]."""
     if xp is math and x < _SERIES_BELOW:  # the three Horner schemes in one loop
@@ -211,7 +229,7 @@ def _exp_moments(x, xp=np):
         for c0, c1, c2 in _SERIES_COLUMNS:
             i0, i1, i2 = i0 * x + c0, i1 * x + c1, i2 * x + c2
         return i0, i1, i2
-    safe = xp.maximum(x, _SERIES_BELOW) if xp is np else x
+    safe = x if xp is math else xp.maximum(x, _SERIES_BELOW)
     e = xp.exp(-safe)
     one_minus = -xp.expm1(-safe)
     closed = (
@@ -221,7 +239,7 @@ def _exp_moments(x, xp=np):
     )
     if xp is math:
         return closed
-    return tuple(np.where(x < _SERIES_BELOW, _horner(c, x), m)
+    return tuple(xp.where(x < _SERIES_BELOW, _horner(c, x), m)
                  for c, m in zip(_SERIES, closed, strict=True))
 
 
@@ -237,15 +255,15 @@ def _transition_terms(a, dt: float, xp=np):
     """(e, l11, l21, l22): exp(-a dt) and the Cholesky factor of the noise covariance.
 
     The covariance is q_ij = integral over [0, dt] of exp(-2 a s) s^(i+j) ds. Written
-    once for ``xp = numpy`` (arrays) and ``xp = math`` (floats, cheaper per call
-    inside the periodic update).
+    once for ``xp = numpy`` (arrays), ``math`` (floats) and ``_Symbolic``
+    (the compiled update).
     """
     i0, i1, i2 = _exp_moments(2.0 * a * dt, xp)
     q11, q12, q22 = dt * i0, dt * dt * i1, dt * dt * dt * i2
     l11 = xp.sqrt(q11)
     l21 = q12 / l11
     d = q22 - l21 * l21
-    return xp.exp(-a * dt), l11, l21, xp.sqrt(d * (d > 0))
+    return xp.exp(-a * dt), l11, l21, xp.sqrt(max(d, 0.0) if xp is math else xp.maximum(d, 0.0))
 
 
 def _stationary_terms(a, xp=np):
@@ -257,6 +275,51 @@ def _stationary_terms(a, xp=np):
 def _output(z1, z2, a, sigma, k, g, xp=np):
     """Filter output y = sigma sqrt(k a) (z1 + g a z2)."""
     return sigma * xp.sqrt(k * a) * (z1 + g * a * z2)
+
+
+def _filter_step(filter_state, noise, plant_state, scales, fixed_airspeed, *, dt: float,
+                 steady: tuple, min_airspeed: float, xp=_Symbolic) -> list:
+    """One update period of the three filters (written once; traced and compiled).
+
+    ``filter_state`` is the filter's state group (13): cascade states (z1, z2) per
+    axis, a started flag, the latest wind sample NED [m/s], the latest gust sample
+    body [m/s]; ``noise`` 6 unit Gaussians; ``plant_state`` (13) gives the attitude
+    and the airspeed relative to the steady wind unless ``fixed_airspeed`` [m/s]
+    (1) is positive; ``scales`` are (L_u, L_v, L_w [m], sigma_u, sigma_v, sigma_w
+    [m/s]). Returns the next filter state group (13) and the wind slope (3)
+    [m/s^2]. The first sample (flag 0) is drawn from the stationary distribution.
+    """
+    rotation = unit_quat_rotation(plant_state[3:7])
+    steady_body = rotate_back(rotation, steady)
+    v = [plant_state[7 + i] - steady_body[i] for i in range(3)]
+    airspeed = xp.where(fixed_airspeed[0] > 0.0, fixed_airspeed[0],
+                        xp.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
+    speed = xp.maximum(airspeed, min_airspeed)
+    started = filter_state[6] > 0.0
+    z, gust = [], []
+    for i, (k, g) in enumerate(_OUTPUT_GAINS):
+        a = speed / scales[i]
+        e, l11, l21, l22 = _transition_terms(a, dt, xp)
+        s11, s21, s22 = _stationary_terms(a, xp)
+        n1, n2 = noise[2 * i], noise[2 * i + 1]
+        z1, z2 = filter_state[2 * i], filter_state[2 * i + 1]
+        z1, z2 = (xp.where(started, e * z1 + l11 * n1, s11 * n1),
+                  xp.where(started, e * (dt * z1 + z2) + l21 * n1 + l22 * n2,
+                           s21 * n1 + s22 * n2))
+        z += (z1, z2)
+        gust.append(_output(z1, z2, a, scales[3 + i], k, g, xp))
+    gust_ned = rotate(rotation, gust)
+    wind = [steady[i] + gust_ned[i] for i in range(3)]
+    slope = [(wind[i] - filter_state[7 + i]) / dt for i in range(3)]
+    return [*z, 1.0, *wind, *gust, *slope]
+
+
+@functools.lru_cache(maxsize=32)
+def _compiled_filter_step(dt: float, steady: tuple, min_airspeed: float) -> CompiledFunction:
+    """:func:`_filter_step` compiled for one update period, steady wind and airspeed floor."""
+    return CompiledFunction(
+        functools.partial(_filter_step, dt=dt, steady=steady, min_airspeed=min_airspeed),
+        (13, 6, 13, 6, 1), name="Dryden filter step")
 
 
 def _lower(m11, m21, m22) -> np.ndarray:
@@ -353,7 +416,10 @@ class DrydenFilter(LeafSystem):
     """Dryden shaping filters driven by an external unit Gaussian noise input.
 
     Discrete system sampled every ``params.update_period``; outputs are held
-    between samples and depend on the state only (no direct feedthrough).
+    between samples and depend on the state only (no direct feedthrough). The
+    update (airspeed, break frequencies, exact transition, gust, rotation to NED)
+    is one compiled call of the scalar-generic ``_filter_step``; the length scales
+    and intensities of the altitude are computed before it.
 
     | port (in)     | size | units                                               |
     |---------------|------|-----------------------------------------------------|
@@ -395,83 +461,40 @@ class DrydenFilter(LeafSystem):
                     context.get_discrete_state(self._filter).get_value()[part]),
                 prerequisites_of_calc=samples)
         self.DeclareStateOutputPort("wind_slope", slope)
-        self._fixed = None
-        if not params.needs_plant_state:
-            self._fixed = self._coefficients(params.airspeed, params.altitude)
+        self._step = _compiled_filter_step(params.update_period, tuple(self._steady_list),
+                                           params.min_airspeed).program
+        fixed = params.airspeed if params.airspeed is not None else 0.0
+        self._fixed_airspeed = [fixed]
+        # Plant state with the identity attitude, for a fixed airspeed and altitude.
+        self._level_state = [0.0, 0.0, 0.0, 1.0] + [0.0] * 9
 
     @property
     def params(self) -> DrydenParams:
         """The validated parameters."""
         return self._params
 
-    def _coefficients(self, airspeed: float, altitude: float) -> list[tuple]:
-        """Per axis (sigma, a, e, l11, l21, l22, k, g) at a flight condition (floats)."""
-        p = self._params
-        l_u, l_v, l_w, s_u, s_v, s_w = _scale_values(p.level, altitude, p.model)
-        speed = max(airspeed, p.min_airspeed)
-        out, terms = [], {}
-        for length, sigma, gains in zip((l_u, l_v, l_w), (s_u, s_v, s_w), _OUTPUT_GAINS,
-                                        strict=True):
-            a = speed / length
-            if a not in terms:  # L_u = L_v in both models: one transition for u and v
-                terms[a] = _transition_terms(a, p.update_period, math)
-            out.append((sigma, a, *terms[a], *gains))
-        return out
-
-    def _condition(self, context, state: list, rotation) -> tuple[float, float]:
-        """(airspeed relative to the steady wind [m/s], altitude [m]) for the filters."""
-        p = self._params
-        airspeed, altitude = p.airspeed, p.altitude
-        if airspeed is None:
-            v = state[7:10]
-            if self._has_steady:
-                steady_body = rotate_back(rotation, self._steady_list)
-                v = [v[i] - steady_body[i] for i in range(3)]
-            airspeed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        if altitude is None:
-            altitude = -state[2]
-        if not (math.isfinite(airspeed) and math.isfinite(altitude)):
-            raise RuntimeError(
-                f"DrydenFilter: input 'plant_state' gives airspeed {airspeed} m/s and "
-                f"altitude {altitude} m at t = {context.get_time():.3f} s; the aircraft "
-                "state is no longer finite (the simulation diverged)")
-        return airspeed, altitude
-
     def _update(self, context, discrete_state) -> None:
         p = self._params
-        x = context.get_discrete_state(self._filter).get_value().tolist()
-        n = self._noise.Eval(context).tolist()
-        rotation = None
         if self._plant_state.HasValue(context):
             state = self._plant_state.Eval(context).tolist()
-            rotation = unit_quat_rotation(state[3:7])
         elif p.needs_plant_state:
             raise RuntimeError(
                 "DrydenFilter: input 'plant_state' is not connected but DrydenParams "
                 "leaves airspeed or altitude to it"
             )
-        coefficients = self._fixed
-        if coefficients is None:
-            coefficients = self._coefficients(*self._condition(context, state, rotation))
-        started = x[6] > 0
-        dt = p.update_period
-        z, gust = [], []
-        for i, (sigma, a, e, l11, l21, l22, k, g) in enumerate(coefficients):
-            n1, n2 = n[2 * i], n[2 * i + 1]
-            if started:
-                z1, z2 = x[2 * i], x[2 * i + 1]
-                z1, z2 = e * z1 + l11 * n1, e * (dt * z1 + z2) + l21 * n1 + l22 * n2
-            else:  # first sample: draw from the stationary distribution
-                s11, s21, s22 = _stationary_terms(a, math)
-                z1, z2 = s11 * n1, s21 * n1 + s22 * n2
-            z += (z1, z2)
-            gust.append(_output(z1, z2, a, sigma, k, g, math))
-        gust_ned = gust if rotation is None else rotate(rotation, gust)
-        steady = self._steady_list
-        wind = [steady[i] + gust_ned[i] for i in range(3)]
-        previous = x[7:10]
-        discrete_state.set_value(0, [*z, 1.0, *wind, *gust])
-        discrete_state.set_value(1, [(wind[i] - previous[i]) / dt for i in range(3)])
+        else:
+            state = self._level_state
+        altitude = -state[2] if p.altitude is None else p.altitude
+        if not math.isfinite(altitude + sum(state)):
+            raise RuntimeError(
+                f"DrydenFilter: input 'plant_state' is not finite at t = "
+                f"{context.get_time():.3f} s ({state}); the aircraft state is no longer "
+                "finite (the simulation diverged)")
+        out = self._step(context.get_discrete_state(self._filter).get_value().tolist(),
+                         self._noise.Eval(context).tolist(), state,
+                         _scale_values(p.level, altitude, p.model), self._fixed_airspeed)
+        discrete_state.set_value(0, out[:13])
+        discrete_state.set_value(1, out[13:])
 
 
 class DrydenWind(Diagram):
