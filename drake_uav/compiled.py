@@ -11,6 +11,7 @@ in a loop; it is never a second copy of the equations.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections import Counter
@@ -532,6 +533,16 @@ def _negated(text: str) -> str | None:
     return None
 
 
+def _take_folded(folded: dict[str, str], used: list[str], match: re.Match) -> str:
+    """The folded text of a temporary (removed from ``folded``, noted in ``used``) or
+    the name itself."""
+    name = match.group()
+    if name not in folded:
+        return name
+    used.append(folded[name])
+    return folded.pop(name)
+
+
 def _inline_single_use(lines: list[str]) -> list[str]:
     """Folds every temporary used exactly once into the expression that uses it.
 
@@ -550,16 +561,8 @@ def _inline_single_use(lines: list[str]) -> list[str]:
     for line in lines:
         definition = _DEFINITION.fullmatch(line)
         text = definition.group(2) if definition else line
-        used = []
-
-        def substitute(match):
-            name = match.group()
-            if name in folded:
-                used.append(folded[name])
-                return folded.pop(name)
-            return name
-
-        text = _TEMPORARY.sub(substitute, text)
+        used: list[str] = []
+        text = _TEMPORARY.sub(functools.partial(_take_folded, folded, used), text)
         for piece in used:
             if piece in negations:
                 text = text.replace(f" + {piece}", f" - {negations.pop(piece)}", 1)

@@ -55,8 +55,7 @@ def _run(params: SensorSuiteParams, duration: float, seed: int = 1):
     """Measurements (rows: samples at the base rate, taken at t = 0, dt, ...) with fixed truth."""
     builder = DiagramBuilder()
     suite = builder.AddSystem(SensorSuite(params))
-    for name, value in (("state", STATE), ("euler", EULER), ("air_data", AIR),
-                        ("specific_force", FORCE)):
+    for name, value in (("state", STATE), ("air_data", AIR), ("specific_force", FORCE)):
         source = builder.AddSystem(ConstantVectorSource(value))
         builder.Connect(source.get_output_port(0), suite.GetInputPort(name))
     dt = 1.0 / params.base_rate_hz
@@ -217,8 +216,7 @@ def test_same_seed_same_noise_and_partial_suite():
 def test_per_sensor_ports_are_the_parts_of_measurements():
     builder = DiagramBuilder()
     suite = builder.AddSystem(SensorSuite(SensorSuiteParams.seed_table7(air_density=RHO)))
-    for name, value in (("state", STATE), ("euler", EULER), ("air_data", AIR),
-                        ("specific_force", FORCE)):
+    for name, value in (("state", STATE), ("air_data", AIR), ("specific_force", FORCE)):
         source = builder.AddSystem(ConstantVectorSource(value))
         builder.Connect(source.get_output_port(0), suite.GetInputPort(name))
     diagram = builder.Build()

@@ -128,8 +128,7 @@ class SafetyPilot(LeafSystem):
 
     | port (in)  | size | units                                              |
     |------------|------|----------------------------------------------------|
-    | state      | 13   | plant ``state``                                    |
-    | euler      | 3    | plant ``euler``: roll, pitch, yaw [rad]            |
+    | state      | 13   | plant ``state`` (attitude: its quaternion's Euler)  |
     | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
 
     | port (out) | size | units                                              |
@@ -143,7 +142,6 @@ class SafetyPilot(LeafSystem):
         self.gains = gains.validate()
         self._refs = (pitch_ref, altitude_ref, heading_ref, airspeed_ref)
         self._state = self.DeclareVectorInputPort("state", 13)
-        self._euler = self.DeclareVectorInputPort("euler", 3)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         xd = self.DeclareDiscreteState(4)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
@@ -153,7 +151,7 @@ class SafetyPilot(LeafSystem):
         g = self.gains
         pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
         x = self._state.Eval(context).tolist()
-        roll, pitch, yaw = self._euler.Eval(context).tolist()
+        roll, pitch, yaw = quat_to_euler(x[3:7]).tolist()
         p, q, r = x[10:13]
         climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
         heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
@@ -413,7 +411,7 @@ def build_identification_flight(
         adder = builder.AddNamedSystem("command_sum", Adder(2, 4))
         builder.Connect(commands, adder.get_input_port(0))
         builder.Connect(pilot.GetOutputPort("correction"), adder.get_input_port(1))
-        for name in ("state", "euler", "air_data"):
+        for name in ("state", "air_data"):
             builder.Connect(plant.GetOutputPort(name), pilot.GetInputPort(name))
         commands = adder.get_output_port(0)
     plant_commands = commands
@@ -443,7 +441,7 @@ def build_identification_flight(
     builder.Connect(wind_port, plant.GetInputPort("wind_ned"))
 
     suite = builder.AddNamedSystem("sensors", SensorSuite(sensors))
-    for name in ("state", "euler", "air_data", "specific_force"):
+    for name in ("state", "air_data", "specific_force"):
         builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
 
     # The plant's state and inputs are logged; the other truth channels are

@@ -37,7 +37,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, RandomSource
 
-from drake_uav.rotations import rotate, unit_quat_rotation
+from drake_uav.rotations import quat_to_euler, rotate, unit_quat_rotation
 
 __all__ = [
     "ChannelErrors",
@@ -283,8 +283,8 @@ class SampledSensors(LeafSystem):
     | port (in)       | size | units                                              |
     |-----------------|------|----------------------------------------------------|
     | noise           | 2 N  | N(0, 1) samples, fresh each base period            |
-    | state           | 13   | plant ``state`` [m, -, m/s, rad/s]                 |
-    | euler           | 3    | plant ``euler`` roll, pitch, yaw [rad]             |
+    | state           | 13   | plant ``state`` [m, -, m/s, rad/s] (the attitude   |
+    |                 |      | sensor's Euler angles are those of its quaternion) |
     | air_data        | 3    | plant ``air_data`` Va [m/s], alpha, beta [rad]     |
     | specific_force  | 3    | plant ``specific_force``, body [m/s^2]             |
 
@@ -308,7 +308,6 @@ class SampledSensors(LeafSystem):
         n, m = self._n, len(self.channel_names)
         self._noise = self.DeclareVectorInputPort("noise", 2 * n)
         self._state = self.DeclareVectorInputPort("state", 13)
-        self._euler = self.DeclareVectorInputPort("euler", 3)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._force = self.DeclareVectorInputPort("specific_force", 3)
         # Discrete state: the held outputs (m); [tick, bias walk (n), truth delay line
@@ -383,7 +382,7 @@ class SampledSensors(LeafSystem):
         self._needs = {key: bool(needed & set(range(s.start, s.stop))) for key, s in
                        _TRUTH.items()}
         self._needs["state"] = any(self._needs[k] for k in ("position", "velocity", "rates",
-                                                            "altitude"))
+                                                            "altitude", "euler"))
         self._needs["air"] = self._needs["dynamic_pressure"] or self._needs["air_angles"]
         self._density = p.pitot.air_density if p.pitot is not None else 0.0
 
@@ -400,7 +399,7 @@ class SampledSensors(LeafSystem):
                     else zero)
         air = self._air.Eval(context).tolist() if need["air"] else zero
         force = self._force.Eval(context).tolist() if need["specific_force"] else zero
-        euler = self._euler.Eval(context).tolist() if need["euler"] else zero
+        euler = quat_to_euler(x[3:7]).tolist() if need["euler"] else zero
         truth = np.array((*force, *x[10:13], *x[0:3], *velocity,
                           0.5 * self._density * air[0] * air[0], air[1], air[2], *euler, -x[2]))
         return truth if self._all_truths else truth[self._truth_idx]
@@ -471,7 +470,7 @@ class SensorSuite(Diagram):
                          self.sensors.base_period),
         )
         builder.Connect(noise.get_output_port(0), self.sensors.GetInputPort("noise"))
-        for name in ("state", "euler", "air_data", "specific_force"):
+        for name in ("state", "air_data", "specific_force"):
             builder.ExportInput(self.sensors.GetInputPort(name), name)
         measurements = self.sensors.GetOutputPort("measurements")
         slices = self.sensors.port_slices
