@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import operator
 from collections.abc import Mapping
 
 import numpy as np
@@ -89,7 +88,12 @@ def _t(M: np.ndarray) -> np.ndarray:
     return M.swapaxes(-1, -2)
 
 
-_transpose = operator.attrgetter("T")
+def _symmetric(M: np.ndarray) -> np.ndarray:
+    """``(M + M^T) / 2`` of (n, n) or (B, n, n) matrices (``M`` is overwritten). The
+    transpose is copied first: adding a contiguous array is cheaper than a strided one."""
+    M += _t(M).copy()
+    M *= 0.5
+    return M
 
 
 def _index(indices: tuple[int, ...]) -> slice | list[int] | None:
@@ -286,7 +290,7 @@ class ExtendedKalmanFilter:
         # Scale of the columns of [B | G] in Qd / 2 = L L^T: sqrt(1/2) [sigma_u dt, sqrt(Qc dt)].
         self._input_std, self._qc_std = input_std, np.sqrt(
             [noise.process_psd[n] for n in model.noise_names])
-        self._process_scale_dt, self._process_scale = None, None
+        self._column_scale_dt, self._column_scale_value = None, None
         self._r = np.array([noise.measurement_std[n] for n in model.measurement_names]) ** 2
         self.initial_covariance = np.diag(
             [noise.initial_std[n] ** 2 for n in model.state_names])
@@ -314,6 +318,8 @@ class ExtendedKalmanFilter:
         # Measurement rows through which input noise enters (attitude in the GPS rows).
         self._input_rows = self.measurement.jacobian_structure[:, nx:].any(axis=1)
         self._nan = np.full(ny, np.nan)
+        self._none_rejected = np.zeros(len(self.group_names), bool)
+        self._none_rejected.flags.writeable = False
 
     # -------------------------------------------------------------- pieces
     def _value_and_jacobian(self, function: CompiledFunction, *args):
@@ -350,29 +356,25 @@ class ExtendedKalmanFilter:
     def _noise_scale(self, dt):
         """Column scale of ``[B | G]``: ``sqrt(1/2) [sigma_u dt, sqrt(Qc dt)]``."""
         if not isinstance(dt, np.ndarray):
-            if dt != self._process_scale_dt:
-                self._process_scale_dt = dt
-                self._process_scale = math.sqrt(0.5) * np.concatenate(
-                    [self._input_std * dt, self._qc_std * math.sqrt(dt)])
-            return self._process_scale
+            return math.sqrt(0.5) * np.concatenate(
+                [self._input_std * dt, self._qc_std * math.sqrt(dt)])
         return math.sqrt(0.5) * np.concatenate(
             [self._input_std * dt, np.broadcast_to(self._qc_std * np.sqrt(dt),
                                                    dt.shape[:-1] + self._qc_std.shape)],
             axis=-1)
 
-    def predict(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
-        """Time update over ``dt`` [s] (scalar, or one per filter of a batch) with ``u`` held."""
-        if x.ndim == 1:
-            w0 = self._w0
-        else:
-            w0 = np.broadcast_to(self._w0, (len(x), len(self._w0)))
-            dt = np.broadcast_to(np.asarray(dt, float), (len(x),))[:, None, None]
-        f, J = self._value_and_jacobian(self.dynamics, x, u, w0)
-        # One filter: ndarray.dot (a fraction of matmul's call cost on small matrices).
-        dot, t = (np.ndarray.dot, _transpose) if x.ndim == 1 else (np.matmul, _t)
-        nx = self.n_states
-        A = J[..., :nx] * dt
-        # phi1(A) = I + A/2 + A^2/6 + A^3/24 (Horner); Phi = I + A phi1(A).
+    def _column_scale(self, dt: float) -> np.ndarray:
+        """Scale of the columns of ``[F | B | G]`` giving ``[A | L]`` for one step ``dt`` [s]:
+        ``dt`` on F, :meth:`_noise_scale` on ``[B | G]``; one row per state (the same shape
+        as the Jacobian), cached: the step rarely changes."""
+        if dt != self._column_scale_dt:
+            self._column_scale_dt = dt
+            row = np.concatenate([np.full(self.n_states, dt), self._noise_scale(dt)])
+            self._column_scale_value = np.tile(row, (self.n_states, 1))
+        return self._column_scale_value
+
+    def _transition(self, A: np.ndarray, dot) -> tuple[np.ndarray, np.ndarray]:
+        """``phi1(A) = I + A/2 + A^2/6 + A^3/24`` (Horner) and ``Phi = I + A phi1(A)``."""
         phi1 = A * (1.0 / 24.0)
         phi1 += self._eye_sixth
         phi1 = dot(A, phi1)
@@ -381,18 +383,46 @@ class ExtendedKalmanFilter:
         phi1 += self._eye
         Phi = dot(A, phi1)
         Phi += self._eye
+        return phi1, Phi
+
+    def predict(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
+        """Time update over ``dt`` [s] (scalar, or one per filter of a batch) with ``u`` held."""
         if x.ndim == 1:
-            x_new = x + dt * phi1.dot(f)
-        else:
-            x_new = x + dt[..., 0] * (phi1 @ f[..., None])[..., 0]
-        L = J[..., nx:] * self._noise_scale(dt)
-        half = dot(L, t(L))
-        P_new = P + half
-        P_new = dot(dot(Phi, P_new), t(Phi))
+            return self._predict_one(x, P, u, dt)
+        return self._predict_batch(x, P, u, dt)
+
+    def _predict_one(self, x: np.ndarray, P: np.ndarray, u, dt: float) -> tuple:
+        """:meth:`predict` of one filter.
+
+        Small matrices: ``ndarray.dot`` (a fraction of matmul's call cost) on contiguous
+        operands of equal shape (numpy's broadcasting and strided loops cost more than
+        the arithmetic at this size).
+        """
+        f, J = self._value_and_jacobian(self.dynamics, x, u, self._w0)
+        J = J * self._column_scale(dt)  # [A | L] = [F dt | [B | G] noise scale]
+        nx = self.n_states
+        A, L = J[:, :nx].copy(), J[:, nx:].copy()
+        phi1, Phi = self._transition(A, np.ndarray.dot)
+        x_new = x + dt * phi1.dot(f)
+        half = L.dot(L.T)
+        P_new = Phi.dot(P + half).dot(Phi.T)
         P_new += half
-        P_new += t(P_new)
-        P_new *= 0.5
-        return x_new, P_new
+        return x_new, _symmetric(P_new)
+
+    def _predict_batch(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
+        """:meth:`predict` of a batch of filters."""
+        w0 = np.broadcast_to(self._w0, (len(x), len(self._w0)))
+        dt = np.broadcast_to(np.asarray(dt, float), (len(x),))[:, None, None]
+        f, J = self._value_and_jacobian(self.dynamics, x, u, w0)
+        nx = self.n_states
+        A = J[..., :nx] * dt
+        phi1, Phi = self._transition(A, np.matmul)
+        x_new = x + dt[..., 0] * (phi1 @ f[..., None])[..., 0]
+        L = J[..., nx:] * self._noise_scale(dt)
+        half = L @ _t(L)
+        P_new = Phi @ (P + half) @ _t(Phi)
+        P_new += half
+        return x_new, _symmetric(P_new)
 
     def update(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, y: np.ndarray,
                available: np.ndarray | None = None, diagnostics: bool = True) -> UpdateResult:
@@ -429,7 +459,7 @@ class ExtendedKalmanFilter:
     def _update_one(self, x, P, J, nu, mask, diagnostics: bool) -> UpdateResult:
         """Update of one filter on the rows of the channels in use."""
         used, unused, R_sensor, input_noise = self._rows(mask)
-        rejected = np.zeros(len(self.group_names), bool)
+        rejected = self._none_rejected
         innovation = innovation_var = None
         if diagnostics:
             innovation = nu.copy()
@@ -439,8 +469,8 @@ class ExtendedKalmanFilter:
             return UpdateResult(x, P, np.nan, 0, mask, rejected, innovation, innovation_var)
         nx = self.n_states
         if unused.size:
-            J = J.take(used, axis=0)
-        H = J[:, :nx]
+            J, nu = J.take(used, axis=0), nu.take(used)
+        H = J[:, :nx].copy()
         if input_noise:
             D = J[:, nx:] * self._h_input_std
             R = D.dot(D.T)
@@ -453,10 +483,10 @@ class ExtendedKalmanFilter:
         S_diag = S.diagonal()
         if diagnostics:
             innovation_var[used] = S_diag
-        if unused.size:
-            nu = nu.take(used)
-        bad = nu * nu > self._gate * S_diag
-        if np.count_nonzero(bad):
+        gate = self._gate
+        if any(v * v > gate * d for v, d in zip(nu.tolist(), S_diag.tolist(), strict=True)):
+            bad = nu * nu > gate * S_diag
+            rejected = np.zeros(len(self.group_names), bool)
             rejected[self._group_of[used[bad]]] = True
             keep = ~rejected[self._group_of[used]]
             mask[used[~keep]] = False
@@ -471,14 +501,13 @@ class ExtendedKalmanFilter:
         if info:
             raise np.linalg.LinAlgError("EKF update: innovation covariance not positive "
                                         "definite")
-        K = solution[:, :nx].T
+        Kt = solution[:, :nx]
+        K = Kt.T
         A = self._eye - K.dot(H)
         P_new = A.dot(P).dot(A.T)
-        P_new += K.dot(R).dot(K.T)
-        P_new += P_new.T
-        P_new *= 0.5
-        return UpdateResult(x + K.dot(nu), P_new, nu.dot(solution[:, nx]), len(used), mask,
-                            rejected, innovation, innovation_var)
+        P_new += K.dot(R).dot(Kt)
+        return UpdateResult(x + K.dot(nu), _symmetric(P_new), nu.dot(solution[:, nx]),
+                            len(used), mask, rejected, innovation, innovation_var)
 
     def _update_batch(self, x, P, J, nu, mask) -> UpdateResult:
         """Update of a batch of filters: unused channels get zero rows (seed's D matrix)."""

@@ -757,7 +757,7 @@ def _ned_acceleration_function(gravity: float) -> CompiledFunction:
 
 def ned_acceleration(specific_force, euler, gravity: float) -> np.ndarray:
     """Ground acceleration NED [m/s^2] of one IMU sample: ``R(euler) a + g e_D``."""
-    return _ned_acceleration_function(float(gravity)).value(
+    return _ned_acceleration_function(float(gravity)).program(
         as_list(specific_force) + as_list(euler))
 
 

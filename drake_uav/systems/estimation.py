@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -90,6 +92,10 @@ class EkfSystemParams:
         return self
 
 
+# Entries of the sensor ports that the air-data filters measure.
+_GPS_VELOCITY, _DYNAMIC_PRESSURE, _VANES = slice(3, 6), slice(0, 1), slice(0, 2)
+
+
 class _Slot:
     """One filter's bookkeeping packed into a slice of the discrete state.
 
@@ -107,13 +113,15 @@ class _Slot:
             self.slices[name] = slice(start, start + size)
             start += size
         self.stop = start
+        (self._x, self._P, self._u_prev, self._raw_prev, self._rejected, self._nan_y,
+         self._nan_u, self._scalars) = self.slices.values()
+        self._started = self.stop - 1
 
     def initial(self) -> np.ndarray:
         """Initial contents: not started, no sample seen yet."""
-        values = np.zeros(self.stop - self.slices["x"].start)
-        offset = self.slices["x"].start
-        raw = self.slices["raw_prev"]
-        values[raw.start - offset:raw.stop - offset] = np.nan
+        values = np.zeros(self.stop - self._x.start)
+        offset = self._x.start
+        values[self._raw_prev.start - offset:self._raw_prev.stop - offset] = np.nan
         return values
 
     def get(self, state: np.ndarray, name: str) -> np.ndarray:
@@ -121,32 +129,25 @@ class _Slot:
 
     def covariance(self, state: np.ndarray) -> np.ndarray:
         n = self.ekf.n_states
-        return state[self.slices["P"]].reshape(n, n)
+        return state[self._P].reshape(n, n)
 
     def started(self, state: np.ndarray) -> bool:
-        return bool(state[self.slices["scalars"]][2])
+        return bool(state[self._started])
 
-    def step(self, state: np.ndarray, u: np.ndarray, raw: np.ndarray, y: np.ndarray,
-             dt: float) -> None:
-        """Advances the filter stored in ``state`` (modified in place) by one period."""
-        ekf, sl = self.ekf, self.slices
-        u_prev = state[sl["u_prev"]]
-        finite_u = np.isfinite(u)
-        if np.count_nonzero(finite_u) < len(u):
-            state[sl["nan_u"]] += ~finite_u
-            u = np.where(finite_u, u, u_prev)
-        raw_prev = state[sl["raw_prev"]]
-        nan_raw = np.isnan(raw)
-        if np.count_nonzero(nan_raw) or np.count_nonzero(np.isnan(raw_prev)):
-            fresh = is_new_sample(raw, raw_prev)
-            state[sl["nan_y"]] += fresh & nan_raw
-        else:
-            fresh = raw != raw_prev
-        raw_prev[:] = raw
-        available = fresh & np.isfinite(y)
-        if not self.started(state):
-            if not np.all(np.isfinite(u)):
-                return
+    def step(self, state: np.ndarray, u: Sequence[float], raw: Sequence[float],
+             y: Sequence[float], dt: float) -> None:
+        """Advances the filter stored in ``state`` (modified in place) by one period [s].
+
+        ``u`` is the input sample, ``raw`` the held sensor values (a changed value is a
+        new sample) and ``y`` the measurements made from them, as sequences of floats.
+        """
+        ekf = self.ekf
+        u_prev = state[self._u_prev]
+        u = np.array(self._finite_inputs(state, u, u_prev))
+        available = self._available(state, raw)
+        y = np.array(y)
+        if not state[self._started]:
+            available &= np.isfinite(y)
             x0 = ekf.model.initial_state(u, y, available)
             if not np.all(np.isfinite(x0)):
                 return
@@ -154,15 +155,44 @@ class _Slot:
         else:
             if ekf.model.smoothed_inputs:
                 u = ekf.model.smooth_inputs(u_prev, u, dt)
-            x, P = ekf.predict(state[sl["x"]], self.covariance(state),
+            x, P = ekf.predict(state[self._x], self.covariance(state),
                                ekf.midpoint_input(u_prev, u), dt)
         result = ekf.update(x, P, u, y, available, diagnostics=False)
-        state[sl["x"]] = result.x
-        state[sl["P"]] = result.P.reshape(-1)
+        state[self._x] = result.x
+        state[self._P] = result.P.reshape(-1)
         u_prev[:] = u
         if np.count_nonzero(result.rejected):
-            state[sl["rejected"]] += result.rejected
-        state[sl["scalars"]] = (result.nis, result.dof, 1.0)
+            state[self._rejected] += result.rejected
+        state[self._scalars] = (result.nis, result.dof, 1.0)
+
+    def _finite_inputs(self, state: np.ndarray, u: Sequence[float],
+                       u_prev: np.ndarray) -> Sequence[float]:
+        """``u`` with its non-finite entries replaced by the previous input (counted)."""
+        if all(map(math.isfinite, u)):
+            return u
+        bad = [not math.isfinite(v) for v in u]
+        state[self._nan_u] += bad
+        return [p if b else v for v, p, b in zip(u, u_prev.tolist(), bad, strict=True)]
+
+    def _available(self, state: np.ndarray, raw: Sequence[float]) -> np.ndarray:
+        """Channels with a new sample (bool; a NaN sample is counted once and the update
+        skips it); keeps ``raw`` for the next period."""
+        stored = state[self._raw_prev]
+        previous = stored.tolist()
+        stored[:] = raw
+        if math.isnan(sum(raw) + sum(previous)):  # NaN samples (or none seen yet)
+            fresh = is_new_sample(raw, previous)
+            state[self._nan_y] += fresh & np.isnan(raw)
+            return fresh
+        return np.array([a != b for a, b in zip(raw, previous, strict=True)])
+
+
+def _delayed_controls(held: np.ndarray, current: np.ndarray, started: bool) -> list[float]:
+    """The commands of one period earlier, kept in ``held`` (a view of the discrete state,
+    then overwritten with ``current``); ``current`` itself before the filter starts."""
+    previous = held.tolist() if started else current.tolist()
+    held[:] = current
+    return previous
 
 
 class _GpsDelay:
@@ -174,7 +204,8 @@ class _GpsDelay:
         # cumulative velocity change (3), previous NED acceleration (3), ring (lag + 1, 3), index
         self.start, self.stop = start, start + 6 + 3 * (self.lag + 1) + 1
 
-    def correction(self, state: np.ndarray, specific_force, euler, dt: float) -> list[float]:
+    def correction(self, state: np.ndarray, specific_force: list[float], euler: list[float],
+                   dt: float) -> list[float]:
         """Adds this period's velocity change; returns the change over the latency [m/s]."""
         if self.lag == 0:
             return [0.0, 0.0, 0.0]
@@ -230,32 +261,33 @@ class _AirDataSystem(LeafSystem):
                                      prerequisites_of_calc=deps)
 
     # ------------------------------------------------------------------ update
-    def _optional(self, port, context, size: int) -> np.ndarray:
-        return port.Eval(context) if port.HasValue(context) else np.full(size, np.nan)
+    def _optional(self, port, context, entries: slice) -> list[float]:
+        """``entries`` of an optional sensor port, NaN when the port has no value."""
+        if port.HasValue(context):
+            return port.Eval(context)[entries].tolist()
+        return [math.nan] * (entries.stop - entries.start)
 
     def _update(self, context, discrete_state) -> None:
         # Drake hands the update its current values: advance them in place.
-        state = discrete_state.get_mutable_vector(self._xd).get_mutable_value()
-        imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
+        state = discrete_state.get_mutable_value(self._xd)
+        imu, attitude = self._imu.Eval(context).tolist(), self._attitude.Eval(context).tolist()
+        specific_force = imu[0:3]
         # Sensor values in the model's measurement order (accelerometer first in the
         # model-based filter); the GPS velocity moved forward by its latency.
-        gps = self._optional(self._gps, context, 6)
-        parts = (gps[3:6], self._optional(self._pitot, context, 2)[:1],
-                 self._optional(self._vanes, context, 2))
-        raw = np.concatenate(((imu[0:3],) + parts) if self._controls is not None else parts)
-        y = raw.copy()
-        first = 3 if self._controls is not None else 0
-        y[first:first + 3] += self._delay.correction(state, imu[0:3], attitude,
-                                                     self.params.period)
+        gps = self._optional(self._gps, context, _GPS_VELOCITY)
+        air = (self._optional(self._pitot, context, _DYNAMIC_PRESSURE)
+               + self._optional(self._vanes, context, _VANES))
+        change = self._delay.correction(state, specific_force, attitude, self.params.period)
+        y = [v + c for v, c in zip(gps, change, strict=True)] + air
+        raw = gps + air
+        if self._controls is not None:
+            raw, y = specific_force + raw, specific_force + y
         u = self._inputs(context, state, imu, attitude)
         self._slot.step(state, u, raw, y, self.params.period)
 
-    def _held_controls(self, context, state) -> np.ndarray:
-        current = self._controls.Eval(context)
-        previous = (state[self._held:self._held + 4].copy() if self._slot.started(state)
-                    else current)
-        state[self._held:self._held + 4] = current
-        return previous
+    def _held_controls(self, context, state) -> list[float]:
+        return _delayed_controls(state[self._held:self._held + 4], self._controls.Eval(context),
+                                 self._slot.started(state))
 
     # ----------------------------------------------------------------- outputs
     def _value(self, context) -> np.ndarray:
@@ -318,8 +350,8 @@ class AirDataEkf(_AirDataSystem):
     def __init__(self, params: EkfSystemParams):
         super().__init__(params, AirDataModel(params.aircraft), needs_controls=False)
 
-    def _inputs(self, context, state, imu, attitude) -> np.ndarray:
-        return np.concatenate([imu, attitude])
+    def _inputs(self, context, state, imu, attitude) -> list[float]:
+        return imu + attitude
 
     def _calc_air_data(self, context, output) -> None:
         x = self._x(context)
@@ -360,8 +392,8 @@ class ModelBasedAirDataEkf(_AirDataSystem):
     def __init__(self, params: EkfSystemParams):
         super().__init__(params, ModelBasedAirDataModel(params.aircraft), needs_controls=True)
 
-    def _inputs(self, context, state, imu, attitude) -> np.ndarray:
-        return np.concatenate([imu[3:6], attitude, self._held_controls(context, state)])
+    def _inputs(self, context, state, imu, attitude) -> list[float]:
+        return imu[3:6] + attitude + self._held_controls(context, state)
 
     def _calc_air_data(self, context, output) -> None:
         output.SetFromVector(self._x(context)[0:3])
@@ -420,9 +452,9 @@ class ParameterEkf(LeafSystem):
             self._slots.append(_Slot(ekf, start))
             start = self._slots[-1].stop
         self._held = start
-        # Each filter's inputs and measurements as indices into the stacked ports.
+        # Each filter's inputs and measurements picked from the stacked ports.
         self._inputs, self._measurements = (
-            tuple(np.array([self._SIGNALS.index(n) for n in getattr(e.model, names)])
+            tuple(operator.itemgetter(*[self._SIGNALS.index(n) for n in getattr(e.model, names)])
                   for e in self.ekfs) for names in ("input_names", "measurement_names"))
         self.derivative_names = tuple(n for e in self.ekfs for n in e.model.parameter_names)
         self._air = self.DeclareVectorInputPort("air_data", 3)
@@ -444,20 +476,17 @@ class ParameterEkf(LeafSystem):
 
     def _update(self, context, discrete_state) -> None:
         # Drake hands the update its current values: advance them in place.
-        state = discrete_state.get_mutable_vector(self._xd).get_mutable_value()
-        air = self._air.Eval(context)
-        imu, attitude = self._imu.Eval(context), self._attitude.Eval(context)
-        current = self._controls.Eval(context)
-        controls = (state[self._held:self._held + 4].copy() if self._slots[0].started(state)
-                    else current)
-        state[self._held:self._held + 4] = current
-        omega_dot = (self._omega_dot.Eval(context) if self._omega_dot.HasValue(context)
-                     else np.full(3, np.nan))
-        signals = np.concatenate((air, imu, attitude, controls, omega_dot))
+        state = discrete_state.get_mutable_value(self._xd)
+        controls = _delayed_controls(state[self._held:self._held + 4],
+                                     self._controls.Eval(context), self._slots[0].started(state))
+        omega_dot = (self._omega_dot.Eval(context).tolist() if self._omega_dot.HasValue(context)
+                     else [math.nan] * 3)
+        signals = (self._air.Eval(context).tolist() + self._imu.Eval(context).tolist()
+                   + self._attitude.Eval(context).tolist() + controls + omega_dot)
         for slot, inputs, measurements in zip(self._slots, self._inputs, self._measurements,
                                               strict=True):
-            y = signals.take(measurements)
-            slot.step(state, signals.take(inputs), y, y, self.params.period)
+            y = measurements(signals)
+            slot.step(state, inputs(signals), y, y, self.params.period)
 
     def _value(self, context) -> np.ndarray:
         return context.get_discrete_state(self._xd).get_value()

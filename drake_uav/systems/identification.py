@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from drake_uav.compiled import CompiledFunction
 from drake_uav.identification.recursive import RecursiveOLS, RecursiveTLS, VariableForgetting
 from drake_uav.systems.aerodynamics import (
     COEFFICIENTS,
@@ -217,8 +218,14 @@ class AeroRegressors(LeafSystem):
         regressor_matrix(self.names, AeroCondition(25.0, 0.0, 0.0, 0.0, 0.0, 0.0),
                          aircraft.b, aircraft.c)  # raises ValueError for an unknown name
         self.coefficient = coefficient
-        self._aircraft = aircraft
-        self._model = FixedWingModel(aircraft)
+        model = FixedWingModel(aircraft)
+
+        def row(air_data, omega, controls):
+            cond = model.aero_condition(air_data, omega, controls)
+            return regressor_matrix(self.names, cond, aircraft.b, aircraft.c)
+
+        # The row as straight-line code (traced once): no condition object per sample.
+        self._row = CompiledFunction(row, (3, 3, 4), {}, f"{coefficient} regressors").program
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._state = self.DeclareVectorInputPort("state", 13)
         self._controls = self.DeclareVectorInputPort("controls", 4)
@@ -227,14 +234,15 @@ class AeroRegressors(LeafSystem):
         self.DeclareVectorOutputPort("observation", 1, self._calc_observation)
 
     def _calc_regressors(self, context, output) -> None:
-        cond = self._model.aero_condition(self._air.Eval(context).tolist(),
-                                          self._state.Eval(context)[10:13].tolist(),
-                                          self._controls.Eval(context).tolist())
-        output.SetFromVector(regressor_matrix(self.names, cond, self._aircraft.b,
-                                              self._aircraft.c))
+        output.SetFromVector(self._row(self._air.Eval(context).tolist(),
+                                       self._state.Eval(context)[10:13].tolist(),
+                                       self._controls.Eval(context).tolist()))
 
     def _calc_observation(self, context, output) -> None:
         cx, cy, cz, cl, cm, cn = self._coefficients.Eval(context).tolist()
-        lift, drag = body_to_lift_drag(cx, cz, self._air.Eval(context)[1])
-        values = {"CL": lift, "CD": drag, "CY": cy, "Cl": cl, "Cm": cm, "Cn": cn}
-        output.SetFromVector([values[self.coefficient]])
+        if self.coefficient in ("CL", "CD"):  # wind axes: needs alpha
+            lift, drag = body_to_lift_drag(cx, cz, float(self._air.Eval(context)[1]))
+            value = lift if self.coefficient == "CL" else drag
+        else:
+            value = {"CY": cy, "Cl": cl, "Cm": cm, "Cn": cn}[self.coefficient]
+        output.SetAtIndex(0, value)
