@@ -205,7 +205,6 @@ _SERIES = tuple(
     tuple((-1) ** n / (math.factorial(n) * (n + m + 1)) for n in reversed(range(6)))
     for m in range(3)
 )
-_SERIES_COLUMNS = tuple(zip(*_SERIES, strict=True))  # (I0, I1, I2) coefficients per power
 
 
 class _Symbolic:
@@ -224,12 +223,7 @@ class _Symbolic:
 
 def _exp_moments(x, xp=np):
     """(I0, I1, I2) with I_m = integral of u^m exp(-x u) over u in [0, 1]."""
-    if xp is math and x < _SERIES_BELOW:  # the three Horner schemes in one loop
-        i0 = i1 = i2 = 0.0
-        for c0, c1, c2 in _SERIES_COLUMNS:
-            i0, i1, i2 = i0 * x + c0, i1 * x + c1, i2 * x + c2
-        return i0, i1, i2
-    safe = x if xp is math else xp.maximum(x, _SERIES_BELOW)
+    safe = xp.maximum(x, _SERIES_BELOW)
     e = xp.exp(-safe)
     one_minus = -xp.expm1(-safe)
     closed = (
@@ -237,8 +231,6 @@ def _exp_moments(x, xp=np):
         (one_minus - safe * e) / safe**2,
         (2.0 * one_minus - e * safe * (2.0 + safe)) / safe**3,
     )
-    if xp is math:
-        return closed
     return tuple(xp.where(x < _SERIES_BELOW, _horner(c, x), m)
                  for c, m in zip(_SERIES, closed, strict=True))
 
@@ -255,15 +247,14 @@ def _transition_terms(a, dt: float, xp=np):
     """(e, l11, l21, l22): exp(-a dt) and the Cholesky factor of the noise covariance.
 
     The covariance is q_ij = integral over [0, dt] of exp(-2 a s) s^(i+j) ds. Written
-    once for ``xp = numpy`` (arrays), ``math`` (floats) and ``_Symbolic``
-    (the compiled update).
+    once for ``xp = numpy`` (arrays) and ``_Symbolic`` (the compiled update).
     """
     i0, i1, i2 = _exp_moments(2.0 * a * dt, xp)
     q11, q12, q22 = dt * i0, dt * dt * i1, dt * dt * dt * i2
     l11 = xp.sqrt(q11)
     l21 = q12 / l11
     d = q22 - l21 * l21
-    return xp.exp(-a * dt), l11, l21, xp.sqrt(max(d, 0.0) if xp is math else xp.maximum(d, 0.0))
+    return xp.exp(-a * dt), l11, l21, xp.sqrt(xp.maximum(d, 0.0))
 
 
 def _stationary_terms(a, xp=np):
