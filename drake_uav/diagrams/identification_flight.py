@@ -3,7 +3,8 @@
 :func:`build_identification_flight` wires
 
     ExcitationSource (trim + excitation) --+--> Adder --> FixedWingPlant --> SensorSuite
-    SafetyPilot (weak attitude hold) ------+                |   ^
+    SafetyPilot (weak attitude hold) ------+                |   ^          (imu: gyro
+                                                            |   |           to the pilot)
                                                             v   | wind_ned
                                                          DrydenWind
 
@@ -21,8 +22,9 @@ and controls belong together: the controls and wind in effect over the step
 that ends at t_k).
 
 The safety pilot is a weak attitude/altitude/heading/airspeed hold added on top
-of trim + excitation so that long flights stay near the trim condition; it can
-be switched off (``stabilize=False``) for open-loop excitation.
+of trim + excitation so that long flights stay near the trim condition; its rate
+dampers use the IMU's gyro (the sample of the previous period). It can be
+switched off (``stabilize=False``) for open-loop excitation.
 """
 
 from __future__ import annotations
@@ -128,12 +130,19 @@ class SafetyPilot(LeafSystem):
 
     | port (in)  | size | units                                              |
     |------------|------|----------------------------------------------------|
-    | state      | 13   | plant ``state`` (attitude: its quaternion's Euler)  |
+    | state      | 13   | plant ``state`` (attitude: its quaternion's Euler) |
     | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
+    | imu        | 6    | sensor suite ``imu``: the rate dampers use its     |
+    |            |      | gyro p, q, r [rad/s] (unconnected: the true rates) |
 
     | port (out) | size | units                                              |
     |------------|------|----------------------------------------------------|
     | correction | 4    | added elevator, aileron, rudder [rad], throttle    |
+
+    The dampers feed back the gyro, as an autopilot does: with the true rates the
+    commands would carry noise-free information on the state that no estimator
+    working from the logged sensors has, and on-line estimators (the parameter
+    EKF) would see a control input correlated with their own state error.
     """
 
     def __init__(self, gains: SafetyPilotGains, pitch_ref: float, altitude_ref: float,
@@ -143,6 +152,7 @@ class SafetyPilot(LeafSystem):
         self._refs = (pitch_ref, altitude_ref, heading_ref, airspeed_ref)
         self._state = self.DeclareVectorInputPort("state", 13)
         self._air = self.DeclareVectorInputPort("air_data", 3)
+        self._imu = self.DeclareVectorInputPort("imu", 6)
         xd = self.DeclareDiscreteState(4)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareStateOutputPort("correction", xd)
@@ -152,7 +162,8 @@ class SafetyPilot(LeafSystem):
         pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
         x = self._state.Eval(context).tolist()
         roll, pitch, yaw = quat_to_euler(x[3:7]).tolist()
-        p, q, r = x[10:13]
+        p, q, r = (self._imu.Eval(context)[3:6].tolist() if self._imu.HasValue(context)
+                   else x[10:13])
         climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
         heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
         roll_ref = max(-g.max_roll, min(g.max_roll, g.heading * heading_error))
@@ -443,6 +454,8 @@ def build_identification_flight(
     suite = builder.AddNamedSystem("sensors", SensorSuite(sensors))
     for name in ("state", "air_data", "specific_force"):
         builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
+    if pilot is not None and sensors.imu is not None:
+        builder.Connect(suite.GetOutputPort("imu"), pilot.GetInputPort("imu"))
 
     # The plant's state and inputs are logged; the other truth channels are
     # computed from them after the flight (IdentificationFlight._truth).
