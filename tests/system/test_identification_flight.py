@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 from pydrake.systems.primitives import LogVectorOutput
 
-from drake_uav.diagrams.identification_flight import build_identification_flight, fly
+from drake_uav.diagrams.identification_flight import (
+    SafetyPilot,
+    SafetyPilotGains,
+    build_identification_flight,
+    fly,
+)
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.rotations import quat_to_rotmat
 from drake_uav.systems.identification import (
@@ -143,6 +148,30 @@ def test_extend_puts_an_online_identifier_into_the_flight():
     truth = np.array([params.derivatives[n] for n in added["names"]])
     np.testing.assert_allclose(estimate, truth, rtol=1e-6, atol=1e-8)
     assert len(log) == 2001
+
+
+def test_safety_pilot_damps_with_the_gyro_it_is_given():
+    pilot = SafetyPilot(SafetyPilotGains(), 0.0, 100.0, 0.0, 25.0, 0.01)
+    context = pilot.CreateDefaultContext()
+    state = np.array([0, 0, -100.0, 1, 0, 0, 0, 25, 0, 0, 0.1, 0.2, 0.3])
+    pilot.GetInputPort("state").FixValue(context, state)
+    pilot.GetInputPort("air_data").FixValue(context, [25.0, 0.0, 0.0])
+
+    def correction():
+        return pilot.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+
+    gains = pilot.gains
+    true_rates = correction()  # no imu connected: the true rates
+    assert true_rates[2] == pytest.approx(gains.yaw_rate * 0.3)
+    pilot.GetInputPort("imu").FixValue(context, [0, 0, -9.81, -0.4, 0.5, -0.6])
+    gyro = correction()
+    assert gyro[2] == pytest.approx(gains.yaw_rate * -0.6)
+    assert gyro[1] - true_rates[1] == pytest.approx(-gains.roll_rate * (-0.4 - 0.1))
+    assert gyro[0] - true_rates[0] == pytest.approx(gains.pitch_rate * (0.5 - 0.2))
+    # The flight wires the suite's IMU to it.
+    flight = build_identification_flight(duration=5.0)
+    assert flight.pilot.GetInputPort("imu").HasValue(
+        flight.pilot.GetMyContextFromRoot(flight.diagram.CreateDefaultContext()))
 
 
 def test_flight_stays_near_trim(log):
