@@ -311,12 +311,11 @@ class SampledSensors(LeafSystem):
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._force = self.DeclareVectorInputPort("specific_force", 3)
         # Discrete state: the held outputs (m); [tick, bias walk (n), truth delay line
-        # (depth n), the held outputs again (m, so that one read gets everything)].
+        # (depth n)].
         self._held_state = self.DeclareDiscreteState(m)
         self._walk = slice(1, 1 + n)
         self._line = slice(1 + n, 1 + n + self._depth * n)
-        self._held_copy = slice(self._line.stop, self._line.stop + m)
-        self._xd = self.DeclareDiscreteState(self._held_copy.stop)
+        self._xd = self.DeclareDiscreteState(self._line.stop)
         self.DeclarePeriodicDiscreteUpdateEvent(self.base_period, 0.0, self._update)
         self.DeclareStateOutputPort("measurements", self._held_state)
 
@@ -405,7 +404,8 @@ class SampledSensors(LeafSystem):
         return truth if self._all_truths else truth[self._truth_idx]
 
     def _update(self, context, discrete_state) -> None:
-        x = context.get_discrete_state(self._xd).get_value().copy()
+        # Drake hands the update the current values: advance them in place.
+        x = discrete_state.get_mutable_value(self._xd)
         tick = int(x[0])
         n = self._n
         line = x[self._line]  # the delay line, flat: one row of n per tick phase
@@ -425,7 +425,7 @@ class SampledSensors(LeafSystem):
         noise = self._noise.Eval(context)
         walk = x[self._walk]  # a view: updated in place below
         measured = self._scale * delayed + self._bias + walk + self._sigma * noise[n:]
-        out = x[self._held_copy]  # a view: the held outputs, updated in place
+        out = discrete_state.get_mutable_value(self._held_state)
         out[self._out_idx] = np.where(due, measured, out[self._out_idx])
         if self._yaw is not None:
             out[self._yaw] = (out[self._yaw] + math.pi) % (2.0 * math.pi) - math.pi
@@ -434,8 +434,6 @@ class SampledSensors(LeafSystem):
             out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self._density)
         walk += walk_step * noise[:n]
         x[0] = tick + 1
-        discrete_state.set_value(self._held_state, out)
-        discrete_state.set_value(self._xd, x)
 
 
 class SensorSuite(Diagram):
