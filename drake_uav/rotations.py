@@ -181,18 +181,15 @@ def quat_to_euler(q) -> np.ndarray:
     """
     w, x, y, z = q[0], q[1], q[2], q[3]
     sin_pitch = 2 * (w * y - x * z)
-    if isinstance(sin_pitch, float):  # plain floats: the math module, clamped against round-off
-        return np.array([
-            math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-            math.asin(min(max(sin_pitch, -1.0), 1.0)),
-            math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)),
-        ])
-    batch = isinstance(sin_pitch, np.ndarray)
-    arctan2, arcsin = (np.arctan2, np.arcsin) if batch else (atan2, asin)
-    if batch:
+    arctan2, arcsin = atan2, asin
+    # The argument is clamped against round-off beyond +-1 (gimbal lock).
+    if isinstance(sin_pitch, float):  # plain floats: the (cheaper) math module
+        arctan2, arcsin = math.atan2, math.asin
+        sin_pitch = min(max(sin_pitch, -1.0), 1.0)
+    elif isinstance(sin_pitch, np.ndarray):
+        arctan2, arcsin = np.arctan2, np.arcsin
         sin_pitch = np.clip(sin_pitch, -1.0, 1.0)
-    elif _is_numeric(sin_pitch):
-        # Clamp the argument against round-off beyond +-1 (gimbal lock).
+    elif _is_numeric(sin_pitch):  # AutoDiffXd: shifted, keeping the derivatives
         sp = _value(sin_pitch)
         if sp > 1.0:
             sin_pitch = sin_pitch - (sp - 1.0)
