@@ -19,14 +19,14 @@ import numpy as np
 from drake_uav.diagrams.identification_flight import build_identification_flight, fly
 from drake_uav.estimation.ekf import ExtendedKalmanFilter
 from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
-from drake_uav.systems.estimation import (
+from drake_uav.systems.estimators import (
     AirDataEkf,
     EkfSystemParams,
     ModelBasedAirDataEkf,
     ParameterEkf,
 )
-from drake_uav.systems.sensors import SensorSuiteParams
 from drake_uav.vehicles.fixed_wing import aerosonde
+from drake_uav.vehicles.sensors import SensorSuiteParams
 
 STEP_TARGET_US = 100.0
 RTF_TARGET = 50.0

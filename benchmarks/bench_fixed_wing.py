@@ -14,8 +14,9 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.optimization.trim import trim
-from drake_uav.systems.fixed_wing import FixedWingModel, FixedWingPlant
+from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 DURATION = 60.0

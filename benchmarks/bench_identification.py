@@ -8,7 +8,7 @@ Prints
 * the RecursiveIdentifier in a small diagram at 100 Hz (simulated / wall-clock time);
 * the RecursiveIdentifier inside the identification flight (plant, Dryden, sensors), fed
   by AeroRegressors: real-time factor with one and with six identifiers (target >= 50x);
-* seed S0 sec. 4.3.9: a C_m model whose parameters change at t = 300 s (100 Hz, 600 s):
+* Vaiopoulos 2017, sec. 4.3.9: a C_m model whose parameters change at t = 300 s (100 Hz, 600 s):
   re-convergence time and steady-state variance of the VFF estimator and of CFF estimators,
   and the best CFF of equal (or lower) steady-state variance.
 """
@@ -32,8 +32,8 @@ from drake_uav.identification.recursive import (
     reconvergence_time,
 )
 from drake_uav.identification.regression import InsufficientExcitationWarning, ols, pca_tls, tls
-from drake_uav.systems.aerodynamics import COEFFICIENTS
-from drake_uav.systems.identification import (
+from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.systems.identifiers import (
     AeroRegressors,
     RecursiveIdentifier,
     RecursiveIdentifierParams,
@@ -229,7 +229,7 @@ def bench_forgetting():
         return reconvergence_time(t, est, truth, t_change, band), float(np.mean(err2))
 
     print(
-        "\nForgetting (seed S0 4.3.9): C_m parameters change at t = 300 s, 100 Hz, SNR 20;"
+        "\nForgetting (Vaiopoulos 2017 4.3.9): C_m parameters change at t = 300 s, 100 Hz, SNR 20;"
         "\n  re-convergence = time until every parameter stays within 10 % of its step,"
         "\n  variance = mean squared error / band^2 over the 100 s before the change"
     )

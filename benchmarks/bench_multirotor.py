@@ -6,7 +6,7 @@
 * MultirotorPlant real-time factor, hexacopter, Drake's default error-controlled
   RK3: hover, the flatness reference flown open loop (motor thrusts from a
   cubic spline, state logged at 100 Hz) and 40 Hz zero-order-hold commands (the
-  NMPC rate of seed S2); target >= 200x. A fixed-step RK2 at 5 ms is printed
+  NMPC rate of Argyropoulos 2020); target >= 200x. A fixed-step RK2 at 5 ms is printed
   for information. Each case runs three times and the best run is printed
   (the machine may be shared), next to the same case with an empty Python
   LeafSystem of the same size: the framework's own floor, measured in the same

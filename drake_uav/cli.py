@@ -13,7 +13,7 @@ __all__ = ["main"]
 
 
 def _cmd_trim(args: argparse.Namespace) -> int:
-    from drake_uav.linearization import mode_analysis
+    from drake_uav.optimization.linearization import mode_analysis
     from drake_uav.optimization.trim import TrimError, trim
     from drake_uav.vehicles.loading import load_fixed_wing
 
@@ -62,7 +62,7 @@ class _Progress:
 
 def _vane_sources(text: str, unit: str) -> dict:
     """``"MSG.AoA,MSG.SSA"`` -> FieldSource mapping of the vane channels."""
-    from drake_uav.io.readers import FieldSource
+    from drake_uav.io.streams import FieldSource
 
     fields = [f.strip() for f in text.split(",")]
     if len(fields) != 2 or not all("." in f for f in fields):
@@ -73,8 +73,9 @@ def _vane_sources(text: str, unit: str) -> dict:
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
-    from drake_uav.identification.main_job import identify, write_report
+    from drake_uav.identification.main_job import identify
     from drake_uav.io.readers import read_log
+    from drake_uav.reporting.identification_report import write_report
     from drake_uav.vehicles.loading import load_fixed_wing
 
     if args.log is None:

@@ -16,7 +16,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_uav.linearization import mode_analysis
+from drake_uav.optimization.linearization import mode_analysis
 from drake_uav.optimization.trim import trim
 from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde

@@ -2,7 +2,7 @@
 
 An Aerosonde identification flight (orthogonal multisines, light Dryden turbulence,
 the seed's Table 7 sensor suite) with one effect its catalog model does not have:
-propeller slipstream drag, C_D += 0.1 T_c (seed S0 found such a C_D_Tc term in its
+propeller slipstream drag, C_D += 0.1 T_c (Vaiopoulos 2017 found such a C_D_Tc term in its
 flight data). Only the measured channels are kept, at 50 Hz, as an autopilot log
 would have them; the metadata records how the flight was made.
 

@@ -1,4 +1,4 @@
-"""Waypoints -> minimum-snap trajectory -> hexacopter reference (seed S2 fig. 2.2).
+"""Waypoints -> minimum-snap trajectory -> hexacopter reference (Argyropoulos 2020 fig. 2.2).
 
 Plans one mission twice, with equal segment times and with the times found by
 the constrained gradient descent (same total time), then derives the hexacopter

@@ -90,7 +90,7 @@ class DataFlashWriter:
 _ULOG_TYPES = {
     "int8_t": "i1", "uint8_t": "u1", "int16_t": "<i2", "uint16_t": "<u2",
     "int32_t": "<i4", "uint32_t": "<u4", "int64_t": "<i8", "uint64_t": "<u8",
-    "float": "<f4", "double": "<f8", "bool": "u1", "char": "S1",
+    "float": "<f4", "double": "<f8", "bool": "u1", "char": "Ortiz & Gutierrez 2009",
 }
 
 
@@ -233,7 +233,7 @@ def ulog_from_log(log, path) -> Path:
     surfaces as normalised ``actuator_controls_0`` (roll, pitch, yaw demand in
     -1..1 for 25 deg, throttle 0..1), vanes in a ``vane_angles`` topic [rad].
     """
-    from drake_uav.rotations import euler_to_quat
+    from drake_uav.model.rotations import euler_to_quat
 
     w = ULogWriter()
     w.info("sys_name", "PX4")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from pydrake.symbolic import Evaluate, Variable
 
-from drake_uav.systems import aerodynamics as aero
+import drake_uav.model as aero
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 

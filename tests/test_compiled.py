@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from pydrake.math import cos, sin, sqrt
 
-from drake_uav.compiled import CompiledFunction
+from drake_uav.model.compiled import CompiledFunction
 
 
 def _model(x, u):

@@ -78,7 +78,7 @@ def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clea
     params, samples, truth = clean
     test = samples.subset(slice(len(samples) // 2, len(samples)))
     from drake_uav.identification.discovery import baseline_names
-    from drake_uav.systems.aerodynamics import regressor_matrix
+    from drake_uav.model.coefficients import regressor_matrix
 
     def models(scale_lift_slope):
         out = {}

@@ -4,8 +4,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
+from drake_uav.model.coefficients import lift_drag_to_body
 from drake_uav.optimization.trim import trim
-from drake_uav.systems.aerodynamics import lift_drag_to_body
 from drake_uav.systems.disturbances import AerodynamicIncrement
 from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde

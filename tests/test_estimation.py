@@ -23,17 +23,17 @@ from drake_uav.estimation.models import (
     smoothed_attitude,
     smoothed_attitude_std,
 )
+from drake_uav.model.air_data import air_data_from_velocity, velocity_from_air_data
+from drake_uav.model.dryden import dryden_psd, dryden_scales
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.rotations import euler_rates, euler_to_quat, euler_to_rotmat
 from drake_uav.optimization.trim import trim
-from drake_uav.rotations import euler_rates, euler_to_quat, euler_to_rotmat
-from drake_uav.systems.aerodynamics import air_data_from_velocity, velocity_from_air_data
-from drake_uav.systems.estimation import (
+from drake_uav.systems.estimators import (
     AirDataEkf,
     EkfSystemParams,
     ModelBasedAirDataEkf,
     ParameterEkf,
 )
-from drake_uav.systems.fixed_wing import FixedWingModel
-from drake_uav.systems.wind import dryden_psd, dryden_scales
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 PARAMS = aerosonde()
@@ -56,7 +56,8 @@ def test_air_data_rates_are_the_derivative_of_the_triplet():
 
 
 def test_model_based_prediction_is_the_body_axis_model_in_wind_axes():
-    """Seed S0 eq. 5.31 (corrected) equals the plant's body-axis equations (digest E.1 item 4)."""
+    """Vaiopoulos 2017, eq. 5.31 (corrected) equals the plant's
+    body-axis equations."""
     model = ModelBasedAirDataModel(PARAMS)
     plant = FixedWingModel(PARAMS)
     level = trim(PARAMS, 25.0)
@@ -100,7 +101,8 @@ def test_model_free_dynamics_and_measurements():
 
 
 def test_wind_triangle_initialisation():
-    """Seed S0 eq. 5.24-5.25 (corrected): start along the ground track, or from the vanes."""
+    """Vaiopoulos 2017, eq. 5.24-5.25 (corrected): start along the ground track,
+    or from the vanes."""
     model = AirDataModel(PARAMS)
     rpy = np.array([0.0, 0.05, 0.7])
     R = euler_to_rotmat(rpy)

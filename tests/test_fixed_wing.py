@@ -7,9 +7,10 @@ import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.primitives import FirstOrderTaylorApproximation, Linearize
 
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.rotations import quat_to_rotmat
 from drake_uav.optimization.trim import TrimError, trim
-from drake_uav.rotations import quat_to_rotmat
-from drake_uav.systems.fixed_wing import FixedWingModel, FixedWingPlant
+from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde, unatrap
 
 

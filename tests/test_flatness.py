@@ -1,4 +1,4 @@
-"""Differential flatness (seed S2 sec. 2.2): flat outputs -> reference state and input."""
+"""Differential flatness (Argyropoulos 2020, sec. 2.2): flat outputs -> state and input."""
 
 import dataclasses
 
@@ -8,13 +8,13 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 
+from drake_uav.model.rotations import quat_conjugate, quat_multiply, quat_to_euler
 from drake_uav.optimization.flatness import (
     attitude_from_flat_outputs,
     flat_reference,
     velocity_heading,
 )
 from drake_uav.optimization.min_snap import minimum_snap
-from drake_uav.rotations import quat_conjugate, quat_multiply, quat_to_euler
 from drake_uav.systems.multirotor import MultirotorPlant
 from drake_uav.vehicles.multirotor import hexacopter, quadrotor_x
 

@@ -8,10 +8,10 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.identification.recursive import VariableForgetting
+from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.optimization.trim import trim
-from drake_uav.systems.aerodynamics import COEFFICIENTS
 from drake_uav.systems.fixed_wing import FixedWingPlant
-from drake_uav.systems.identification import (
+from drake_uav.systems.identifiers import (
     AeroRegressors,
     RecursiveIdentifier,
     RecursiveIdentifierParams,

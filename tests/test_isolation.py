@@ -1,4 +1,4 @@
-"""Coefficient isolation (seed S0 eq. 5.41) and Monte-Carlo uncertainty (sec. 5.6)."""
+"""Coefficient isolation (Vaiopoulos 2017, eq. 5.41) and Monte-Carlo uncertainty (sec. 5.6)."""
 
 import numpy as np
 import pytest
@@ -11,22 +11,22 @@ from drake_uav.diagrams.identification_flight import fly
 from drake_uav.identification.discovery import baseline_names
 from drake_uav.identification.flight_data import held_commands, samples_from_log
 from drake_uav.identification.isolation import (
-    differentiate,
     interval_averages,
     isolate_coefficients,
     monte_carlo_sigma,
 )
+from drake_uav.model.coefficients import COEFFICIENTS, body_to_lift_drag, regressor_matrix
+from drake_uav.model.isolation import differentiate
 from drake_uav.optimization.trim import trim
-from drake_uav.systems.aerodynamics import COEFFICIENTS, body_to_lift_drag, regressor_matrix
 from drake_uav.systems.fixed_wing import FixedWingPlant
-from drake_uav.systems.sensors import (
+from drake_uav.vehicles.fixed_wing import aerosonde
+from drake_uav.vehicles.sensors import (
     ChannelErrors,
     ImuParams,
     PitotParams,
     SensorSuiteParams,
     VaneParams,
 )
-from drake_uav.vehicles.fixed_wing import aerosonde
 
 
 @pytest.fixture(scope="module")

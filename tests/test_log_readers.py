@@ -20,14 +20,9 @@ from drake_uav.io.ardupilot import read_ardupilot
 from drake_uav.io.csv_log import read_csv
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.px4 import read_px4
-from drake_uav.io.readers import (
-    CHANNELS,
-    ActuatorChannel,
-    ActuatorMapping,
-    FieldSource,
-    read_log,
-)
-from drake_uav.rotations import euler_to_quat
+from drake_uav.io.readers import read_log
+from drake_uav.io.streams import CHANNELS, ActuatorChannel, ActuatorMapping, FieldSource
+from drake_uav.model.rotations import euler_to_quat
 
 DEG = math.pi / 180.0
 

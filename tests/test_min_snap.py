@@ -1,4 +1,4 @@
-"""Minimum-snap QP (seed S2 eq. 2.1-2.3) and the time allocation of eq. 2.4-2.5."""
+"""Minimum-snap QP (Argyropoulos 2020, eq. 2.1-2.3) and the time allocation of eq. 2.4-2.5."""
 
 import numpy as np
 import pytest

@@ -9,14 +9,9 @@ from pydrake.symbolic import Variable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.primitives import Linearize
 
-from drake_uav.rotations import euler_to_quat, quat_to_euler, quat_to_rotmat
-from drake_uav.systems.multirotor import (
-    BODY_RATES,
-    QUATERNION,
-    VELOCITY,
-    MultirotorPlant,
-    multirotor_derivatives,
-)
+from drake_uav.model.multirotor import BODY_RATES, QUATERNION, VELOCITY, multirotor_derivatives
+from drake_uav.model.rotations import euler_to_quat, quat_to_euler, quat_to_rotmat
+from drake_uav.systems.multirotor import MultirotorPlant
 from drake_uav.vehicles.multirotor import (
     MultirotorParams,
     hexacopter,

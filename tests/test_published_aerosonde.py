@@ -21,10 +21,10 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.symbolic import Evaluate, Variable
 from scipy.optimize import fsolve
 
-from drake_uav.linearization import decoupled_models, mode_analysis
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.rotations import euler_rates, euler_to_quat, quat_to_euler, quat_to_rotmat
+from drake_uav.optimization.linearization import decoupled_models, mode_analysis
 from drake_uav.optimization.trim import trim
-from drake_uav.rotations import euler_rates, euler_to_quat, quat_to_euler, quat_to_rotmat
-from drake_uav.systems.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import (
     MotorPropeller,
     aerosonde,

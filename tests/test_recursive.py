@@ -62,7 +62,8 @@ def test_rols_diffuse_start_reaches_batch_ols(record):
 
 
 def test_rols_prior_equals_prepended_prior_rows(record):
-    # S0 (4.123)-(4.124): a prior (theta0, P0) is the same as rows sigma P0^-1/2 on top
+    # Vaiopoulos 2017, eq. 4.123-4.124: a prior (theta0, P0) is the same as rows sigma P0^-1/2 on
+    # top
     X, z, noise_std = record
     theta0 = THETA + np.array([0.01, 0.05, -0.3, 0.02])
     L = np.diag([0.01, 0.05, 0.5, 0.05])

@@ -1,10 +1,12 @@
-"""Batch OLS / TLS / GTLS / PCA-TLS against the seed S0 simulation results (Tables 3-5).
+"""Batch OLS / TLS / GTLS / PCA-TLS against the Vaiopoulos 2017 simulation results (Tables 3-5).
 
-Synthetic data built like S0's: a 60 s lateral-directional flight sampled at 100 Hz (N = 6000)
+Synthetic data built like Vaiopoulos 2017's: a 60 s lateral-directional flight sampled at 100 Hz (N
+= 6000)
 with aileron 3-2-1-1 and rudder doublets plus small multisines and a first-order gust on beta,
 simulated with a linear lateral model; regressors [1, beta, p_n, r_n, delta_a, delta_r] with
 p_n = b p / (2 V), r_n = b r / (2 V). The true parameters are the reference values of Tables 3-5.
-SNR is the amplitude ratio std(signal) / std(noise) (S0 does not define it; digest Part F).
+SNR is the amplitude ratio std(signal) / std(noise) (Vaiopoulos 2017 does not define
+it; this is the usual reading).
 Table 5's regressor noise: every non-constant regressor column has SNR 3.5, the level at which
 OLS attenuates C_lp to about -0.65 as in the seed.
 """
@@ -106,7 +108,7 @@ def _noisy_regressors(X, snr, rng):
 
 
 def _assert_normal_residuals(result):
-    # normal probability plot (S0 4.16-4.17) is a straight line
+    # normal probability plot (Vaiopoulos 2017, eq. 4.16-4.17) is a straight line
     (_, _), (_, _, r) = stats.probplot(result.residual, dist="norm")
     assert r > 0.999
 
@@ -203,7 +205,7 @@ def test_gtls_equals_tls_after_explicit_normalisation(flight):
     x_std[0] = 1e-4
     c = np.append(x_std, noise_std)
     gtls = tls(Xm, z, c)
-    plain = tls(Xm / x_std, z / noise_std)  # C = I on the normalised data (S0 4.43-4.47)
+    plain = tls(Xm / x_std, z / noise_std)  # C = I when normalised (Vaiopoulos 2017, eq. 4.43-4.47)
     assert gtls.method == "GTLS" and plain.method == "TLS"
     np.testing.assert_allclose(gtls.estimate, plain.estimate * noise_std / x_std, rtol=1e-8)
     np.testing.assert_allclose(gtls.singular_values, plain.singular_values, rtol=1e-10)

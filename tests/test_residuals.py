@@ -34,7 +34,8 @@ def test_white_gaussian_noise_is_white_normal_stationary_with_full_n_eff():
     assert d.is_stationary and not d.drift_significant
     assert d.mean == pytest.approx(0.2, abs=0.02) and d.std == pytest.approx(0.5, rel=0.02)
     assert d.rms == pytest.approx(np.sqrt(d.mean**2 + d.std**2), rel=1e-9)
-    # Probability plot data (S0 4.16-4.17): sorted residuals against Phi^-1((i - 1/2)/N).
+    # Probability plot data (Vaiopoulos 2017, eq. 4.16-4.17): sorted residuals against Phi^-1((i -
+    # 1/2)/N).
     assert d.normal_quantiles[0] == pytest.approx(-4.0556, abs=1e-3)  # Phi^-1(0.5/20000)
     assert np.all(np.diff(d.ordered_residuals) >= 0.0)
     np.testing.assert_allclose(d.normal_quantiles, -d.normal_quantiles[::-1], atol=1e-12)

@@ -6,7 +6,7 @@ from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue, Ini
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.symbolic import Evaluate, Variable
 
-from drake_uav import rotations as rot
+from drake_uav.model import rotations as rot
 
 angles = st.tuples(
     st.floats(-np.pi + 1e-3, np.pi - 1e-3),
@@ -46,7 +46,7 @@ def test_matches_drake_roll_pitch_yaw_convention():
 
 
 def test_seed_s0_dcm_is_transpose_of_body_to_ned():
-    """Seed S0 eq. 2.2 (with the corrected (3,1) element) maps NED to body."""
+    """Vaiopoulos 2017, eq. 2.2 (with the corrected (3,1) element) maps NED to body."""
     phi, theta, psi = 0.4, 0.25, -0.8
     c, s = np.cos, np.sin
     R_nb = np.array(

@@ -10,15 +10,15 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_uav.rotations import euler_to_quat, quat_to_rotmat
-from drake_uav.systems.sensors import (
+from drake_uav.model.rotations import euler_to_quat, quat_to_rotmat
+from drake_uav.systems.sensors import SensorSuite
+from drake_uav.vehicles.sensors import (
     AttitudeParams,
     BaroParams,
     ChannelErrors,
     GpsParams,
     ImuParams,
     PitotParams,
-    SensorSuite,
     SensorSuiteParams,
     VaneParams,
 )

@@ -11,19 +11,17 @@ from pydrake.systems.primitives import LogVectorOutput, RandomSource
 from scipy.linalg import expm
 from scipy.signal import freqs, welch
 
-from drake_uav.rotations import euler_to_quat, quat_to_rotmat
-from drake_uav.systems.wind import (
+from drake_uav.model.dryden import (
     TURBULENCE_LEVELS,
     WIND_HOLDS,
-    DrydenFilter,
-    DrydenParams,
-    DrydenWind,
     dryden_gust,
     dryden_psd,
     dryden_scales,
     dryden_stationary_factor,
     dryden_transition,
 )
+from drake_uav.model.rotations import euler_to_quat, quat_to_rotmat
+from drake_uav.systems.wind import DrydenFilter, DrydenParams, DrydenWind
 
 FT = 0.3048
 

@@ -45,8 +45,8 @@ from pydrake.systems.primitives import (
 )
 
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.model.rotations import quat_to_euler, quat_to_rotmat
 from drake_uav.optimization.trim import TrimResult, trim
-from drake_uav.rotations import quat_to_euler, quat_to_rotmat
 from drake_uav.systems.disturbances import AerodynamicIncrement
 from drake_uav.systems.excitation import (
     SURFACES,
@@ -56,10 +56,11 @@ from drake_uav.systems.excitation import (
     orthogonal_multisines,
 )
 from drake_uav.systems.fixed_wing import FixedWingPlant
-from drake_uav.systems.sensors import SensorSuite, SensorSuiteParams
+from drake_uav.systems.sensors import SensorSuite
 from drake_uav.systems.wind import DrydenParams, DrydenWind
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
+from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = [
     "SafetyPilotGains",

@@ -1,4 +1,5 @@
-"""Continuous-discrete extended Kalman filter core (seed S0 sec. 5.4.2, seed S1 sec. 4).
+"""Continuous-discrete extended Kalman filter core (Vaiopoulos 2017, sec. 5.4.2, Ortiz & Gutierrez
+2009, sec. 4).
 
 A filter is built from an :class:`EkfModel`: scalar-generic functions
 
@@ -25,7 +26,7 @@ per-sample covariance of the noisy inputs (IMU, attitude), ``F = df/dx``,
 ``G = df/dw``, ``B = df/du``. One compiled call gives ``f`` and ``[F | B | G]``;
 ``Qd/2 = L L^T`` with the columns of ``[B | G]`` scaled.
 
-Measurement update in Joseph form with the availability mask of seed S0: the
+Measurement update in Joseph form with the availability mask of Vaiopoulos 2017: the
 channels with no new sample at this step, NaN samples, and the sensor groups
 rejected by the innovation gate contribute nothing (one filter: the update runs
 on the rows in use, the gain from one Cholesky solve; a batch: zero rows in
@@ -51,7 +52,7 @@ import numpy as np
 from scipy.linalg.lapack import dposv as _posv
 from scipy.stats import chi2
 
-from drake_uav.compiled import CompiledFunction
+from drake_uav.model.compiled import CompiledFunction
 
 __all__ = [
     "EkfModel",

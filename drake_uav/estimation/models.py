@@ -1,20 +1,20 @@
 """Process and measurement models of the three estimators, scalar-generic.
 
-* :class:`AirDataModel` - model-free air-data/wind filter of seed S0 sec. 5.4.3:
+* :class:`AirDataModel` - model-free air-data/wind filter of Vaiopoulos 2017, sec. 5.4.3:
   state ``[u_r, v_r, w_r, W_N, W_E, W_D]``, IMU and attitude as inputs, GPS
   velocity, pitot and vanes as measurements.
-* :class:`ModelBasedAirDataModel` - seed S0 sec. 5.4.5: state
+* :class:`ModelBasedAirDataModel` - Vaiopoulos 2017, sec. 5.4.5: state
   ``[Va, alpha, beta, W_N, W_E, W_D]`` driven by the aircraft's aerodynamic model
   (:class:`~drake_uav.systems.fixed_wing.FixedWingModel`), accelerometer as a
   measurement; observes alpha and beta without vanes.
-* :class:`ParameterModel` - seed S1 sec. 5: the decoupled longitudinal
+* :class:`ParameterModel` - Ortiz & Gutierrez 2009, sec. 5: the decoupled longitudinal
   ``[V, alpha, q, theta]`` or lateral ``[beta, p, r, phi, psi]`` motion augmented
   with the stability derivatives of that axis (eq. 42-50). The other axis'
   variables are measured inputs. Forces and moments come from the shared
   regressors (:func:`~drake_uav.systems.aerodynamics.regressor_matrix`) times the
   state's derivatives, and enter :class:`FixedWingModel` as an external wrench.
 
-Wind is modelled as a random walk (seed S0 eq. 5.20); with a changing wind the
+Wind is modelled as a random walk (Vaiopoulos 2017, eq. 5.20); with a changing wind the
 air-relative velocity changes by ``-R^T dW`` as well, so the wind noise enters
 both blocks (exact for the kinematics ``v_r = v - R^T W``).
 """
@@ -29,25 +29,24 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.math import atan2, cos, sin, sqrt
 
-from drake_uav.compiled import CompiledFunction
 from drake_uav.estimation.ekf import EkfModel, EkfNoise
-from drake_uav.identification.isolation import differentiate
 from drake_uav.io.flight_log import FlightLog
-from drake_uav.rotations import euler_rates, euler_to_quat, euler_to_rotmat
-from drake_uav.scalar import as_list
-from drake_uav.systems.aerodynamics import (
+from drake_uav.model.air_data import air_data_from_velocity, velocity_from_air_data
+from drake_uav.model.coefficients import (
     COEFFICIENTS,
     AeroCondition,
-    air_data_from_velocity,
     lift_drag_to_body,
     regressor_matrix,
     split_derivative_name,
-    velocity_from_air_data,
 )
-from drake_uav.systems.fixed_wing import FixedWingModel
-from drake_uav.systems.sensors import GpsParams, SensorSuiteParams
-from drake_uav.systems.wind import dryden_scales
+from drake_uav.model.compiled import CompiledFunction
+from drake_uav.model.dryden import dryden_scales
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.isolation import differentiate
+from drake_uav.model.rotations import euler_rates, euler_to_quat, euler_to_rotmat
+from drake_uav.model.scalar import as_list
 from drake_uav.vehicles.fixed_wing import FixedWingParams
+from drake_uav.vehicles.sensors import GpsParams, SensorSuiteParams
 
 __all__ = [
     "DEFAULT_GPS_LATENCY",
@@ -73,9 +72,9 @@ __all__ = [
 ]
 
 LONGITUDINAL_COEFFICIENTS = ("CL", "CD", "Cm")
-"""Coefficients estimated by the longitudinal parameter filter (seed S1 eq. 48)."""
+"""Coefficients estimated by the longitudinal parameter filter (Ortiz & Gutierrez 2009, eq. 48)."""
 LATERAL_COEFFICIENTS = ("CY", "Cl", "Cn")
-"""Coefficients estimated by the lateral parameter filter (seed S1 eq. 43)."""
+"""Coefficients estimated by the lateral parameter filter (Ortiz & Gutierrez 2009, eq. 43)."""
 
 _IMU = ("ax", "ay", "az", "p", "q", "r")
 _ATTITUDE = ("roll", "pitch", "yaw")
@@ -108,7 +107,7 @@ def smoothed_attitude(z):
     gain [-], step [s].
 
     The previous attitude is carried forward with the Euler-angle rates of the
-    gyro (seed S0 eq. 3.3) and pulled towards the sample by ``gain`` (a
+    gyro (Vaiopoulos 2017, eq. 3.3) and pulled towards the sample by ``gain`` (a
     complementary filter, time constant ``step / gain``). Angles wrapped to
     (-pi, pi].
     """
@@ -198,7 +197,7 @@ and 2.4 laterally."""
 def gust_rate_psd(level: str, airspeed: float, altitude: float) -> tuple[float, float, float]:
     """Density [m^2/s^3] of the Dryden gust rates (u, v, w) above the break frequencies.
 
-    The spectra of ``s H(s)`` for the filters of seed S0 eq. 2.11 level off at
+    The spectra of ``s H(s)`` for the filters of Vaiopoulos 2017, eq. 2.11 level off at
     ``2 sigma_u^2 a_u`` (first order) and ``3 sigma^2 a`` (second order), with
     ``a = airspeed / L``; MIL-F-8785C scales at ``altitude`` [m].
     """
@@ -212,7 +211,7 @@ def gust_rate_psd(level: str, airspeed: float, altitude: float) -> tuple[float, 
 def sensor_std(sensors: SensorSuiteParams | None = None) -> dict[str, float]:
     """Per-sample noise standard deviation of every sensor channel by filter name.
 
-    From the suite's white-noise levels (default: seed S0 Table 7); channels of
+    From the suite's white-noise levels (default: Vaiopoulos 2017, Table 7); channels of
     sensors that are not fitted keep the Table 7 value.
     """
     table7 = SensorSuiteParams.seed_table7()
@@ -232,7 +231,7 @@ def sensor_std(sensors: SensorSuiteParams | None = None) -> dict[str, float]:
 def air_data_rates(v_r, v_r_dot) -> tuple:
     """``(Va_dot, alpha_dot, beta_dot)`` from the air-relative body velocity and its rate.
 
-    Time derivative of seed S0 eq. 2.12-2.14 (``Va = |v_r|``,
+    Time derivative of Vaiopoulos 2017, eq. 2.12-2.14 (``Va = |v_r|``,
     ``alpha = atan2(w, u)``, ``beta = atan2(v, sqrt(u^2 + w^2))``).
     """
     u, v, w = v_r[0], v_r[1], v_r[2]
@@ -258,7 +257,7 @@ def _body_from_ned(R, ned):
 
 def _wind_triangle_start(R: np.ndarray, gps: np.ndarray | None, airspeed: float | None,
                          vanes: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Air-relative body velocity and NED wind at the first sample (seed S0 eq. 5.24-5.25).
+    """Air-relative body velocity and NED wind at the first sample (Vaiopoulos 2017, eq. 5.24-5.25).
 
     With vanes the direction of the air-relative velocity comes from alpha and
     beta; without, it is taken along the ground track (corrected eq. 5.24).
@@ -288,7 +287,7 @@ def _start_values(y: np.ndarray, available: np.ndarray, gps_idx: Sequence[int], 
 
 
 class AirDataModel(_SmoothedAttitude, EkfModel):
-    """Model-free air-data and wind filter model (seed S0 sec. 5.4.3).
+    """Model-free air-data and wind filter model (Vaiopoulos 2017, sec. 5.4.3).
 
     ===========  ============================================================  =========
     name         meaning                                                        unit
@@ -372,7 +371,7 @@ class AirDataModel(_SmoothedAttitude, EkfModel):
 
 
 class ModelBasedAirDataModel(_SmoothedAttitude, EkfModel):
-    """Model-based air-data and wind filter model (seed S0 sec. 5.4.5).
+    """Model-based air-data and wind filter model (Vaiopoulos 2017, sec. 5.4.5).
 
     ===========  ============================================================  =========
     name         meaning                                                        unit
@@ -469,12 +468,12 @@ class ModelBasedAirDataModel(_SmoothedAttitude, EkfModel):
 
 
 class ParameterModel(EkfModel):
-    """Augmented-state model of seed S1 sec. 5 for one axis.
+    """Augmented-state model of Ortiz & Gutierrez 2009, sec. 5 for one axis.
 
     ``axis="longitudinal"``: physical state ``[V, alpha, q, theta]`` (eq. 47),
     measured inputs ``beta, p, r, phi`` and the controls, measurements
     ``[V, alpha, q, theta, a_x, a_z, q_dot]`` (eq. 49, with the corrected
-    body-axis accelerometer rows of the digest).
+    body-axis accelerometer rows; see docs/references.md).
 
     ``axis="lateral"``: physical state ``[beta, p, r, phi, psi]`` (eq. 42),
     measured inputs ``V, alpha, q, theta`` and the controls, measurements
@@ -632,7 +631,7 @@ class ParameterModel(EkfModel):
         Dryden ``turbulence`` ("light", "moderate", "severe"; MIL-F-8785C at ``altitude``
         [m] and ``airspeed`` [m/s]).
 
-        Steady wind (seed S1): the physical states get a small process noise
+        Steady wind (Ortiz & Gutierrez 2009): the physical states get a small process noise
         (1e-6 rad^2/s on angles and air-flow angles, 1e-5 rad^2/s^3 on rates,
         1e-3 m^2/s^3 on V), the derivatives none (constant). Turbulence adds
         the gust rates (:func:`gust_rate_psd`) to V and, divided by

@@ -15,7 +15,7 @@ The loop (:func:`discover`):
 
 Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
 beta) are noisy and enter both the measured coefficients and the regressors;
-ordinary least squares then attenuates the derivatives (seed S0 Table 5) and
+ordinary least squares then attenuates the derivatives (Vaiopoulos 2017, Table 5) and
 leaves a systematic residual that any column correlated with the air data
 would "explain". The noise variances estimated by the isolation are propagated
 to every column and to the observation by finite-difference Jacobians, and the
@@ -49,7 +49,7 @@ from drake_uav.identification.residuals import (
     effective_sample_size,
     long_run_covariance,
 )
-from drake_uav.systems.aerodynamics import COEFFICIENTS, regressor_matrix
+from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [

@@ -29,8 +29,9 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import AeroSamples, differentiate
-from drake_uav.systems.aerodynamics import body_to_lift_drag
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.model.coefficients import body_to_lift_drag
+from drake_uav.model.isolation import differentiate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [

@@ -1,8 +1,8 @@
-"""Measured aerodynamic coefficients from flight data (seed S0 sec. 5.5 and 5.6).
+"""Measured aerodynamic coefficients from flight data (Vaiopoulos 2017, sec. 5.5 and 5.6).
 
 From the body specific force (accelerometer), body rates, their derivatives,
 the air data, the thrust model and the inertia, the six coefficients follow
-from Newton-Euler (seed S0 eq. 5.41)::
+from Newton-Euler (Vaiopoulos 2017, eq. 5.41)::
 
     C_X = (m a_x - T) / (qbar S),  C_Y = m a_y / (qbar S),  C_Z = m a_z / (qbar S)
     (C_L, C_D) from (C_X, C_Z) by the wind-axis rotation (aerodynamics module)
@@ -36,15 +36,12 @@ import dataclasses
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
+from scipy.signal import savgol_coeffs
 from scipy.stats import norm
 
-from drake_uav.systems.aerodynamics import (
-    COEFFICIENTS,
-    AeroCondition,
-    body_to_lift_drag,
-)
-from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.isolation import differentiate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
@@ -169,30 +166,6 @@ class AeroSamples:
         )
 
 
-def differentiate(time: np.ndarray, values: np.ndarray, window: float = 0.2,
-                  polyorder: int = 3, deriv: int = 1) -> np.ndarray:
-    """Time derivative of uniformly sampled ``values`` (along axis 0) by Savitzky-Golay.
-
-    ``window`` is the filter length [s]; ``deriv=0`` gives the smoothed signal
-    itself. Raises ``ValueError`` for non-uniform sampling or a window shorter
-    than the polynomial needs.
-    """
-    time = np.asarray(time, dtype=float)
-    dt = np.diff(time)
-    if len(time) < 3 or np.any(dt <= 0):
-        raise ValueError("differentiate: time must be strictly increasing with >= 3 samples")
-    step = float(np.median(dt))
-    if np.max(np.abs(dt - step)) > 1e-6 * max(step, 1e-12) + 1e-9:
-        raise ValueError("differentiate: samples must be uniform in time (resample first)")
-    length = int(round(window / step)) | 1
-    if length <= polyorder:
-        raise ValueError(
-            f"differentiate: window {window} s holds {length} samples, needs > {polyorder}")
-    length = min(length, len(time) - (1 - len(time) % 2))
-    return savgol_filter(values, length, polyorder, deriv=deriv, delta=step, axis=0,
-                         mode="interp")
-
-
 NOISE_CHANNELS = ("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az")
 """Signals whose noise variance the isolation tracks."""
 
@@ -275,7 +248,7 @@ def isolate_coefficients(
     raw_noise_variance: Mapping[str, float] | None = None,
     moment_controls: np.ndarray | None = None,
 ) -> AeroSamples:
-    """Measured coefficients (seed S0 eq. 5.41) from uniformly sampled flight data.
+    """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
     All signals are smoothed by the Savitzky-Golay filter of length
     ``derivative_window`` [s] that also differentiates the rates.
@@ -434,7 +407,7 @@ def monte_carlo_sigma(
 ) -> float:
     """Normal-equivalent standard deviation of the error of ``function(*inputs)``.
 
-    Seed S0 sec. 5.6 (eq. 5.43-5.51): inputs uniform over ``ranges`` (n, 2)
+    Vaiopoulos 2017, sec. 5.6 (eq. 5.43-5.51): inputs uniform over ``ranges`` (n, 2)
     joined by a Gaussian copula with ``correlation`` (n, n); errors Gaussian
     with ``error_std`` (n,) and ``error_correlation``; the error
     ``f(x) - f(x + dx)`` has its 95% coverage interval [U-, U+], and the

@@ -1,10 +1,10 @@
 """Output-error validation: reconstruct air data and body rates with an identified model.
 
-Seed S0 sec. 6.5.2 integrates the wind-axis force equations (eq. 6.4-6.6),
+Vaiopoulos 2017, sec. 6.5.2 integrates the wind-axis force equations (eq. 6.4-6.6),
 driven by the logged rates, attitude, thrust and surfaces, with the identified
 coefficients, and corrects the integration periodically from GPS because the
 gyros are noisy. Here the same dynamics are integrated in their body-axis form
-(equal to eq. 6.4-6.6 for a constant wind, digest E.1 item 4)::
+(equal to eq. 6.4-6.6 for a constant wind)::
 
     d v_r / dt = (qbar S [C_X, C_Y, C_Z] + [T, 0, 0]) / m + g_body(phi, theta) - w x v_r
 
@@ -28,16 +28,15 @@ from collections.abc import Collection, Mapping
 import numpy as np
 
 from drake_uav.identification.isolation import AeroSamples
-from drake_uav.systems.aerodynamics import (
+from drake_uav.model.air_data import air_data_from_velocity, velocity_from_air_data
+from drake_uav.model.coefficients import (
     COEFFICIENTS,
     AeroCondition,
-    air_data_from_velocity,
     lift_drag_to_body,
     signal_values,
     split_derivative_name,
-    velocity_from_air_data,
 )
-from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["Reconstruction", "reconstruct"]

@@ -1,27 +1,37 @@
-"""Recursive (on-line) identification: RLS and recursive TLS with forgetting (seed S0, 4.2.3-4.4).
+"""Recursive (on-line) identification: RLS and recursive TLS with forgetting (Vaiopoulos 2017,
+4.2.3-4.4).
 
-* :class:`RecursiveOLS` -- recursive least squares (S0 4.22-4.24) with a constant forgetting
+* :class:`RecursiveOLS` -- recursive least squares (Vaiopoulos 2017, eq. 4.22-4.24) with a constant
+forgetting
   factor (CFF) or the variable forgetting factor (VFF) of :class:`VariableForgetting`.
-* :class:`RecursiveTLS` -- recursive PCA-GTLS (S0 Algorithms 1-2): the normalised augmented
+* :class:`RecursiveTLS` -- recursive PCA-GTLS (Vaiopoulos 2017, Algorithms 1-2): the normalised
+augmented
   matrix is tracked through its singular values and right singular vectors, updated by one small
-  SVD per sample (S0 4.81-4.87), and the estimate is the (PCA-)TLS solution of ``regression``.
+  SVD per sample (Vaiopoulos 2017, eq. 4.81-4.87), and the estimate is the (PCA-)TLS solution of
+  ``regression``.
 
 Conventions:
 
 * The forgetting factor ``lambda`` weighs past *squared* residuals by ``lambda`` per sample for
-  both estimators (S0 4.20). The recursive SVD therefore scales the tracked rows by
-  ``sqrt(lambda)``; S0 (4.86) scales rows by lambda, i.e. its TLS lambda equals our lambda^0.5.
-  :func:`forgetting_time` is S0 (4.93) for this weight.
+  both estimators (Vaiopoulos 2017, eq. 4.20). The recursive SVD therefore scales the tracked rows
+  by
+  ``sqrt(lambda)``; Vaiopoulos 2017, eq. 4.86 scales rows by lambda, i.e. its TLS lambda equals our
+  lambda^0.5.
+  :func:`forgetting_time` is Vaiopoulos 2017, eq. 4.93 for this weight.
 * VFF law: the robust VFF-RLS of Paleologu, Benesty and Ciochina (IEEE Signal Processing
-  Letters 15, 2008; S0 ref. [73]) as restated by S0 (4.107)-(4.115); see
+  Letters 15, 2008; Vaiopoulos 2017, ref. [73]) as restated by Vaiopoulos 2017, eq. 4.107-4.115; see
   :func:`vff_forgetting`. For TLS the a-priori error uses the measured regressors (the
-  TLS-corrected ones of S0 4.116-4.118 give the same error up to a constant factor) and ``q`` is
+  TLS-corrected ones of Vaiopoulos 2017, eq. 4.116-4.118 give the same error up to a constant
+  factor) and ``q`` is
   the leverage of the new normalised row in the retained singular directions.
-* Initialisation (S0 4.4): diffuse (theta0, P = p0 I); hybrid from a batch estimate and its
-  covariance (equivalent to prepending the rows of S0 4.123-4.124, resp. 4.125 for TLS); or
+* Initialisation (Vaiopoulos 2017, eq. 4.4): diffuse (theta0, P = p0 I); hybrid from a batch
+estimate and its
+  covariance (equivalent to prepending the rows of Vaiopoulos 2017, eq. 4.123-4.124, resp. 4.125
+  for TLS); or
   :meth:`RecursiveOLS.from_batch` with a batch result (unidentifiable directions stay diffuse).
 * Excitation monitor: ``excitation()`` returns the singular values of the information gathered
-  so far in normalised units, the threshold (1 + S/n) sqrt(N_eff - n) of S0 (4.68) with the
+  so far in normalised units, the threshold (1 + S/n) sqrt(N_eff - n) of Vaiopoulos 2017, eq. 4.68
+  with the
   forgetting-weighted row count N_eff, and per-parameter identifiability flags.
 
 The whole estimator state lives in one flat float vector (``state``), so a Drake system can keep
@@ -61,7 +71,8 @@ __all__ = [
 
 
 def forgetting_time(forgetting: float, sample_rate: float, fraction: float = 0.05) -> float:
-    """Time [s] after which a sample's weight lambda^(t f_s) falls to ``fraction`` (S0 4.93)."""
+    """Time [s] after which a sample's weight lambda^(t f_s) falls to ``fraction``
+    (Vaiopoulos 2017, eq. 4.93)."""
     if not 0.0 < forgetting < 1.0:
         raise ValueError(f"forgetting must be in (0, 1), got {forgetting}")
     if not sample_rate > 0:
@@ -80,7 +91,7 @@ def vff_forgetting(
     lambda_max: float,
     varsigma: float,
 ) -> float:
-    """Variable forgetting factor of S0 (4.114)-(4.115) (Paleologu et al. 2008).
+    """Variable forgetting factor of Vaiopoulos 2017, eq. 4.114-4.115 (Paleologu et al. 2008).
 
     ``sigma_nu``: short-window std of the a-priori error; ``sigma_eps``: long-window std (the
     noise level); ``sigma_q``: short-window rms of q = x P x^T. No model change is declared while
@@ -94,7 +105,7 @@ def vff_forgetting(
 
 @dataclass(frozen=True)
 class VariableForgetting:
-    """Settings of the VFF law (S0 4.109-4.115); the seed gives only ranges.
+    """Settings of the VFF law (Vaiopoulos 2017, eq. 4.109-4.115); the seed gives only ranges.
 
     Defaults were chosen on simulated parameter steps (SNR 10-40, 50 Hz): no false detection
     in a minute of steady identification, detection of a step within about a second.
@@ -138,7 +149,7 @@ class ExcitationStatus:
     Attributes:
         singular_values: (n,) singular values of the information gathered so far (normalised
             units, largest first).
-        threshold: excitation threshold (1 + S/n) sqrt(N_eff - n) (S0 4.68).
+        threshold: excitation threshold (1 + S/n) sqrt(N_eff - n) (Vaiopoulos 2017, eq. 4.68).
         excited: (n,) True for singular directions above the threshold.
         identifiable: (n,) True for parameters that do not load on an un-excited direction.
         unidentifiable: (n - rank, n) orthonormal parameter-space directions not excited.
@@ -313,13 +324,15 @@ def _check_covariance(name: str, value, n: int) -> np.ndarray:
 
 
 class RecursiveOLS(_Recursive):
-    """Recursive least squares with constant or variable forgetting (S0 4.22-4.24, 4.98-4.115).
+    """Recursive least squares with constant or variable forgetting (Vaiopoulos 2017, eq.
+    4.22-4.24, 4.98-4.115).
 
     Args:
         n_params: number of parameters n.
         forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
         theta0: initial estimate (n,), default zeros.
-        covariance0: prior covariance of theta0 (n, n) [hybrid start, S0 4.122-4.124]; None
+        covariance0: prior covariance of theta0 (n, n) [hybrid start, Vaiopoulos 2017, eq.
+        4.122-4.124]; None
             starts diffuse with P = p0 I.
         noise_std0: observation-noise std [units of z] assumed until the data give one; with
             ``covariance0`` it converts it to P = covariance0 / noise_std0^2.
@@ -358,7 +371,7 @@ class RecursiveOLS(_Recursive):
             self.P[:] = p0 * np.eye(n)
         else:
             self.P[:] = _check_covariance("covariance0", covariance0, n) / noise_std0**2
-            # the n prior rows absorb the n degrees of freedom (S0 4.123)
+            # the n prior rows absorb the n degrees of freedom (Vaiopoulos 2017, eq. 4.123)
             self._scalars[self._NEFF] = n
         self._Px = np.empty(n)
         self._k = np.empty(n)
@@ -367,7 +380,8 @@ class RecursiveOLS(_Recursive):
 
     @classmethod
     def from_batch(cls, result, forgetting=1.0, *, p0: float = 1e6, **kwargs) -> RecursiveOLS:
-        """Continue a batch :class:`RegressionResult` on-line (hybrid start, S0 4.4).
+        """Continue a batch :class:`RegressionResult` on-line (hybrid start, Vaiopoulos 2017, eq.
+        4.4).
 
         The estimate, P = covariance / noise_std^2, the residual sum of squares and the row count
         are taken over, so with forgetting 1 the recursion continues the batch OLS exactly.
@@ -389,7 +403,8 @@ class RecursiveOLS(_Recursive):
         return est
 
     def update(self, x, z: float) -> None:
-        """One RLS step with regressor row x (n,) and observation z (S0 4.98-4.101)."""
+        """One RLS step with regressor row x (n,) and observation z
+        (Vaiopoulos 2017, eq. 4.98-4.101)."""
         P, theta, Px, k = self.P, self.theta, self._Px, self._k
         np.dot(P, x, out=Px)
         q = float(np.dot(x, Px))
@@ -450,19 +465,22 @@ class RecursiveOLS(_Recursive):
 
 
 class RecursiveTLS(_Recursive):
-    """Recursive PCA-GTLS by recursive SVD (S0 Algorithms 1-2), with CFF or VFF.
+    """Recursive PCA-GTLS by recursive SVD (Vaiopoulos 2017, Algorithms 1-2), with CFF or VFF.
 
     Args:
         n_params: number of parameters n.
-        error_std: (n+1,) positive error stds of the columns of [x | z] (S0 4.40; give a small
+        error_std: (n+1,) positive error stds of the columns of [x | z] (Vaiopoulos 2017, eq. 4.40;
+        give a small
             value such as 1e-6 for an exact column like the constant), or
         error_cov: (n+1, n+1) error covariance W_T instead.
         forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
-        snr_min: S/n of the excitation test (S0 4.68).
-        weights: W of the minimum-norm choice under insufficient excitation (S0 4.76).
+        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68).
+        weights: W of the minimum-norm choice under insufficient excitation (Vaiopoulos 2017, eq.
+        4.76).
         scale_from_data: estimate the error-variance scale from the smallest singular value.
         theta0: initial estimate, kept until more than n rows arrived (unless a prior is given).
-        covariance0: prior covariance of theta0; adds the prior rows of S0 (4.125), scaled
+        covariance0: prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq. 4.125,
+        scaled
             sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1] so that the
             prior alone carries exactly covariance0.
     """
@@ -534,7 +552,8 @@ class RecursiveTLS(_Recursive):
         return float(self.s[self.n] ** 2 / dof)
 
     def _threshold(self) -> float:
-        """Excitation threshold of S0 (4.68), floored at the SVD's numerical resolution."""
+        """Excitation threshold of Vaiopoulos 2017, eq. 4.68, floored at the SVD's
+        numerical resolution."""
         dof = float(self._scalars[self._NEFF]) - self.n
         if dof <= 0.0:
             thr = 0.0
@@ -623,7 +642,8 @@ class RecursiveTLS(_Recursive):
         return math.sqrt(self._scale() * float(w @ self.C.T @ self.C @ w))
 
     def excitation(self) -> ExcitationStatus:
-        """Excitation of the tracked augmented matrix (S0 4.68-4.70) at the last update."""
+        """Excitation of the tracked augmented matrix (Vaiopoulos 2017, eq. 4.68-4.70)
+        at the last update."""
         thr = self._threshold()
         s = self.s[: self.n].copy()
         return _loadings_status(s, thr, s > thr, self._directions(), self.n)

@@ -1,16 +1,20 @@
-"""Batch linear-in-the-parameters regression: OLS, TLS/GTLS and PCA-TLS (seed S0, ch. 4).
+"""Batch linear-in-the-parameters regression: OLS, TLS/GTLS and PCA-TLS (Vaiopoulos 2017, ch. 4).
 
-The model is ``z = X theta + v`` (S0 4.3-4.4): ``X`` is the ``N x n`` regressor matrix (one
+The model is ``z = X theta + v`` (Vaiopoulos 2017, eq. 4.3-4.4): ``X`` is the ``N x n`` regressor
+matrix (one
 row per sample, usually a constant column first), ``z`` the ``N`` observations (an aerodynamic
 coefficient), ``theta`` the ``n`` parameters.
 
-* :func:`ols` -- ordinary least squares (S0 4.2): estimate, covariance ``s^2 (X^T X)^-1`` with
+* :func:`ols` -- ordinary least squares (Vaiopoulos 2017, eq. 4.2): estimate, covariance ``s^2 (X^T
+X)^-1`` with
   ``s`` estimated from the residuals, Student-t ratios and significance (4.12-4.13), R^2 (4.25).
-* :func:`tls` -- total least squares when the regressors are noisy too (S0 4.3). With an error
+* :func:`tls` -- total least squares when the regressors are noisy too (Vaiopoulos 2017, eq. 4.3).
+With an error
   standard deviation per column (or a full error covariance ``W_T = C^T C``) it is generalised
   TLS: the augmented matrix ``[X | z]`` is normalised by ``C^-1`` and the parameter vector comes
   from the last right singular vector (4.54-4.61).
-* :func:`pca_tls` -- TLS restricted to the singular directions that the data excite (S0 4.3.6):
+* :func:`pca_tls` -- TLS restricted to the singular directions that the data excite (Vaiopoulos
+2017, eq. 4.3.6):
   direction ``j <= n`` is excited when ``s_j > (1 + S/n) sqrt(N - n)`` (4.68-4.70); the
   parameters are the weighted minimum-norm member of the remaining solution space (4.75-4.79)
   and the parameter combinations the data cannot fix are reported.
@@ -21,15 +25,18 @@ number: :func:`ols` and :func:`tls` emit :class:`InsufficientExcitationWarning` 
 reduced (PCA-style) answer, with ``sigma = inf`` for the parameters that load on an
 unidentifiable direction.
 
-Covariance of TLS/GTLS. S0 (4.62) gives ``s^2 (X0^T X0)^-1`` with ``s^2 = [theta; -1]^T W_T
+Covariance of TLS/GTLS. Vaiopoulos 2017, eq. 4.62 gives ``s^2 (X0^T X0)^-1`` with ``s^2 = [theta;
+-1]^T W_T
 [theta; -1]``; that is the Cramer-Rao bound of the errors-in-variables model (see
 ``crlb.py``). The estimator's asymptotic covariance adds a second term of order (regressor
 noise / regressor signal)^2 (Fuller, *Measurement Error Models*, 1987, Thm 2.3.2); the sum is
 returned, so the reported sigma stays honest when the regressor noise is large. ``X0^T X0`` is
 estimated as ``X^T X`` minus the noise energy ``s_min^2`` along every retained singular
-direction (as in S0 4.63), and the error covariance is known up to a scale factor estimated
+direction (as in Vaiopoulos 2017, eq. 4.63), and the error covariance is known up to a scale factor
+estimated
 from the smallest singular value (``scale_from_data``), the TLS analogue of the residual variance
-of OLS; the excitation threshold then reads ``(1 + S/n) s_min``, equal to S0 (4.68) when the
+of OLS; the excitation threshold then reads ``(1 + S/n) s_min``, equal to Vaiopoulos 2017, eq. 4.68
+when the
 given error covariance is right.
 """
 
@@ -67,7 +74,8 @@ LOADING_TOL = 0.01
 OLS_RCOND = 1e-6
 
 #: Error std used for a column declared exact (std 0) in batch TLS: this fraction of the column's
-#: root-mean-square value (S0 4.41 uses "a small positive number" for the constant column).
+#: root-mean-square value (Vaiopoulos 2017, eq. 4.41 uses "a small positive number" for the
+# constant column).
 EXACT_COLUMN_REL = 1e-6
 
 
@@ -94,11 +102,12 @@ class RegressionResult:
         covariance: parameter covariance (n, n) of the identifiable part (zero along
             ``unidentifiable``).
         sigma: one-standard-deviation uncertainty of each parameter (n,); inf when not identifiable.
-        t_statistic: theta / sigma (n,), 0 where sigma is inf (S0 4.12).
+        t_statistic: theta / sigma (n,), 0 where sigma is inf (Vaiopoulos 2017, eq. 4.12).
         significant: |t| above the two-sided Student-t quantile with ``dof`` degrees of freedom.
         identifiable: False for parameters loading on an unidentifiable direction (n,).
         noise_std: estimated standard deviation of the equation error z - X theta (units of z).
-        r_squared: coefficient of determination 1 - SSE/SST (equals S0 4.25 for OLS with a
+        r_squared: coefficient of determination 1 - SSE/SST (equals Vaiopoulos 2017, eq. 4.25 for
+        OLS with a
             constant column); nan when z is constant.
         residual: z - X theta (N,), with the measured regressors.
         dof: degrees of freedom N - rank.
@@ -200,10 +209,12 @@ def _r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
 
 
 def excitation_threshold(n_rows: float, n_params: int, snr_min: float, scale: float = 1.0):
-    """Singular-value threshold of sufficient excitation (S0 4.68-4.69), normalised units.
+    """Singular-value threshold of sufficient excitation (Vaiopoulos 2017, eq. 4.68-4.69),
+    normalised units.
 
     ``(1 + S/n) * sqrt(scale * (n_rows - n_params))``: the noise energy of a normalised
-    direction is ``scale * (n_rows - n_params)`` (S0 4.67), ``scale`` = 1 when the error
+    direction is ``scale * (n_rows - n_params)`` (Vaiopoulos 2017, eq. 4.67), ``scale`` = 1 when
+    the error
     covariance is exact. ``n_rows`` may be an effective (forgetting-weighted) row count.
     """
     return (1.0 + snr_min) * np.sqrt(scale * max(n_rows - n_params, 0.0))
@@ -217,7 +228,7 @@ def unidentifiable_loading(directions: np.ndarray, n: int) -> np.ndarray:
 
 
 def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.ndarray:
-    """Upper-triangular error std matrix C with C^T C = W_T (S0 4.38-4.40).
+    """Upper-triangular error std matrix C with C^T C = W_T (Vaiopoulos 2017, eq. 4.38-4.40).
 
     ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
     Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
@@ -251,7 +262,7 @@ def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.
 
 
 def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND):
-    """Ordinary least squares with statistics (S0 4.2, A.10).
+    """Ordinary least squares with statistics (Vaiopoulos 2017, eq. 4.2, A.10).
 
     Args:
         X: (N, n) regressors, assumed exact. z: (N,) observations.
@@ -405,8 +416,9 @@ def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = T
     Args:
         s: singular values (n+1,) in decreasing order. V: right singular vectors (n+1, n+1),
             columns. C_inv: inverse error std matrix (n+1, n+1).
-        k: number of excited directions (<= n); k = n is plain TLS/GTLS (S0 4.61).
-        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (S0 4.76); None = identity.
+        k: number of excited directions (<= n); k = n is plain TLS/GTLS (Vaiopoulos 2017, eq. 4.61).
+        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (Vaiopoulos 2017, eq. 4.76);
+        None = identity.
         with_directions: also return the unidentifiable directions (else None, faster).
 
     Returns:
@@ -417,13 +429,14 @@ def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = T
     n = V.shape[0] - 1
     Wm = weight_matrix(weights)
     while k >= 0:
-        G = C_inv @ V[:, k:]  # solution space of [theta; -1] (S0 4.75)
+        G = C_inv @ V[:, k:]  # solution space of [theta; -1] (Vaiopoulos 2017, eq. 4.75)
         G_theta, g = G[:n], G[n]
         g_norm = math.sqrt(float(g @ g))
         if g_norm > 1e-12 * math.sqrt(float(np.vdot(G, G))):
             if G.shape[1] == 1:
                 return -G_theta[:, 0] / g[0], k, np.zeros((0, n))
-            # min ||W G_theta mu|| subject to g^T mu = -1 (S0 4.76-4.79 without the big number):
+            # min ||W G_theta mu|| subject to g^T mu = -1 (Vaiopoulos 2017, eq. 4.76-4.79 without
+            # the big number):
             # mu = mu_p + N nu, mu_p = -g / |g|^2, N an orthonormal basis of {mu : g^T mu = 0}.
             N = _null_basis(g, g_norm)
             mu_p = -g / g_norm**2
@@ -443,7 +456,8 @@ def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = T
 
 
 def tls_covariance(s, V, C, theta, k: int, directions, n_rows: float, scale: float):
-    """Asymptotic covariance of the (PCA-)TLS estimate (S0 4.62-4.63, 4.80; Fuller Thm 2.3.2).
+    """Asymptotic covariance of the (PCA-)TLS estimate (Vaiopoulos 2017, eq. 4.62-4.63, 4.80;
+    Fuller Thm 2.3.2).
 
     Args:
         s, V: SVD of the normalised augmented matrix (singular values, right vectors as columns).
@@ -543,7 +557,7 @@ def tls(
     confidence: float = 0.95,
     scale_from_data: bool = True,
 ):
-    """Total least squares / generalised TLS via SVD (S0 4.3, A.13).
+    """Total least squares / generalised TLS via SVD (Vaiopoulos 2017, eq. 4.3, A.13).
 
     Args:
         X: (N, n) measured regressors. z: (N,) measured observations.
@@ -552,8 +566,9 @@ def tls(
         error_cov: (n+1, n+1) full error covariance W_T instead of ``error_std``.
             Neither: plain TLS (C = I).
         names: parameter names.
-        snr_min: S/n of the excitation test (S0 4.68, typically 1..10).
-        weights: W of the minimum-norm choice if some direction is not excited (S0 4.76).
+        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
+        weights: W of the minimum-norm choice if some direction is not excited (Vaiopoulos 2017,
+        eq. 4.76).
         confidence: level of the significance test.
         scale_from_data: estimate the error-variance scale from the smallest singular value
             (C known up to a factor); False trusts C exactly.
@@ -579,7 +594,8 @@ def pca_tls(
     confidence: float = 0.95,
     scale_from_data: bool = True,
 ):
-    """PCA-TLS: GTLS restricted to the excited singular directions (S0 4.3.6, A.14).
+    """PCA-TLS: GTLS restricted to the excited singular directions (Vaiopoulos 2017, eq. 4.3.6,
+    A.14).
 
     Same arguments as :func:`tls`. Estimates only what the data support, without a warning:
     ``result.rank`` directions are kept, ``result.unidentifiable`` lists the parameter

@@ -1,4 +1,4 @@
-"""Diagnostics of an equation-error residual sampled at a known rate (seed S0 sec. 4.2.2).
+"""Diagnostics of an equation-error residual sampled at a known rate (Vaiopoulos 2017, sec. 4.2.2).
 
 A model that captures every effect in the data leaves a residual that is white, Gaussian,
 stationary and uncorrelated with any signal the model could still use. :func:`diagnose` checks
@@ -16,7 +16,7 @@ each property with a stated test and decision rule at level ``alpha`` (default 0
   correlated (N, m) series by Newey-West (Bartlett weights up to 4 times the longest
   :func:`correlation_lag` of its columns): the middle of the sandwich covariance of a
   regression whose residual is correlated (smoothed flight data, turbulence).
-* **Normality.** Normal probability plot (S0 4.16-4.17): ordered residuals against
+* **Normality.** Normal probability plot (Vaiopoulos 2017, eq. 4.16-4.17): ordered residuals against
   ``Phi^-1((i - 1/2)/N)``, with the plot's correlation coefficient; D'Agostino-Pearson K^2
   and Jarque-Bera p-values whose skewness and kurtosis parts are divided by the variance
   inflation of a correlated series, ``1 + 2 sum r_k^3`` and ``1 + 2 sum r_k^4`` (both 1 for a

@@ -41,13 +41,7 @@ import numpy as np
 from pymavlink.DFReader import FORMAT_TO_STRUCT, DFReader_binary
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
-from drake_uav.io.readers import (
-    CHANNELS,
-    ActuatorMapping,
-    FieldSource,
-    Stream,
-    align_streams,
-)
+from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
 
 __all__ = ["read_ardupilot"]
 

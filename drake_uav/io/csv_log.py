@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError
-from drake_uav.io.readers import CHANNELS
+from drake_uav.io.streams import CHANNELS
 
 __all__ = ["UNIT_VARIANTS", "read_csv", "resolve_unit"]
 

@@ -42,14 +42,8 @@ from pyulog import ULog
 from pyulog.core import ULogException
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
-from drake_uav.io.readers import (
-    CHANNELS,
-    ActuatorMapping,
-    FieldSource,
-    Stream,
-    align_streams,
-)
-from drake_uav.rotations import quat_to_euler
+from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.model.rotations import quat_to_euler
 
 __all__ = ["read_px4"]
 

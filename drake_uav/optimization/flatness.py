@@ -1,4 +1,4 @@
-"""Differential flatness of the multirotor (seed S2 sec. 2.2).
+"""Differential flatness of the multirotor (Argyropoulos 2020, sec. 2.2).
 
 The flat outputs are the NED position and the yaw angle. From the position
 derivatives up to snap and the yaw up to its second derivative, the reference
@@ -30,8 +30,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from scipy.interpolate import BSpline, make_interp_spline
 from scipy.ndimage import gaussian_filter1d, median_filter
 
-from drake_uav.rotations import rotmat_to_quat
-from drake_uav.systems.multirotor import BODY_RATES, VELOCITY, multirotor_dynamics
+from drake_uav.model.multirotor import BODY_RATES, VELOCITY, multirotor_dynamics
+from drake_uav.model.rotations import rotmat_to_quat
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = [

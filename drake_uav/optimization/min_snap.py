@@ -1,4 +1,5 @@
-"""Minimum-snap piecewise-polynomial trajectories and optimal segment times (seed S2 sec. 2.1).
+"""Minimum-snap piecewise-polynomial trajectories and optimal segment times (Argyropoulos 2020,
+sec. 2.1).
 
 A trajectory through keyframes ``sigma_0 .. sigma_m`` at times ``t_0 < .. < t_m``
 is one polynomial of degree ``n`` per segment and axis. Its coefficients solve

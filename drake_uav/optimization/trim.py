@@ -16,8 +16,8 @@ from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue, Ini
 from pydrake.math import cos, sin
 from pydrake.solvers import MathematicalProgram, SnoptSolver, Solve
 
-from drake_uav.rotations import euler_to_quat
-from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.rotations import euler_to_quat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["TrimResult", "TrimError", "trim"]

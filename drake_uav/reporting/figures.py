@@ -137,7 +137,7 @@ def normal_probability_plot(
     unit: str = "-",
     max_points: int = 2000,
 ) -> Figure:
-    """Normal probability plot (seed S0 4.16-4.17), one panel per diagnosis.
+    """Normal probability plot (Vaiopoulos 2017 4.16-4.17), one panel per diagnosis.
 
     Ordered residuals against ``Phi^-1((i - 1/2)/N)`` with the line ``mean + std * q`` of the
     Gaussian of the same mean and std; at most ``max_points`` points, evenly spread in rank

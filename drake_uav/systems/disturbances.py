@@ -14,8 +14,8 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from drake_uav.systems.aerodynamics import AeroCondition, lift_drag_to_body
-from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.model.coefficients import AeroCondition, lift_drag_to_body
+from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["AerodynamicIncrement"]

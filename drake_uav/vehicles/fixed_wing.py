@@ -15,7 +15,7 @@ from types import MappingProxyType
 import numpy as np
 from pydrake.math import sqrt
 
-from drake_uav.systems.aerodynamics import validate_derivative_names
+from drake_uav.model.coefficients import validate_derivative_names
 
 __all__ = [
     "ControlLimits",
@@ -367,7 +367,7 @@ def aerosonde_mavsim() -> FixedWingParams:
 
 
 def unatrap() -> FixedWingParams:
-    """UnATRaP of seed S0 (Vaiopoulos 2017): Table 8 geometry, Table 10 force derivatives.
+    """UnATRaP of Vaiopoulos 2017: Table 8 geometry, Table 10 force derivatives.
 
     From the seed: operating mass 12.6 kg, chord 0.34 m, span 2.72 m, wing area
     0.92 m^2, and the C_L, C_D, C_Y derivatives identified from flight 2 (Table 10,

@@ -12,7 +12,7 @@ The allocation matrix maps motor thrusts to ``[F, tau_x, tau_y, tau_z]``
 
     column i = [1, -l sin a_i, l cos a_i, -spin_i km]
 
-Seed S2 (eq. 1.2-1.3) works in z-up frames. Rotating both of its frames by pi
+Argyropoulos 2020 (eq. 1.2-1.3) works in z-up frames. Rotating both of its frames by pi
 about x maps its matrices onto these ones: the ``tau_y`` and ``tau_z`` rows change
 sign, its arm azimuths ``psi_i`` (counter-clockwise from above) become
 ``a_i = -psi_i``, and its ``+k_m`` yaw entries are the clockwise rotors.
@@ -203,7 +203,7 @@ _QUAD_450 = dict(mass=1.2, inertia=(0.011, 0.011, 0.021), arm_length=0.225, km=0
 
 
 def quadrotor_plus(**overrides) -> MultirotorParams:
-    """Quadrotor in "+" layout, motors numbered as in seed S2 eq. 1.2.
+    """Quadrotor in "+" layout, motors numbered as in Argyropoulos 2020, eq. 1.2.
 
     Motor 0 front, 1 left, 2 back, 3 right; 0 and 2 turn clockwise seen from
     above. Assumed 450 mm frame: m = 1.2 kg, l = 0.225 m, J = diag(0.011, 0.011,
@@ -225,7 +225,7 @@ def quadrotor_x(**overrides) -> MultirotorParams:
 
 
 def hexacopter(**overrides) -> MultirotorParams:
-    """Hexarotor of seed S2 eq. 1.3: arms every 60 degrees starting at 30 degrees.
+    """Hexarotor of Argyropoulos 2020, eq. 1.3: arms every 60 degrees starting at 30 degrees.
 
     Motor 0 front-left, then counter-clockwise seen from above (1 left, 2 back-
     left, 3 back-right, 4 right, 5 front-right); even motors turn clockwise.

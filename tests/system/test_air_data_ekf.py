@@ -1,5 +1,7 @@
-"""Estimator campaign: 20 identification flights of 300 s in light turbulence (seed S0 sec. 5.4),
-the parameter filter on a steady-wind flight (seed S1 sec. 6) and on the first turbulent
+"""Estimator campaign: 20 identification flights of 300 s in light turbulence (Vaiopoulos 2017,
+sec. 5.4),
+the parameter filter on a steady-wind flight (Ortiz & Gutierrez 2009, sec. 6) and on the first
+turbulent
 flight, robustness to GPS dropout, spikes and NaN samples.
 
 Flights are simulated once per module in two processes; the filters run offline over the
@@ -18,12 +20,8 @@ from scipy.stats import chi2
 from drake_uav.diagrams.identification_flight import fly
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, chi2_bounds, run_filter
 from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
-from drake_uav.systems.aerodynamics import (
-    AeroCondition,
-    air_data_from_velocity,
-    body_to_lift_drag,
-    regressor_matrix,
-)
+from drake_uav.model.air_data import air_data_from_velocity
+from drake_uav.model.coefficients import AeroCondition, body_to_lift_drag, regressor_matrix
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 # The acceptance campaign is 20 seeds (DRAKE_UAV_EKF_SEEDS=20, about 5 minutes on two
@@ -32,7 +30,7 @@ SEEDS = tuple(range(int(os.environ.get("DRAKE_UAV_EKF_SEEDS", "6"))))
 DURATION = 300.0
 CONVERGED = 10.0  # [s] errors are averaged after the start transient
 AIRCRAFT = aerosonde()
-# Seed S1 Table 1: mean error of each coefficient along the trajectory.
+# Ortiz & Gutierrez 2009, Table 1: mean error of each coefficient along the trajectory.
 S1_MEAN_ERROR = {"CD": 0.000112, "CY": 0.000104, "CL": 0.000393, "Cl": 3.015e-4,
                  "Cm": 0.00015, "Cn": 0.000135}
 
@@ -194,7 +192,8 @@ def _true_coefficients(log) -> dict[str, np.ndarray]:
 
 
 def _parameter_run(job: tuple[str, str | None]):
-    """Seed S1 conditions: a flight in steady wind with white sensor noise (or the first
+    """Ortiz & Gutierrez 2009 conditions: a flight in steady wind with white sensor noise (or the
+    first
     light-turbulence flight with the turbulent-air tuning); prior derivatives off by up
     to +-50 % (run in a worker)."""
     axis, turbulence = job
@@ -234,7 +233,7 @@ def test_parameter_ekf_coefficient_errors_within_seed_table1(parameter_runs):
             errors = _coefficient_errors(axis, names, k, prior, run.time, run.state[b], log,
                                          running=False)
             for c, error in errors.items():
-                print(f"\nflight {b} {c}: mean error {error.mean():+.2e} (seed S1: "
+                print(f"\nflight {b} {c}: mean error {error.mean():+.2e} (Ortiz & Gutierrez 2009: "
                       f"{S1_MEAN_ERROR[c]:.2e}), mean squared error {np.mean(error**2):.2e}")
                 assert abs(error.mean()) <= S1_MEAN_ERROR[c]
 
@@ -266,7 +265,7 @@ def test_parameter_ekf_in_light_turbulence(campaign):
     on V, alpha, beta; slow derivative walk), on every flight of the campaign: every
     derivative within 3 sigma of the truth at the end of each 300 s flight, and the
     coefficients estimated along the flights (after 30 s) with mean errors within seed
-    S1 Table 1's, over the campaign and on the first flight."""
+    Ortiz & Gutierrez 2009, Table 1's, over the campaign and on the first flight."""
     for axis, (names, k, prior, run) in campaign["turbulent_parameters"].items():
         truth = np.array([AIRCRAFT.derivative(n) for n in names])
         z = (run.state[:, -1, k:] - truth) / run.std[:, -1, k:]
@@ -281,7 +280,8 @@ def test_parameter_ekf_in_light_turbulence(campaign):
         coefficients = ("CL", "CD", "Cm") if axis == "longitudinal" else ("CY", "Cl", "Cn")
         for c, per_flight in zip(coefficients, means.T, strict=True):
             print(f"  {c}: mean error over the flights {per_flight.mean():+.2e}, largest of "
-                  f"one flight {np.abs(per_flight).max():.2e} (seed S1: {S1_MEAN_ERROR[c]:.2e})")
+                  f"one flight {np.abs(per_flight).max():.2e} "
+                   f"(Ortiz & Gutierrez 2009: {S1_MEAN_ERROR[c]:.2e})")
             assert abs(per_flight.mean()) <= S1_MEAN_ERROR[c], c
             assert abs(per_flight[0]) <= S1_MEAN_ERROR[c], c
 

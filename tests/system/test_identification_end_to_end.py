@@ -2,7 +2,7 @@
 aircraft's force and moment derivatives within their reported uncertainty of the truth.
 
 Three 120 s flights (seeds 1, 2, 3: the first three, not picked), light turbulence, the
-default multisine on elevator, aileron and rudder, the default sensor suite (seed S0
+default multisine on elevator, aileron and rudder, the default sensor suite (Vaiopoulos 2017
 Table 7). ``identify_derivatives(log, aerosonde())`` isolates the six coefficients from the
 measured specific force, rates and air data and fits each on the aircraft's own terms
 (31 derivatives), bias-compensated for the sensor noise, with sigma from the long-run

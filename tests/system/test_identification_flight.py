@@ -13,14 +13,14 @@ from drake_uav.diagrams.identification_flight import (
     fly,
 )
 from drake_uav.io.flight_log import FlightLog
-from drake_uav.rotations import quat_to_rotmat
-from drake_uav.systems.identification import (
+from drake_uav.model.rotations import quat_to_rotmat
+from drake_uav.systems.identifiers import (
     AeroRegressors,
     RecursiveIdentifier,
     RecursiveIdentifierParams,
 )
-from drake_uav.systems.sensors import ChannelErrors, GpsParams, ImuParams, SensorSuiteParams
 from drake_uav.vehicles.fixed_wing import aerosonde
+from drake_uav.vehicles.sensors import ChannelErrors, GpsParams, ImuParams, SensorSuiteParams
 
 STEADY = (2.0, -1.5, 0.0)
 

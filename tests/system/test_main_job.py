@@ -11,14 +11,14 @@ import pytest
 from drake_uav.diagrams import fly
 from drake_uav.identification.discovery import NO_EFFECT_MESSAGE
 from drake_uav.identification.main_job import identify
-from drake_uav.systems.sensors import (
+from drake_uav.vehicles import aerosonde
+from drake_uav.vehicles.sensors import (
     ChannelErrors,
     ImuParams,
     PitotParams,
     SensorSuiteParams,
     VaneParams,
 )
-from drake_uav.vehicles import aerosonde
 
 PARAMS = aerosonde()
 # A research-grade air-data boom and IMU, so that the effects, not the sensor noise,

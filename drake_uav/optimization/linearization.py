@@ -3,7 +3,7 @@
 The nonlinear model is :class:`~drake_uav.systems.fixed_wing.FixedWingModel`,
 written with Euler angles instead of the quaternion (12 states), and
 differentiated exactly with AutoDiffXd. The decoupled models follow Beard &
-McLain ch. 5 and seed S1 sec. 3:
+McLain ch. 5 and Ortiz & Gutierrez 2009, sec. 3:
 
 * longitudinal: states ``[u, w, q, theta, h]``, inputs ``[elevator, throttle]``;
 * lateral: states ``[v, p, r, phi, psi]``, inputs ``[aileron, rudder]``.
@@ -19,9 +19,9 @@ import dataclasses
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
 
+from drake_uav.model.fixed_wing import CONTROL_NAMES, FixedWingModel
+from drake_uav.model.rotations import euler_rates, euler_to_quat, quat_to_euler
 from drake_uav.optimization.trim import TrimResult
-from drake_uav.rotations import euler_rates, euler_to_quat, quat_to_euler
-from drake_uav.systems.fixed_wing import CONTROL_NAMES, FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [

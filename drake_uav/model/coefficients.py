@@ -5,7 +5,8 @@ the identification regressors and the linearisation all evaluate the functions
 below. They work on scalars (float, AutoDiffXd, symbolic Expression) and,
 elementwise, on numpy arrays of samples (batch identification).
 
-Model (seed S0 eq. 3.31, with seed S1's alpha-dot and flap terms and S0's
+Model (Vaiopoulos 2017, eq. 3.31, with Ortiz & Gutierrez 2009's alpha-dot and flap terms and
+Vaiopoulos 2017's
 thrust-coefficient drag term of eq. 6.2)::
 
     C_k = sum_j  theta_{k,j} * xi_j,        k in (CL, CD, CY, Cl, Cm, Cn)
@@ -31,7 +32,7 @@ signal        regressor                               unit
 ``Tc``        thrust coefficient T / (qbar S)         -
 ============  ======================================  =====
 
-Body-axis coefficients follow from lift and drag by seed S0 eq. A'.12-A'.14:
+Body-axis coefficients follow from lift and drag by Vaiopoulos 2017, eq. A'.12-A'.14:
 ``C_X = -C_D cos(alpha) + C_L sin(alpha)``, ``C_Z = -C_D sin(alpha) - C_L cos(alpha)``.
 """
 
@@ -41,9 +42,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydrake.math import atan2, cos, sin, sqrt
+from pydrake.math import cos, sin
 
-from drake_uav.scalar import smax
+from drake_uav.model.scalar import smax
 
 __all__ = [
     "COEFFICIENTS",
@@ -55,8 +56,6 @@ __all__ = [
     "regressor_matrix",
     "split_derivative_name",
     "validate_derivative_names",
-    "air_data_from_velocity",
-    "velocity_from_air_data",
     "lift_drag_to_body",
     "body_to_lift_drag",
 ]
@@ -241,38 +240,15 @@ class CoefficientModel:
         return total
 
 
-def air_data_from_velocity(u_r, v_r, w_r) -> tuple:
-    """Stability triplet ``(Va, alpha, beta)`` from air-relative body velocity [m/s].
-
-    Seed S0 eq. 2.12-2.14 (corrected): alpha = atan2(w_r, u_r),
-    beta = asin(v_r / Va) computed as atan2(v_r, sqrt(u_r^2 + w_r^2)).
-    """
-    if isinstance(u_r, np.ndarray):
-        uw = np.hypot(u_r, w_r)
-        return np.hypot(uw, v_r), np.arctan2(w_r, u_r), np.arctan2(v_r, uw)
-    uw2 = u_r * u_r + w_r * w_r
-    return sqrt(uw2 + v_r * v_r), atan2(w_r, u_r), atan2(v_r, sqrt(uw2))
-
-
-def velocity_from_air_data(airspeed, alpha, beta) -> tuple:
-    """Air-relative body velocity ``(u_r, v_r, w_r)`` [m/s] (seed S0 eq. 5.35)."""
-    if isinstance(alpha, np.ndarray):
-        cos_, sin_ = np.cos, np.sin
-    else:
-        cos_, sin_ = cos, sin
-    cb = cos_(beta)
-    return airspeed * cos_(alpha) * cb, airspeed * sin_(beta), airspeed * sin_(alpha) * cb
-
-
 def lift_drag_to_body(CL, CD, alpha) -> tuple:
-    """``(C_X, C_Z)`` from lift and drag coefficients (seed S0 eq. A'.12-A'.14)."""
+    """``(C_X, C_Z)`` from lift and drag coefficients (Vaiopoulos 2017, eq. A'.12-A'.14)."""
     ca, sa = (np.cos(alpha), np.sin(alpha)) if isinstance(alpha, np.ndarray) else (
         cos(alpha), sin(alpha))
     return -CD * ca + CL * sa, -CD * sa - CL * ca
 
 
 def body_to_lift_drag(CX, CZ, alpha) -> tuple:
-    """``(C_L, C_D)`` from body-axis force coefficients (seed S0 eq. 3.25-3.26)."""
+    """``(C_L, C_D)`` from body-axis force coefficients (Vaiopoulos 2017, eq. 3.25-3.26)."""
     ca, sa = (np.cos(alpha), np.sin(alpha)) if isinstance(alpha, np.ndarray) else (
         cos(alpha), sin(alpha))
     return -CZ * ca + CX * sa, -CX * ca - CZ * sa

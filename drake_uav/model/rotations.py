@@ -80,7 +80,7 @@ def quat_normalize(q) -> np.ndarray:
 
 
 def quat_to_rotmat(q) -> np.ndarray:
-    """Rotation matrix body -> NED of a unit quaternion (seed S2 eq. A.55)."""
+    """Rotation matrix body -> NED of a unit quaternion (Argyropoulos 2020, eq. A.55)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
     return _array(
         [
@@ -205,7 +205,7 @@ def quat_to_euler(q) -> np.ndarray:
 
 
 def euler_to_rotmat(rpy) -> np.ndarray:
-    """Body -> NED rotation matrix of 3-2-1 Euler angles (transpose of seed S0 eq. 2.2)."""
+    """Body -> NED rotation matrix of 3-2-1 Euler angles (transpose of Vaiopoulos 2017, eq. 2.2)."""
     cr, sr = cos(rpy[0]), sin(rpy[0])
     cp, sp = cos(rpy[1]), sin(rpy[1])
     cy, sy = cos(rpy[2]), sin(rpy[2])
@@ -247,7 +247,8 @@ def quat_derivative(q, omega_body, stabilization: float = 0.0) -> np.ndarray:
 
 
 def euler_rates(rpy, omega_body) -> np.ndarray:
-    """Euler angle rates (seed S0 eq. 3.3) from body rates; singular at pitch = +-90 deg."""
+    """Euler angle rates (Vaiopoulos 2017, eq. 3.3) from body rates;
+    singular at pitch = +-90 deg."""
     cr, sr = cos(rpy[0]), sin(rpy[0])
     cp, tp = cos(rpy[1]), sin(rpy[1]) / cos(rpy[1])
     p, q, r = omega_body[0], omega_body[1], omega_body[2]

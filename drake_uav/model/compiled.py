@@ -21,7 +21,7 @@ import numpy as np
 from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.symbolic import Expression, ExpressionKind, Formula, FormulaKind, Variable
 
-from drake_uav.scalar import as_list
+from drake_uav.model.scalar import as_list
 
 __all__ = ["CompiledFunction", "VECTOR_BATCH"]
 

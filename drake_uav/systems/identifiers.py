@@ -7,7 +7,8 @@ aircraft's coefficient model, so the identifier can run inside a flight diagram.
 The system samples a regressor row x (the terms of a coefficient model such as
 1, alpha, q_n, delta_e) and an observation z (the measured coefficient) every ``period`` seconds
 and updates a recursive estimator of ``identification.recursive``: recursive PCA-GTLS
-(``method="tls"``, seed S0 Algorithms 1-2) or RLS (``method="ols"``), with a constant or variable
+(``method="tls"``, Vaiopoulos 2017, Algorithms 1-2) or RLS (``method="ols"``), with a constant or
+variable
 forgetting factor. The estimator state lives entirely in the discrete state, so a simulation is
 reproducible from the context alone; outputs only read that state.
 """
@@ -20,16 +21,16 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from drake_uav.compiled import CompiledFunction
 from drake_uav.identification.recursive import RecursiveOLS, RecursiveTLS, VariableForgetting
-from drake_uav.systems.aerodynamics import (
+from drake_uav.model.coefficients import (
     COEFFICIENTS,
     AeroCondition,
     CoefficientModel,
     body_to_lift_drag,
     regressor_matrix,
 )
-from drake_uav.systems.fixed_wing import FixedWingModel
+from drake_uav.model.compiled import CompiledFunction
+from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams", "AeroRegressors"]
@@ -42,18 +43,20 @@ class RecursiveIdentifierParams:
     Attributes:
         names: parameter names (n), in the order of the regressor row.
         error_std: (n+1) noise standard deviations of the regressors and of the observation
-            (units of each column; S0 4.40). Positive: give a small value such as 1e-6 for an
+            (units of each column; Vaiopoulos 2017, eq. 4.40). Positive: give a small value such as
+            1e-6 for an
             exact column like the constant 1. RLS uses the regressor part for its excitation
             monitor only.
         method: "tls" (recursive PCA-GTLS) or "ols" (recursive least squares).
         forgetting: constant forgetting factor in (0, 1] (weight per sample of past squared
             residuals), used when ``variable_forgetting`` is None.
-        variable_forgetting: VFF settings (S0 4.107-4.115) or None for a constant factor.
-        snr_min: S/n of the excitation test (S0 4.68, typically 1..10).
+        variable_forgetting: VFF settings (Vaiopoulos 2017, eq. 4.107-4.115) or None for a constant
+        factor.
+        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
         period: update period [s].
         theta0: initial estimate (n), zeros if None.
         covariance0: prior covariance (n x n, row-major tuples) of theta0 for a hybrid start
-            (S0 4.4); None starts without prior information.
+            (Vaiopoulos 2017, eq. 4.4); None starts without prior information.
     """
 
     names: tuple[str, ...]
@@ -125,7 +128,8 @@ class RecursiveIdentifier(LeafSystem):
     observation   1       input: observed z (e.g. a measured aerodynamic coefficient, -)
     estimate      n       output: parameters theta (units of z per unit of each regressor)
     sigma         n       output: one-sigma uncertainty of theta (inf: not identifiable)
-    excitation    n       output: 1 if the data excite the parameter enough, else 0 (S0 4.68)
+    excitation    n       output: 1 if the data excite the parameter enough, else 0 (Vaiopoulos
+    2017, eq. 4.68)
     forgetting    1       output: forgetting factor used at the last update (-)
     ============  ======  ====================================================================
 

@@ -17,7 +17,7 @@ read it. The sensor ports take the held outputs of
 * inputs the model smooths (the air-data filters' attitude, with the gyro) are
   smoothed sample by sample, as :func:`~drake_uav.estimation.ekf.run_filter`
   does offline;
-* the filter starts once the sensors it needs for the wind triangle (seed S0
+* the filter starts once the sensors it needs for the wind triangle (Vaiopoulos 2017
   eq. 5.24-5.25) have delivered a sample.
 
 Timing: when the EKF updates at the same instants as the sensors, it reads the
@@ -44,9 +44,9 @@ from drake_uav.estimation.models import (
     is_new_sample,
     ned_acceleration,
 )
-from drake_uav.systems.aerodynamics import air_data_from_velocity
-from drake_uav.systems.sensors import SensorSuiteParams
+from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.vehicles.fixed_wing import FixedWingParams
+from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = [
     "EkfSystemParams",
@@ -63,7 +63,7 @@ class EkfSystemParams:
     Attributes:
         aircraft: the aircraft (gravity, air density; for the model-based filters
             also the identified model used in the prediction).
-        sensors: sensor suite whose noise levels tune the filter (default seed S0
+        sensors: sensor suite whose noise levels tune the filter (default Vaiopoulos 2017
             Table 7).
         noise: explicit filter noise; None: the model's ``default_noise(sensors)``.
         period: update period [s] (the IMU period).
@@ -321,7 +321,7 @@ class _AirDataSystem(LeafSystem):
 
 
 class AirDataEkf(_AirDataSystem):
-    """Model-free air-data and wind EKF (seed S0 sec. 5.4.3); see :class:`AirDataModel`.
+    """Model-free air-data and wind EKF (Vaiopoulos 2017, sec. 5.4.3); see :class:`AirDataModel`.
 
     ==============  ====  ==========================================================
     Input port      size  content [unit]
@@ -359,7 +359,7 @@ class AirDataEkf(_AirDataSystem):
 
 
 class ModelBasedAirDataEkf(_AirDataSystem):
-    """Model-based air-data and wind EKF (seed S0 sec. 5.4.5); see
+    """Model-based air-data and wind EKF (Vaiopoulos 2017, sec. 5.4.5); see
     :class:`ModelBasedAirDataModel`. Estimates alpha and beta without vanes from
     the aerodynamic model of ``params.aircraft`` and the accelerometer.
 
@@ -400,7 +400,8 @@ class ModelBasedAirDataEkf(_AirDataSystem):
 
 
 class ParameterEkf(LeafSystem):
-    """Augmented-state EKFs of seed S1 (eq. 42-50): longitudinal and lateral derivatives.
+    """Augmented-state EKFs of Ortiz & Gutierrez 2009 (eq. 42-50): longitudinal and lateral
+    derivatives.
 
     Two filters on :class:`ParameterModel` (``axis="longitudinal"`` and
     ``"lateral"``), started from the derivatives of ``params.aircraft`` (the

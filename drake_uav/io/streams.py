@@ -1,0 +1,406 @@
+"""The canonical log channels, field and actuator mappings, and stream alignment.
+
+Every reader turns its format into :class:`Stream` objects and aligns them with
+:func:`align_streams` into a :class:`~drake_uav.io.flight_log.FlightLog` whose
+measured channels carry the canonical names and SI units of :data:`CHANNELS`.
+
+Autopilot logs keep each message stream (IMU, attitude, GPS, ...) on its own
+time base. :func:`align_streams` puts them on the IMU's time base:
+
+* continuous signals by linear interpolation between the two neighbouring samples;
+* angles that wrap (yaw) unwrapped first, interpolated, wrapped back to [-pi, pi);
+* commands (servo outputs, actuator controls) by previous-sample hold, because
+  the autopilot holds an output until it writes the next one;
+* the log keeps the span where every stream has data; a stream with two
+  consecutive samples further apart than ``max_gap`` inside that span, a time
+  that does not increase, or a non-finite value raises :class:`FlightLogError`
+  naming the stream, the message index and the time.
+
+See docs/flight_logs.md for the field-by-field mappings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError
+
+__all__ = [
+    "CHANNELS",
+    "FORMATS",
+    "ActuatorChannel",
+    "ActuatorMapping",
+    "FieldSource",
+    "Stream",
+    "align_streams",
+    "require_channels",
+]
+
+CHANNELS: dict[str, tuple[str, str]] = {
+    "imu_ax": ("m/s^2", "specific force along body x (forward)"),
+    "imu_ay": ("m/s^2", "specific force along body y (right)"),
+    "imu_az": ("m/s^2", "specific force along body z (down); about -9.81 level at rest"),
+    "imu_p": ("rad/s", "body roll rate"),
+    "imu_q": ("rad/s", "body pitch rate"),
+    "imu_r": ("rad/s", "body yaw rate"),
+    "att_roll": ("rad", "roll angle (3-2-1 Euler)"),
+    "att_pitch": ("rad", "pitch angle (3-2-1 Euler)"),
+    "att_yaw": ("rad", "yaw angle (3-2-1 Euler), in [-pi, pi)"),
+    "pitot_airspeed": ("m/s", "airspeed from the pitot-static probe"),
+    "pitot_qbar": ("Pa", "pitot differential (dynamic) pressure"),
+    "vane_alpha": ("rad", "angle of attack from a vane"),
+    "vane_beta": ("rad", "sideslip angle from a vane"),
+    "cmd_elevator": ("rad", "elevator command; positive gives a nose-down moment"),
+    "cmd_aileron": ("rad", "aileron command; positive gives a right-wing-down moment"),
+    "cmd_rudder": ("rad", "rudder command; positive gives a nose-left moment"),
+    "cmd_throttle": ("1", "throttle command, 0..1"),
+    "baro_alt": ("m", "barometric altitude, up positive"),
+    "gps_pn": ("m", "position north of the origin"),
+    "gps_pe": ("m", "position east of the origin"),
+    "gps_pd": ("m", "position down from the origin"),
+    "gps_vn": ("m/s", "velocity north"),
+    "gps_ve": ("m/s", "velocity east"),
+    "gps_vd": ("m/s", "velocity down"),
+    "est_wind_n": ("m/s", "autopilot's own wind estimate, north component"),
+    "est_wind_e": ("m/s", "autopilot's own wind estimate, east component"),
+    "motor_speed": ("rad/s", "engine or motor shaft speed"),
+}
+"""Canonical measured channels: name -> (SI unit, meaning). Surface signs follow
+the aircraft parameters (Cm_elevator < 0, Cl_aileron > 0, Cn_rudder < 0)."""
+
+FORMATS = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet", ".pq": "parquet"}
+"""File suffix (lower case) -> format name accepted by :func:`read_log`."""
+
+_HINTS = {
+    "vane_alpha": "autopilot logs carry no vane angles unless mapped: pass "
+                  "extra={'vane_alpha': FieldSource(...)}, or estimate them",
+    "vane_beta": "autopilot logs carry no vane angles unless mapped: pass "
+                 "extra={'vane_beta': FieldSource(...)}, or estimate them",
+}
+
+
+# --------------------------------------------------------------------- mappings
+@dataclasses.dataclass(frozen=True)
+class FieldSource:
+    """A logged field mapped onto a channel: ``value = scale * raw + offset``.
+
+    Attributes:
+        message: ArduPilot message name (``"CUR2"``) or PX4 topic (``"vane_data"``).
+        field: field name within it (``"Volt"``, ``"angle[0]"``).
+        unit: unit of the resulting channel, from the FlightLog registry [e.g. rad].
+        scale: multiplier applied to the raw value [unit per raw unit].
+        offset: added after scaling [unit].
+        instance: ArduPilot instance (``I``/``C`` field; None: every message) or PX4
+            multi-id (None: the reader's ``instance``).
+        hold: previous-sample hold instead of linear interpolation (commands).
+    """
+
+    message: str
+    field: str
+    unit: str
+    scale: float = 1.0
+    offset: float = 0.0
+    instance: int | None = None
+    hold: bool = False
+
+    def validate(self) -> FieldSource:
+        """Raises ValueError naming the invalid field; returns self."""
+        for name in ("message", "field"):
+            if not getattr(self, name):
+                raise ValueError(f"FieldSource.{name}: must be a non-empty string")
+        if self.unit not in UNITS:
+            raise ValueError(f"FieldSource.unit: unknown unit {self.unit!r}")
+        for name in ("scale", "offset"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"FieldSource.{name}: must be finite")
+        return self
+
+    def apply(self, raw: np.ndarray) -> np.ndarray:
+        """The channel values of the raw field values."""
+        return self.scale * np.asarray(raw, float) + self.offset
+
+
+@dataclasses.dataclass(frozen=True)
+class ActuatorChannel:
+    """A logged actuator output mapped linearly onto a command.
+
+    ``command = full_value * (raw - neutral) / (full - neutral)``, then clipped
+    to ``limits`` when given. For a servo PWM: ``neutral`` is the trim [us] and
+    ``full`` the PWM of full deflection ``full_value`` [rad] (its sign sets the
+    direction); for a throttle: ``neutral`` is the idle PWM and ``full_value`` 1.
+
+    Attributes:
+        field: field holding the raw output (``"C2"`` in RCOU, ``"output[1]"``
+            in actuator_outputs, ``"control[1]"`` in actuator_controls_0).
+        neutral: raw value of a zero command [us or normalised].
+        full: raw value of the command ``full_value`` [us or normalised].
+        full_value: command at ``full`` [rad for surfaces, 1 for throttle].
+        limits: (low, high) clip of the command, or None.
+    """
+
+    field: str
+    neutral: float
+    full: float
+    full_value: float
+    limits: tuple[float, float] | None = None
+
+    def validate(self, where: str = "ActuatorChannel") -> ActuatorChannel:
+        """Raises ValueError naming ``where.field``; returns self."""
+        if not self.field:
+            raise ValueError(f"{where}.field: must be a non-empty string")
+        for name in ("neutral", "full", "full_value"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{where}.{name}: must be finite")
+        if self.full == self.neutral:
+            raise ValueError(f"{where}.full: must differ from neutral ({self.neutral})")
+        if self.full_value == 0.0:
+            raise ValueError(f"{where}.full_value: must be non-zero")
+        if self.limits is not None and not self.limits[0] < self.limits[1]:
+            raise ValueError(f"{where}.limits: need low < high, got {self.limits}")
+        return self
+
+    def apply(self, raw: np.ndarray) -> np.ndarray:
+        """Commands of the raw output values."""
+        value = self.full_value * (np.asarray(raw, float) - self.neutral) / (
+            self.full - self.neutral)
+        if self.limits is not None:
+            value = np.clip(value, *self.limits)
+        return value
+
+
+_SURFACES = ("elevator", "aileron", "rudder")
+_DEFAULT_DEFLECTION = math.radians(25.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ActuatorMapping:
+    """Where the four commands come from: one message and a channel per command.
+
+    The presets follow the autopilots' conventions: a positive pitch demand is
+    nose-up, so it maps onto a *negative* elevator here (nose-down positive);
+    likewise a positive (nose-right) yaw demand onto a negative rudder. Flip
+    the sign of ``full_value`` for a servo reversed in the autopilot
+    (ArduPilot ``SERVOn_REVERSED = 1``). ``elevator``, ``aileron`` and
+    ``rudder`` arguments of the presets are full deflections [rad].
+    """
+
+    message: str
+    elevator: ActuatorChannel
+    aileron: ActuatorChannel
+    rudder: ActuatorChannel
+    throttle: ActuatorChannel
+
+    def validate(self) -> ActuatorMapping:
+        """Raises ValueError naming the invalid field; returns self."""
+        if not self.message:
+            raise ValueError("ActuatorMapping.message: must be a non-empty string")
+        for name in (*_SURFACES, "throttle"):
+            getattr(self, name).validate(f"ActuatorMapping.{name}")
+        return self
+
+    def describe(self) -> dict:
+        """The mapping as JSON-ready values (for log metadata)."""
+        out = dataclasses.asdict(self)
+        for name in (*_SURFACES, "throttle"):
+            limits = out[name]["limits"]
+            out[name]["limits"] = None if limits is None else list(limits)
+        return out
+
+    def channels(self) -> dict[str, ActuatorChannel]:
+        """Canonical command channel -> its mapping."""
+        return {f"cmd_{name}": getattr(self, name) for name in (*_SURFACES, "throttle")}
+
+    @classmethod
+    def _pwm(cls, message, fields, throttle_range, elevator, aileron, rudder):
+        signs = {"elevator": -1.0, "aileron": 1.0, "rudder": -1.0}
+        limits = {"elevator": elevator, "aileron": aileron, "rudder": rudder}
+        surfaces = {name: ActuatorChannel(fields[name], 1500.0, 2000.0, signs[name] * limits[name])
+                    for name in _SURFACES}
+        throttle = ActuatorChannel(fields["throttle"], *throttle_range, 1.0, (0.0, 1.0))
+        return cls(message, throttle=throttle, **surfaces).validate()
+
+    @classmethod
+    def ardupilot(cls, message: str = "RCOU", elevator: float = _DEFAULT_DEFLECTION,
+                  aileron: float = _DEFAULT_DEFLECTION,
+                  rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
+        """ArduPlane outputs: C1 aileron, C2 elevator, C3 throttle, C4 rudder.
+
+        Surfaces: 1500 us trim, +-500 us for full deflection; throttle 1100..1900 us
+        -> 0..1 (clipped). ``message`` may be ``"RCIN"`` for the pilot's sticks.
+        """
+        fields = {"aileron": "C1", "elevator": "C2", "throttle": "C3", "rudder": "C4"}
+        return cls._pwm(message, fields, (1100.0, 1900.0), elevator, aileron, rudder)
+
+    @classmethod
+    def px4_outputs(cls, elevator: float = _DEFAULT_DEFLECTION,
+                    aileron: float = _DEFAULT_DEFLECTION,
+                    rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
+        """PX4 ``actuator_outputs`` of the standard plane mixer (AERT).
+
+        output[0] aileron, output[1] elevator, output[2] rudder (1500 us trim,
+        +-500 us full), output[3] throttle 1000..2000 us -> 0..1 (clipped).
+        """
+        fields = {"aileron": "output[0]", "elevator": "output[1]", "rudder": "output[2]",
+                  "throttle": "output[3]"}
+        return cls._pwm("actuator_outputs", fields, (1000.0, 2000.0), elevator, aileron, rudder)
+
+    @classmethod
+    def px4_controls(cls, elevator: float = _DEFAULT_DEFLECTION,
+                     aileron: float = _DEFAULT_DEFLECTION,
+                     rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
+        """PX4 ``actuator_controls_0``: control[0..2] roll, pitch, yaw demands in -1..1
+        (1 = full deflection), control[3] throttle 0..1."""
+        return cls(
+            "actuator_controls_0",
+            elevator=ActuatorChannel("control[1]", 0.0, 1.0, -elevator),
+            aileron=ActuatorChannel("control[0]", 0.0, 1.0, aileron),
+            rudder=ActuatorChannel("control[2]", 0.0, 1.0, -rudder),
+            throttle=ActuatorChannel("control[3]", 0.0, 1.0, 1.0, (0.0, 1.0)),
+        ).validate()
+
+
+# -------------------------------------------------------------------- alignment
+@dataclasses.dataclass(frozen=True)
+class Stream:
+    """One logged message stream on its own time base.
+
+    Attributes:
+        name: the message or topic, for error messages (``"ATT"``, ``"airspeed"``).
+        time: sample times [s].
+        channels: canonical channel -> samples (SI units of ``units``).
+        units: channel -> unit symbol.
+        hold: previous-sample hold (commands) instead of linear interpolation.
+        angles: channels that wrap at +-pi (interpolated unwrapped, then wrapped).
+        fields: channel -> logged field it came from (``"ATT.Yaw"``), for messages.
+    """
+
+    name: str
+    time: np.ndarray
+    channels: dict[str, np.ndarray]
+    units: dict[str, str]
+    hold: bool = False
+    angles: tuple[str, ...] = ()
+    fields: dict[str, str] = dataclasses.field(default_factory=dict)
+
+    def check(self, source: str) -> None:
+        """Raises FlightLogError for an empty stream, time not increasing, non-finite values."""
+        t = self.time
+        if t.size == 0:
+            raise FlightLogError(f"{source}: stream '{self.name}' has no messages")
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            raise FlightLogError(f"{source}: stream '{self.name}': non-finite time at message "
+                                 f"{bad[0]}")
+        bad = np.flatnonzero(np.diff(t) <= 0)
+        if bad.size:
+            i = int(bad[0]) + 1
+            what = "repeats" if t[i] == t[i - 1] else "goes backwards"
+            raise FlightLogError(
+                f"{source}: stream '{self.name}': time {what} at message {i} "
+                f"(t = {t[i]:.6f} s after {t[i - 1]:.6f} s)")
+        for channel, values in self.channels.items():
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                i = int(bad[0])
+                raise FlightLogError(
+                    f"{source}: {self.fields.get(channel, channel)} is {values[i]} at message "
+                    f"{i} of stream '{self.name}' (t = {t[i]:.6f} s), {bad.size} bad in total")
+
+    def on(self, time: np.ndarray) -> dict[str, np.ndarray]:
+        """The channels at ``time`` (inside the stream's span) by the stream's method."""
+        if self.hold:
+            index = np.searchsorted(self.time, time, side="right") - 1
+            return {n: v[np.clip(index, 0, v.size - 1)] for n, v in self.channels.items()}
+        out = {}
+        for name, values in self.channels.items():
+            if name in self.angles:
+                out[name] = _wrap_angle(np.interp(time, self.time, np.unwrap(values)))
+            else:
+                out[name] = np.interp(time, self.time, values)
+        return out
+
+
+def _wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles [rad] wrapped into [-pi, pi)."""
+    return (np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _first_gap(stream: Stream, t0: float, t1: float, max_gap: float) -> tuple[int, float] | None:
+    """(index, length) of the first interval longer than ``max_gap`` touching [t0, t1]."""
+    t = stream.time
+    step = np.diff(t)
+    bad = np.flatnonzero((step > max_gap) & (t[1:] > t0) & (t[:-1] < t1))
+    return (int(bad[0]), float(step[bad[0]])) if bad.size else None
+
+
+def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_gap: float = 0.5,
+                  metadata: Mapping[str, object] | None = None) -> FlightLog:
+    """One FlightLog on the time base of ``base`` (the IMU) from several streams.
+
+    The log spans the interval covered by every stream. Raises
+    :class:`FlightLogError` (naming ``source``, the stream and the time) when a
+    stream is empty, its time does not increase, a value is not finite, the
+    streams do not overlap, or a stream has a gap longer than ``max_gap`` [s]
+    inside the span.
+    """
+    if not max_gap > 0:
+        raise ValueError(f"max_gap: must be positive, got {max_gap}")
+    everything = [base, *streams]
+    for stream in everything:
+        stream.check(source)
+    first = max(everything, key=lambda s: s.time[0])
+    last = min(everything, key=lambda s: s.time[-1])
+    t0, t1 = first.time[0], last.time[-1]
+    keep = (base.time >= t0) & (base.time <= t1)
+    if np.count_nonzero(keep) < 2:
+        raise FlightLogError(
+            f"{source}: streams do not overlap: '{first.name}' starts at t = {t0:.6f} s, "
+            f"'{last.name}' ends at t = {t1:.6f} s")
+    for stream in everything:
+        gap = _first_gap(stream, t0, t1, max_gap)
+        if gap is not None:
+            i, length = gap
+            raise FlightLogError(
+                f"{source}: stream '{stream.name}' has a gap of {length:.3f} s between "
+                f"messages {i} and {i + 1} (t = {stream.time[i]:.6f} s to "
+                f"{stream.time[i + 1]:.6f} s), longer than max_gap = {max_gap:g} s")
+    time = base.time[keep]
+    measured, units = {}, {}
+    info = {}
+    for stream in everything:
+        values = {n: v[keep] for n, v in stream.channels.items()} if stream is base \
+            else stream.on(time)
+        for name in values:
+            if name in measured:
+                raise FlightLogError(f"{source}: channel '{name}' mapped twice "
+                                     f"(again from stream '{stream.name}')")
+        measured.update(values)
+        units.update(stream.units)
+        rate = 1.0 / float(np.median(np.diff(stream.time))) if stream.time.size > 1 else 0.0
+        info[stream.name] = {
+            "messages": int(stream.time.size), "rate_hz": round(rate, 6),
+            "method": "time base" if stream is base
+            else "previous-sample hold" if stream.hold else "linear",
+            "channels": list(stream.channels)}
+    meta = dict(metadata or {})
+    meta.update({"source": source, "time_base": base.name, "max_gap_s": max_gap,
+                 "trimmed_s": [float(t0 - base.time[0]), float(base.time[-1] - t1)],
+                 "streams": info})
+    return FlightLog(time, measured, units=units, metadata=meta)
+
+
+def require_channels(log: FlightLog, required: Iterable[str], source: str) -> FlightLog:
+    """Raises :class:`FlightLogError` naming ``source`` and the first missing channel."""
+    for name in required:
+        if name not in log:
+            hint = _HINTS.get(name)
+            raise FlightLogError(
+                f"{source}: missing channel '{name}' (present: {', '.join(log.names)})"
+                + (f"; {hint}" if hint else ""))
+    return log
+
+
