@@ -1,1 +1,47 @@
-"""Flight logs: the FlightLog container and readers/writers for log formats."""
+"""Flight logs: the FlightLog container, the canonical channels and the readers.
+
+* :class:`FlightLog`: time-indexed channels with units, measured and truth kept
+  apart; ``FlightLog.save`` / ``FlightLog.load`` write and read ``.csv`` and
+  ``.parquet`` (a CSV round trip is exact).
+* :func:`read_log`: one entry point for CSV, ArduPilot DataFlash ``.bin``, PX4
+  ``.ulg`` and Parquet; the measured channels get the canonical names and SI
+  units of :data:`CHANNELS`. The ``.bin`` and ``.ulg`` readers
+  (:mod:`drake_uav.io.ardupilot`, :mod:`drake_uav.io.px4`) load on first use,
+  because pymavlink and pyulog are slow to import.
+* :class:`FieldSource` (a custom logged field as a channel) and
+  :class:`ActuatorMapping` (servo outputs to surface deflections and throttle)
+  configure the binary readers.
+
+See docs/flight_logs.md.
+"""
+
+from drake_uav.io.csv_log import read_csv
+from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError, register_unit
+from drake_uav.io.readers import read_log
+from drake_uav.io.streams import (
+    CHANNELS,
+    FORMATS,
+    ActuatorChannel,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+    require_channels,
+)
+
+__all__ = [
+    "FlightLog",
+    "FlightLogError",
+    "UNITS",
+    "register_unit",
+    "read_log",
+    "read_csv",
+    "CHANNELS",
+    "FORMATS",
+    "FieldSource",
+    "ActuatorChannel",
+    "ActuatorMapping",
+    "Stream",
+    "align_streams",
+    "require_channels",
+]

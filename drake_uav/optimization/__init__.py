@@ -1,1 +1,63 @@
-"""MathematicalProgram formulations (trim, minimum snap, terminal sets, NMPC)."""
+"""MathematicalProgram formulations and the analysis built on them.
+
+* Fixed wing: :func:`trim` (level, climbing and turning trims), exact
+  linear models and :func:`mode_analysis` (:mod:`~drake_uav.optimization.linearization`).
+* Multirotor: :func:`minimum_snap` trajectories and segment-time allocation
+  (:func:`optimize_segment_times`), and differential flatness from flat outputs
+  to attitude, body rates, thrust and motor commands
+  (:mod:`~drake_uav.optimization.flatness`).
+"""
+
+from drake_uav.optimization.flatness import (
+    FlatAttitude,
+    FlatReference,
+    YawProfile,
+    attitude_from_flat_outputs,
+    flat_reference,
+    reference_from_flat_outputs,
+    velocity_heading,
+)
+from drake_uav.optimization.linearization import (
+    EULER_STATE_NAMES,
+    LinearModel,
+    Mode,
+    ModeAnalysis,
+    decoupled_models,
+    linearize_euler,
+    mode_analysis,
+)
+from drake_uav.optimization.min_snap import (
+    MinimumSnap,
+    PolynomialTrajectory,
+    TimeAllocationResult,
+    TrajectoryInfeasibleError,
+    minimum_snap,
+    optimize_segment_times,
+)
+from drake_uav.optimization.trim import TrimError, TrimResult, trim
+
+__all__ = [
+    "trim",
+    "TrimResult",
+    "TrimError",
+    "EULER_STATE_NAMES",
+    "LinearModel",
+    "Mode",
+    "ModeAnalysis",
+    "linearize_euler",
+    "decoupled_models",
+    "mode_analysis",
+    "minimum_snap",
+    "MinimumSnap",
+    "PolynomialTrajectory",
+    "TimeAllocationResult",
+    "TrajectoryInfeasibleError",
+    "optimize_segment_times",
+    "FlatAttitude",
+    "FlatReference",
+    "YawProfile",
+    "attitude_from_flat_outputs",
+    "flat_reference",
+    "reference_from_flat_outputs",
+    "velocity_heading",
+]

@@ -1,1 +1,80 @@
-"""Drake LeafSystems: plants, wind, sensors, excitation, estimators, identifiers."""
+"""Drake LeafSystems, thin over the equations of :mod:`drake_uav.model`.
+
+* Plants: :class:`FixedWingPlant` (13 states), :class:`MultirotorPlant`
+  (motor faults); both support Drake scalar conversion.
+* Environment and sensing: :class:`DrydenWind` (Dryden turbulence over a
+  steady wind, :class:`DrydenParams`), :class:`SensorSuite` (the sampled
+  low-cost sensor suite, one :class:`SampledSensors` inside).
+* Excitation and disturbances: :class:`ExcitationSource` with
+  :class:`Doublet`, :class:`ThreeTwoOneOne`, :class:`Multisine` and
+  :func:`orthogonal_multisines`; :class:`AerodynamicIncrement` (an effect the
+  model lacks, injected as an external wrench).
+* On-line estimation and identification: :class:`AirDataEkf`,
+  :class:`ModelBasedAirDataEkf`, :class:`ParameterEkf`,
+  :class:`RecursiveIdentifier` and :class:`AeroRegressors`.
+"""
+
+from drake_uav.systems.disturbances import AerodynamicIncrement
+from drake_uav.systems.estimators import (
+    AirDataEkf,
+    EkfSystemParams,
+    ModelBasedAirDataEkf,
+    ParameterEkf,
+)
+from drake_uav.systems.excitation import (
+    SURFACES,
+    Doublet,
+    ExcitationSource,
+    Multisine,
+    ThreeTwoOneOne,
+    doublet,
+    excitation_controls,
+    low_peak_factor_phases,
+    multisine,
+    orthogonal_multisines,
+    relative_peak_factor,
+    schroeder_phases,
+    three_two_one_one,
+)
+from drake_uav.systems.fixed_wing import FixedWingPlant, FixedWingPlant_
+from drake_uav.systems.identifiers import (
+    AeroRegressors,
+    RecursiveIdentifier,
+    RecursiveIdentifierParams,
+)
+from drake_uav.systems.multirotor import MultirotorPlant, MultirotorPlant_
+from drake_uav.systems.sensors import SampledSensors, SensorSuite
+from drake_uav.systems.wind import DrydenFilter, DrydenParams, DrydenWind
+
+__all__ = [
+    "FixedWingPlant",
+    "FixedWingPlant_",
+    "MultirotorPlant",
+    "MultirotorPlant_",
+    "DrydenParams",
+    "DrydenFilter",
+    "DrydenWind",
+    "SensorSuite",
+    "SampledSensors",
+    "SURFACES",
+    "Doublet",
+    "ThreeTwoOneOne",
+    "Multisine",
+    "ExcitationSource",
+    "doublet",
+    "three_two_one_one",
+    "multisine",
+    "orthogonal_multisines",
+    "excitation_controls",
+    "schroeder_phases",
+    "low_peak_factor_phases",
+    "relative_peak_factor",
+    "AerodynamicIncrement",
+    "EkfSystemParams",
+    "AirDataEkf",
+    "ModelBasedAirDataEkf",
+    "ParameterEkf",
+    "RecursiveIdentifier",
+    "RecursiveIdentifierParams",
+    "AeroRegressors",
+]

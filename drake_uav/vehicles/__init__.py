@@ -1,7 +1,18 @@
-"""Vehicle parameter dataclasses and the catalog of known aircraft."""
+"""Vehicle parameters: validated dataclasses and the catalog of known aircraft.
+
+Fixed-wing aircraft (:class:`FixedWingParams`, catalog ``aerosonde()``,
+``aerosonde_mavsim()``, ``unatrap()``, TOML files through
+:func:`load_fixed_wing`), multirotors (:class:`MultirotorParams`,
+``quadrotor_x()``, ``quadrotor_plus()``, ``hexacopter()``) and the sensor suite
+(:class:`SensorSuiteParams` and one dataclass per sensor). SI units; invalid
+values raise ``ValueError`` naming the field.
+"""
 
 from drake_uav.vehicles.fixed_wing import (
+    ControlLimits,
     FixedWingParams,
+    MotorPropeller,
+    Propulsion,
     aerosonde,
     aerosonde_mavsim,
     fixed_wing_catalog,
@@ -14,9 +25,22 @@ from drake_uav.vehicles.multirotor import (
     quadrotor_plus,
     quadrotor_x,
 )
+from drake_uav.vehicles.sensors import (
+    AttitudeParams,
+    BaroParams,
+    ChannelErrors,
+    GpsParams,
+    ImuParams,
+    PitotParams,
+    SensorSuiteParams,
+    VaneParams,
+)
 
 __all__ = [
     "FixedWingParams",
+    "ControlLimits",
+    "Propulsion",
+    "MotorPropeller",
     "aerosonde",
     "aerosonde_mavsim",
     "unatrap",
@@ -26,4 +50,12 @@ __all__ = [
     "quadrotor_x",
     "quadrotor_plus",
     "hexacopter",
+    "SensorSuiteParams",
+    "ChannelErrors",
+    "ImuParams",
+    "GpsParams",
+    "PitotParams",
+    "VaneParams",
+    "AttitudeParams",
+    "BaroParams",
 ]
