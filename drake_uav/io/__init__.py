@@ -30,18 +30,18 @@ from drake_uav.io.streams import (
 )
 
 __all__ = [
-    "FlightLog",
-    "FlightLogError",
-    "UNITS",
-    "register_unit",
-    "read_log",
-    "read_csv",
     "CHANNELS",
     "FORMATS",
-    "FieldSource",
+    "UNITS",
     "ActuatorChannel",
     "ActuatorMapping",
+    "FieldSource",
+    "FlightLog",
+    "FlightLogError",
     "Stream",
     "align_streams",
+    "read_csv",
+    "read_log",
+    "register_unit",
     "require_channels",
 ]

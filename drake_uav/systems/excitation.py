@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar, Self
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -72,15 +73,24 @@ def _pulses(t, start: float, widths: Sequence[float], signs: Sequence[float]) ->
     return out
 
 
+# Pulse-train shapes: pulse widths in units of the signal's width, and pulse signs.
+_DOUBLET = ((1.0, 1.0), (1.0, -1.0))
+_THREE_TWO_ONE_ONE = ((3.0, 2.0, 1.0, 1.0), (1.0, -1.0, 1.0, -1.0))
+
+
+def _pulse_train(t, shape, amplitude: float, unit_width: float, start: float) -> np.ndarray:
+    units, signs = shape
+    return amplitude * _pulses(t, start, tuple(n * unit_width for n in units), signs)
+
+
 def doublet(t, amplitude: float, width: float, start: float = 0.0) -> np.ndarray:
     """Doublet: ``+amplitude`` on [start, start + width), ``-amplitude`` for the next ``width``."""
-    return amplitude * _pulses(t, start, (width, width), (1.0, -1.0))
+    return _pulse_train(t, _DOUBLET, amplitude, width, start)
 
 
 def three_two_one_one(t, amplitude: float, unit_width: float, start: float = 0.0) -> np.ndarray:
     """3-2-1-1: alternating pulses of 3, 2, 1 and 1 ``unit_width`` [s], starting positive."""
-    widths = tuple(n * unit_width for n in (3, 2, 1, 1))
-    return amplitude * _pulses(t, start, widths, (1.0, -1.0, 1.0, -1.0))
+    return _pulse_train(t, _THREE_TWO_ONE_ONE, amplitude, unit_width, start)
 
 
 def multisine(t, period: float, harmonics, amplitudes, phases, start: float = 0.0,
@@ -166,55 +176,71 @@ def _shift_to_zero_crossing(k: np.ndarray, a: np.ndarray, phases: np.ndarray,
 
 
 @dataclass(frozen=True)
-class Doublet:
-    """A doublet on one surface: amplitude [rad, or throttle fraction], width [s], start [s]."""
+class _PulseTrain:
+    """What a doublet and a 3-2-1-1 share: pulses whose widths are multiples of one width.
+
+    Attributes:
+        surface: control channel, one of :data:`SURFACES`.
+        amplitude: pulse height [rad, or throttle fraction].
+
+    Subclasses add their width field [s] (named by ``_WIDTH``) and ``start``
+    [s], the time the first pulse begins; ``_SHAPE`` gives the pulse widths in
+    units of that width and the pulse signs.
+    """
+
+    _SHAPE: ClassVar[tuple[tuple[float, ...], tuple[float, ...]]]
+    _WIDTH: ClassVar[str]
 
     surface: str
     amplitude: float
-    width: float
-    start: float = 0.0
 
-    def validate(self) -> Doublet:
+    def validate(self) -> Self:
         """Raises ValueError naming the first invalid field; returns self."""
         _check_surface(self.surface)
         _finite("amplitude", self.amplitude)
-        _positive("width", self.width)
+        _positive(self._WIDTH, getattr(self, self._WIDTH))
         _finite("start", self.start)
         return self
 
     @property
     def end(self) -> float:
         """Time [s] after which the signal is zero."""
-        return self.start + 2.0 * self.width
+        return self.start + sum(self._SHAPE[0]) * getattr(self, self._WIDTH)
 
     def __call__(self, t) -> np.ndarray:
-        return doublet(t, self.amplitude, self.width, self.start)
+        return _pulse_train(t, self._SHAPE, self.amplitude, getattr(self, self._WIDTH), self.start)
 
 
 @dataclass(frozen=True)
-class ThreeTwoOneOne:
-    """A 3-2-1-1 on one surface: amplitude, unit_width [s] (total 7 units), start [s]."""
+class Doublet(_PulseTrain):
+    """A doublet on one surface (see :func:`doublet`): zero mean, so the aircraft stays near trim.
 
-    surface: str
-    amplitude: float
-    unit_width: float
+    Fields ``surface``, ``amplitude``, ``width`` (length of each of the two
+    pulses [s]) and ``start`` [s].
+    """
+
+    _SHAPE = _DOUBLET
+    _WIDTH = "width"
+
+    width: float
     start: float = 0.0
 
-    def validate(self) -> ThreeTwoOneOne:
-        """Raises ValueError naming the first invalid field; returns self."""
-        _check_surface(self.surface)
-        _finite("amplitude", self.amplitude)
-        _positive("unit_width", self.unit_width)
-        _finite("start", self.start)
-        return self
 
-    @property
-    def end(self) -> float:
-        """Time [s] after which the signal is zero."""
-        return self.start + 7.0 * self.unit_width
+@dataclass(frozen=True)
+class ThreeTwoOneOne(_PulseTrain):
+    """A 3-2-1-1 on one surface (see :func:`three_two_one_one`).
 
-    def __call__(self, t) -> np.ndarray:
-        return three_two_one_one(t, self.amplitude, self.unit_width, self.start)
+    Fields ``surface``, ``amplitude``, ``unit_width`` (length of the shortest
+    pulse [s]; the signal lasts 7 units) and ``start`` [s]. Its pulses of 3, 2,
+    1 and 1 units spread the input energy over a wider frequency band than a
+    doublet of the same unit, so one manoeuvre excites slow and fast modes.
+    """
+
+    _SHAPE = _THREE_TWO_ONE_ONE
+    _WIDTH = "unit_width"
+
+    unit_width: float
+    start: float = 0.0
 
 
 @dataclass(frozen=True)
