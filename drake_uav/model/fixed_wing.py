@@ -165,47 +165,23 @@ class FixedWingModel:
         """
         prm = self.params
         x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
-        qw, qx, qy, qz = x[3], x[4], x[5], x[6]
         R = unit_quat_rotation(x[3:7])  # Argyropoulos 2020, eq. A.55, normalised
         u, v, w = x[7], x[8], x[9]
         omega = (x[10], x[11], x[12])
-        u_r, v_r, w_r = self._relative_velocity(x, R, wind_ned)
-        airspeed, alpha, beta = air_data_from_velocity(u_r, v_r, w_r)
+        v_rel = self._relative_velocity(x, R, wind_ned)
+        air_data = air_data_from_velocity(*v_rel)
         elevator, aileron, rudder, throttle = self.saturate(controls)
-
-        force = [0.0 * u, 0.0 * u, 0.0 * u]
-        moment = [0.0 * u, 0.0 * u, 0.0 * u]
-        thrust = 0.0 * u
-        if self.propulsion:
-            thrust, torque = self.thrust(airspeed, throttle)
-            force[0] = force[0] + thrust
-            moment[0] = moment[0] + torque
-        if wrench is not None:
-            wrench = as_list(wrench)
-            force = [force[i] + wrench[i] for i in range(3)]
-            moment = [moment[i] + wrench[3 + i] for i in range(3)]
+        force, moment, thrust = self._propulsion_and_wrench(air_data[0], throttle, wrench, 0.0 * u)
 
         g = prm.gravity if self.gravity else 0.0
         # Gravity per unit mass in body axes: g R^T e_down = g * (third row of R) (Vaiopoulos 2017,
         # eq. 3.20).
         gravity_body = (g * R[2][0], g * R[2][1], g * R[2][2])
         coefficients = [0.0 * u] * 6
-        q_bar_s = self.dynamic_pressure_area(airspeed)
         if self.aerodynamics:
-            cond = self._condition((airspeed, alpha, beta), omega, (elevator, aileron, rudder),
-                                   thrust)
-            model = self.coefficient_model
-            CL, CD, CY, Cl, Cm, Cn = model.evaluate(cond, prm.b, prm.c)
-            CX, CZ = lift_drag_to_body(CL, CD, alpha)
-            coefficients = [CX, CY, CZ, Cl, Cm, Cn]
-            if model.has_alphadot:
-                coefficients = self._add_alphadot_terms(
-                    coefficients, cond, force, gravity_body, omega, (u_r, v_r, w_r), q_bar_s)
-            force = [force[0] + q_bar_s * coefficients[0], force[1] + q_bar_s * coefficients[1],
-                     force[2] + q_bar_s * coefficients[2]]
-            moment = [moment[0] + q_bar_s * prm.b * coefficients[3],
-                      moment[1] + q_bar_s * prm.c * coefficients[4],
-                      moment[2] + q_bar_s * prm.b * coefficients[5]]
+            coefficients, force, moment = self._aerodynamics(
+                air_data, omega, (elevator, aileron, rudder), thrust, (force, moment),
+                gravity_body, v_rel)
 
         m = prm.mass
         specific_force = [force[0] / m, force[1] / m, force[2] / m]
@@ -214,17 +190,52 @@ class FixedWingModel:
         v_dot = [r * v - q * w + accel[0], p * w - r * u + accel[1], q * u - p * v + accel[2]]
         omega_dot = self.angular_acceleration(omega, moment)
         p_dot = [R[i][0] * u + R[i][1] * v + R[i][2] * w for i in range(3)]
-        q_dot = quat_derivative((qw, qx, qy, qz), omega, QUATERNION_STABILIZATION)
+        q_dot = quat_derivative(x[3:7], omega, QUATERNION_STABILIZATION)
         xdot = np.array([*p_dot, *q_dot, *v_dot, *omega_dot])
         total_force = [force[i] + m * gravity_body[i] for i in range(3)]
         return FixedWingEvaluation(
             state_derivative=xdot,
-            air_data=np.array([airspeed, alpha, beta]),
+            air_data=np.array(air_data),
             coefficients=np.array(coefficients),
             forces_moments=np.array([*total_force, *moment]),
             specific_force=np.array(specific_force),
             thrust=thrust,
         )
+
+    def _propulsion_and_wrench(self, airspeed, throttle, wrench, zero) -> tuple:
+        """Body force [N] and moment [N m] of the propeller and the external wrench (or
+        None), and the thrust [N]; ``zero`` is the zero of the scalar type."""
+        force, moment, thrust = [zero, zero, zero], [zero, zero, zero], zero
+        if self.propulsion:
+            thrust, torque = self.thrust(airspeed, throttle)
+            force[0] = force[0] + thrust
+            moment[0] = moment[0] + torque
+        if wrench is not None:
+            wrench = as_list(wrench)
+            force = [force[i] + wrench[i] for i in range(3)]
+            moment = [moment[i] + wrench[3 + i] for i in range(3)]
+        return force, moment, thrust
+
+    def _aerodynamics(self, air_data, omega, surfaces, thrust, force_moment, gravity_body,
+                      v_rel) -> tuple:
+        """Body-axis coefficients [C_X, C_Y, C_Z, C_l, C_m, C_n] and the body force [N] and
+        moment [N m] of ``force_moment`` with the aerodynamic ones added."""
+        prm, model = self.params, self.coefficient_model
+        force, moment = force_moment
+        q_bar_s = self.dynamic_pressure_area(air_data[0])
+        cond = self._condition(air_data, omega, surfaces, thrust)
+        CL, CD, CY, Cl, Cm, Cn = model.evaluate(cond, prm.b, prm.c)
+        CX, CZ = lift_drag_to_body(CL, CD, air_data[1])
+        coefficients = [CX, CY, CZ, Cl, Cm, Cn]
+        if model.has_alphadot:
+            coefficients = self._add_alphadot_terms(
+                coefficients, cond, force, gravity_body, omega, v_rel, q_bar_s)
+        force = [force[0] + q_bar_s * coefficients[0], force[1] + q_bar_s * coefficients[1],
+                 force[2] + q_bar_s * coefficients[2]]
+        moment = [moment[0] + q_bar_s * prm.b * coefficients[3],
+                  moment[1] + q_bar_s * prm.c * coefficients[4],
+                  moment[2] + q_bar_s * prm.b * coefficients[5]]
+        return coefficients, force, moment
 
     def _add_alphadot_terms(self, coefficients, cond, force, gravity_body, omega, v_rel,
                             q_bar_s):
@@ -316,17 +327,16 @@ class CompiledFixedWingModel:
 
     def field(self, name: str) -> Callable:
         """``f(x, controls, wind_ned, wrench) -> ndarray``: one field of
-        :class:`FixedWingEvaluation` for one sample given as Python lists (``wrench``
-        may be None), from code that computes just that field (same trace)."""
+        :class:`FixedWingEvaluation` for one sample given as Python lists of floats (the
+        wrench too: zeros for none), from code that computes just that field (same trace).
+        The generated code itself, without a wrapper: the plant calls it at every
+        integrator stage."""
         if name not in self._fields:
             if name not in self._bounds or name == "thrust":
                 raise ValueError(f"name: no vector field {name!r}; use one of "
                                  f"{[f for f in self._bounds if f != 'thrust']}")
-            program = self._function.restricted(
+            self._fields[name] = self._function.restricted(
                 range(*self._bounds[name]), name=f"{self.model.params.name} {name}").program
-            self._fields[name] = (lambda x, controls, wind_ned, wrench, run=program:
-                                  run(x, controls, wind_ned,
-                                      _ZERO_WRENCH if wrench is None else wrench))
         return self._fields[name]
 
     def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None
@@ -349,7 +359,5 @@ class CompiledFixedWingModel:
 
 
 _ZERO_WRENCH = (0.0,) * 6
-_ZERO3 = [0.0, 0.0, 0.0]
-_ZERO_CONTROLS = [0.0] * 4  # the air data do not depend on the controls
 
 

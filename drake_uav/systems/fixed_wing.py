@@ -84,34 +84,37 @@ def FixedWingPlant_(T):
             Impl._construct(self, other.params, other.model, converter=converter)
 
         def _state(self, context) -> list:
-            return context.get_continuous_state_vector().CopyToVector().tolist()
+            vector = context.get_continuous_state_vector()
+            # For floats value() is a view of the context's vector (no copy before the list).
+            return (vector.value() if T is float else vector.CopyToVector()).tolist()
 
         def _wind(self, context) -> list:
             wind_port = self._ports[1]
             return wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3
 
-        def _arguments(self, context, with_wrench: bool) -> tuple:
-            """(state, controls, wind, wrench or None) of the context as Python lists."""
-            controls_port, _, wrench_port = self._ports
-            wrench = (wrench_port.Eval(context).tolist()
-                      if with_wrench and wrench_port.HasValue(context) else None)
+        def _arguments(self, context, with_wrench: bool = True) -> tuple:
+            """(state, controls, wind, wrench) of the context as Python lists; zeros for an
+            unconnected wind or wrench, and for the wrench when ``with_wrench`` is False."""
+            controls_port, wind_port, wrench_port = self._ports
             return (self._state(context), controls_port.Eval(context).tolist(),
-                    self._wind(context), wrench)
+                    wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3,
+                    wrench_port.Eval(context).tolist()
+                    if with_wrench and wrench_port.HasValue(context) else _ZERO_WRENCH)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
-            derivatives.SetFromVector(self._field["state_derivative"](
-                *self._arguments(context, with_wrench=True)))
+            # Runs once per integrator stage: one read per port, and the compiled code of
+            # the state derivative alone (see docs/performance.md).
+            derivatives.SetFromVector(self._field["state_derivative"](*self._arguments(context)))
 
         def _calc_air_data(self, context, output):
             output.SetFromVector(self._field["air_data"](
-                self._state(context), _ZERO_CONTROLS, self._wind(context), None))
+                self._state(context), _ZERO_CONTROLS, self._wind(context), _ZERO_WRENCH))
 
         def _calc_euler(self, context, output):
             output.SetFromVector(self.model.euler(self._state(context)))
 
         def _calc_specific_force(self, context, output):
-            output.SetFromVector(self._field["specific_force"](
-                *self._arguments(context, with_wrench=True)))
+            output.SetFromVector(self._field["specific_force"](*self._arguments(context)))
 
         def _calc_coefficients(self, context, output):
             # Computed without reading the wrench (no feedthrough from it), so a wrench
@@ -120,8 +123,7 @@ def FixedWingPlant_(T):
                 *self._arguments(context, with_wrench=False)))
 
         def _calc_forces_moments(self, context, output):
-            output.SetFromVector(self._field["forces_moments"](
-                *self._arguments(context, with_wrench=True)))
+            output.SetFromVector(self._field["forces_moments"](*self._arguments(context)))
 
         def set_state(self, context, state) -> None:
             """Writes a 13-vector into the plant's continuous state."""
