@@ -30,7 +30,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from drake_uav.identification.isolation import AeroSamples
-from drake_uav.model.coefficients import body_to_lift_drag
+from drake_uav.model.coefficients import body_to_lift_drag, signal_values
 from drake_uav.model.isolation import differentiate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -75,6 +75,11 @@ class Effect:
         return self.condition is None or bool(self.condition(samples))
 
 
+def _normalised(samples, params) -> dict:
+    """The coefficient model's regressor signals (normalised rates: b p / 2Va, ...)."""
+    return signal_values(samples.condition, params.b, params.c)
+
+
 def _same_for_all(function: ColumnFunction):
     def columns(samples, params, coefficient):
         return function(samples, params)
@@ -87,8 +92,7 @@ def _stall(samples, params):
 
 
 def _alphadot(samples, params):
-    c = samples.condition
-    return {"alphadot": params.c * c.alphadot / (2 * c.airspeed)}
+    return {"alphadot": _normalised(samples, params)["alphadot"]}
 
 
 def _propwash(samples, params):
@@ -110,9 +114,8 @@ def _cross_coupling(samples, params, coefficient):
 
 
 def _rate_coupling(samples, params):
-    c = samples.condition
-    half = 0.5 / c.airspeed
-    pn, qn, rn = params.b * c.p * half, params.c * c.q * half, params.b * c.r * half
+    signals = _normalised(samples, params)
+    pn, qn, rn = signals["p"], signals["q"], signals["r"]
     return {"p_r": pn * rn, "p_q": pn * qn, "q_r": qn * rn}
 
 
@@ -231,7 +234,7 @@ def effect_library() -> list[Effect]:
                "lift and pitching moment depend on the rate of change of alpha",
                LONGITUDINAL, _same_for_all(_alphadot)),
         Effect("thrust_propwash", "propeller slipstream over wing and tail: forces and moments "
-               "grow with the thrust coefficient (the seed's C_D_Tc)",
+               "grow with the thrust coefficient (C_D_Tc of Vaiopoulos 2017, eq. 6.2)",
                ("CL", "CD", "Cm", "Cn"), _same_for_all(_propwash)),
         Effect("control_nonlinearity", "control-surface effectiveness is not linear: squared "
                "deflections and deflection-alpha products", ("CL", "CD", "Cm", "Cl", "Cn", "CY"),
@@ -265,15 +268,10 @@ def effect_library() -> list[Effect]:
 
 def base_signals(samples: AeroSamples, params: FixedWingParams) -> dict[str, np.ndarray]:
     """Signals whose products form the data-driven fallback candidates."""
-    c = samples.condition
-    half = 0.5 / c.airspeed
-    return {
-        "alpha": c.alpha, "beta": c.beta,
-        "p_hat": params.b * c.p * half, "q_hat": params.c * c.q * half,
-        "r_hat": params.b * c.r * half,
-        "elevator": c.elevator, "aileron": c.aileron, "rudder": c.rudder,
-        "Tc": c.thrust_coefficient,
-    }
+    signals = _normalised(samples, params)
+    names = {"alpha": "alpha", "beta": "beta", "p_hat": "p", "q_hat": "q", "r_hat": "r",
+             "elevator": "elevator", "aileron": "aileron", "rudder": "rudder", "Tc": "Tc"}
+    return {name: signals[signal] for name, signal in names.items()}
 
 
 def product_candidates(samples: AeroSamples, params: FixedWingParams

@@ -2,11 +2,10 @@
 
 From the body specific force (accelerometer), body rates, their derivatives,
 the air data, the thrust model and the inertia, the six coefficients follow
-from Newton-Euler (Vaiopoulos 2017, eq. 5.41)::
-
-    C_X = (m a_x - T) / (qbar S),  C_Y = m a_y / (qbar S),  C_Z = m a_z / (qbar S)
-    (C_L, C_D) from (C_X, C_Z) by the wind-axis rotation (aerodynamics module)
-    [C_l b, C_m c, C_n b] qbar S = J w_dot + w x J w - [tau_p, 0, 0]
+from Newton-Euler (Vaiopoulos 2017, eq. 5.41), written once in
+:mod:`drake_uav.model.isolation` (:func:`~drake_uav.model.isolation.force_coefficients`,
+:func:`~drake_uav.model.isolation.moment_coefficients`). This module prepares the
+sampled signals those formulas take.
 
 Angular accelerations come from a Savitzky-Golay differentiating filter: a
 local cubic least-squares fit over a window of about 0.2 s. It has zero phase
@@ -34,14 +33,19 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping
+from typing import NamedTuple
 
 import numpy as np
 from scipy.signal import savgol_coeffs
 from scipy.stats import norm
 
-from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
+from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition
 from drake_uav.model.fixed_wing import FixedWingModel
-from drake_uav.model.isolation import differentiate
+from drake_uav.model.isolation import (
+    differentiate,
+    force_coefficients,
+    moment_coefficients,
+)
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
@@ -273,12 +277,40 @@ def isolate_coefficients(
     airspeed and throttle (then the same for forces and moments).
     """
     time = np.asarray(time, dtype=float)
-    n = len(time)
-    arrays = {"specific_force": specific_force, "rates": rates, "air_data": air_data,
-              "controls": controls}
-    if moment_controls is not None:
-        arrays["moment_controls"] = moment_controls
+    arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
+                             air_data=air_data, controls=controls,
+                             moment_controls=moment_controls)
+    extra = _checked_signals(signals, len(time))
+    filters = _Filters(time, derivative_window)
+    model = FixedWingModel(params)
+    measured_thrust = None if thrust is None else np.asarray(thrust, dtype=float)
+    forces = _force_samples(params, model, filters, arrays, measured_thrust)
+    moments = _moment_samples(params, model, filters, arrays, measured_thrust)
+    coefficients = dict(zip(COEFFICIENTS, forces.coefficients + moments.coefficients,
+                            strict=True))
+    noise_variance, moment_gain = _noise_variance(filters, arrays, raw_noise_variance)
+    view = forces.view
+    samples = AeroSamples(
+        time=time, condition=forces.condition, coefficients=coefficients,
+        dynamic_pressure=view.q_bar, throttle=view.controls[:, 3], thrust=view.thrust,
+        rate_derivatives=differentiate(time, arrays["rates"], derivative_window),
+        specific_force=forces.specific_force, signals=extra, noise_variance=noise_variance,
+        thrust_airspeed_slope=view.thrust_slope, reference_area=params.S,
+    )
+    view = moments.view
+    return dataclasses.replace(samples, moment_view=dataclasses.replace(
+        samples, condition=moments.condition, dynamic_pressure=view.q_bar, thrust=view.thrust,
+        thrust_airspeed_slope=view.thrust_slope, throttle=view.controls[:, 3],
+        rate_derivatives=moments.rate_derivatives,
+        noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
+
+
+def _checked_arrays(n: int, **arrays) -> dict[str, np.ndarray]:
+    """The (N, 3) or (N, 4) input arrays as floats; ``ValueError`` naming a bad one."""
+    out = {}
     for name, value in arrays.items():
+        if value is None:
+            continue
         value = np.asarray(value, dtype=float)
         width = 4 if name.endswith("controls") else 3
         if value.shape != (n, width):
@@ -287,113 +319,146 @@ def isolate_coefficients(
         if not np.all(np.isfinite(value)):
             bad = int(np.argwhere(~np.isfinite(value))[0, 0])
             raise ValueError(f"isolate_coefficients: {name} is not finite at sample {bad}")
-        arrays[name] = value
+        out[name] = value
+    return out
 
-    def smooth(values):
-        return differentiate(time, values, derivative_window, deriv=0)
 
-    weights = _increment_weights(time, derivative_window, 3)
+def _checked_signals(signals: Mapping[str, np.ndarray] | None, n: int) -> dict[str, np.ndarray]:
+    extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
+    for name, value in extra.items():
+        if value.shape != (n,):
+            raise ValueError(f"isolate_coefficients: signal '{name}' must have shape ({n},)")
+    return extra
 
-    def interval_smooth(interval_values):
-        return _interval_filter(weights, interval_values)
 
-    model = FixedWingModel(params)
-    measured_thrust = None if thrust is None else np.asarray(thrust, dtype=float)
+class _Filters:
+    """The two faces of one Savitzky-Golay filter of ``window`` [s] on uniform ``time``.
 
-    def view(raw_air, raw_controls, filt):
-        """Condition, dynamic pressure, thrust, thrust slope, propeller torque and
-        throttle of raw (sample or interval) air data and controls through ``filt``."""
-        air, u = filt(raw_air), filt(raw_controls)
-        if np.any(air[:, 0] <= 1.0):
-            bad = int(np.argmax(air[:, 0] <= 1.0))
-            raise ValueError(f"isolate_coefficients: airspeed {air[bad, 0]:.3g} m/s at "
-                             f"sample {bad} is too low to normalise the forces")
-        # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
-        # values, then filter the result like every other signal.
-        raw_thrust, raw_torque = model.thrust(raw_air[:, 0], raw_controls[:, 3])
-        slope, force = None, None
-        if measured_thrust is None:
-            step = 0.01
-            slope = filt((model.thrust(raw_air[:, 0] + step, raw_controls[:, 3])[0]
-                          - model.thrust(raw_air[:, 0] - step, raw_controls[:, 3])[0])
-                         / (2 * step))
-            force = filt(raw_thrust)
-        torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
-        q_bar = 0.5 * params.rho * air[:, 0] ** 2
-        return air, u, q_bar, force, slope, torque
+    :meth:`sample` smooths instantaneous samples; :meth:`interval` turns values on the
+    N - 1 sample intervals into values at the samples through the derivative's own
+    increment weights (:func:`_increment_weights`).
+    """
 
-    # Forces: instantaneous samples, Savitzky-Golay smoothing.
+    def __init__(self, time: np.ndarray, window: float):
+        self.time = time
+        self.window = window
+        self.weights = _increment_weights(time, window, 3)
+
+    def sample(self, values: np.ndarray) -> np.ndarray:
+        return differentiate(self.time, values, self.window, deriv=0)
+
+    def interval(self, interval_values: np.ndarray) -> np.ndarray:
+        return _interval_filter(self.weights, interval_values)
+
+
+class _ControlView(NamedTuple):
+    """Filtered air data, controls and propulsion as one set of coefficients sees them."""
+
+    air: np.ndarray
+    """(N, 3) airspeed [m/s], alpha, beta [rad]."""
+    controls: np.ndarray
+    """(N, 4) surfaces [rad] and throttle."""
+    q_bar: np.ndarray
+    """Dynamic pressure [Pa]."""
+    thrust: np.ndarray
+    """Thrust [N]."""
+    thrust_slope: np.ndarray | None
+    """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)], None if thrust is measured."""
+    torque: np.ndarray
+    """Propeller torque [N m]."""
+
+
+def _control_view(model: FixedWingModel, raw_air, raw_controls, filt,
+                  raw_measured_thrust=None) -> _ControlView:
+    """Raw (sample or interval) air data and controls through ``filt``, with the
+    dynamic pressure, thrust, thrust slope and propeller torque they imply."""
+    air, u = filt(raw_air), filt(raw_controls)
+    if np.any(air[:, 0] <= 1.0):
+        bad = int(np.argmax(air[:, 0] <= 1.0))
+        raise ValueError(f"isolate_coefficients: airspeed {air[bad, 0]:.3g} m/s at "
+                         f"sample {bad} is too low to normalise the forces")
+    # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
+    # values, then filter the result like every other signal.
+    raw_thrust, raw_torque = model.thrust(raw_air[:, 0], raw_controls[:, 3])
+    if raw_measured_thrust is None:
+        step = 0.01
+        slope = filt((model.thrust(raw_air[:, 0] + step, raw_controls[:, 3])[0]
+                      - model.thrust(raw_air[:, 0] - step, raw_controls[:, 3])[0])
+                     / (2 * step))
+        thrust = filt(raw_thrust)
+    else:
+        slope, thrust = None, filt(raw_measured_thrust)
+    torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
+    q_bar = 0.5 * model.params.rho * air[:, 0] ** 2
+    return _ControlView(air, u, q_bar, thrust, slope, torque)
+
+
+class _Isolated(NamedTuple):
+    """Coefficients and the regressor condition of one view (forces or moments)."""
+
+    view: _ControlView
+    condition: AeroCondition
+    coefficients: tuple
+    """(C_L, C_D, C_Y) or (C_l, C_m, C_n)."""
+    specific_force: np.ndarray | None = None
+    rate_derivatives: np.ndarray | None = None
+
+
+def _condition(view: _ControlView, rates, alpha_dot, wing_area) -> AeroCondition:
+    air, u = view.air, view.controls
+    return AeroCondition(
+        airspeed=air[:, 0], alpha=air[:, 1], beta=air[:, 2], p=rates[:, 0], q=rates[:, 1],
+        r=rates[:, 2], elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2],
+        flap=np.zeros(len(air)), alphadot=alpha_dot,
+        thrust_coefficient=view.thrust / (view.q_bar * wing_area),
+    )
+
+
+def _force_samples(params, model, filters: _Filters, arrays, measured_thrust) -> _Isolated:
+    """Forces: instantaneous samples through the Savitzky-Golay smoothing."""
     raw_air = arrays["air_data"]
-    air, u, q_bar, force_thrust, slope, _ = view(raw_air, arrays["controls"], smooth)
-    if measured_thrust is not None:
-        force_thrust = smooth(measured_thrust)
-    f, w = smooth(arrays["specific_force"]), smooth(arrays["rates"])
-    q_bar_s = q_bar * params.S
-    m = params.mass
-    CX = (m * f[:, 0] - force_thrust) / q_bar_s
-    CY = m * f[:, 1] / q_bar_s
-    CZ = m * f[:, 2] / q_bar_s
-    CL, CD = body_to_lift_drag(CX, CZ, air[:, 1])
-    alpha_dot = differentiate(time, raw_air[:, 1], derivative_window)
-    condition = AeroCondition(
-        airspeed=air[:, 0], alpha=air[:, 1], beta=air[:, 2], p=w[:, 0], q=w[:, 1], r=w[:, 2],
-        elevator=u[:, 0], aileron=u[:, 1], rudder=u[:, 2], flap=np.zeros(n),
-        alphadot=alpha_dot, thrust_coefficient=force_thrust / q_bar_s,
-    )
-    # Moments: interval averages through the derivative's own increment weights.
-    interval_controls = (interval_averages(arrays["controls"]) if moment_controls is None
-                         else arrays["moment_controls"][:-1])
-    step = np.diff(time)[:, None]
-    m_air, m_u, m_q_bar, m_thrust, m_slope, torque = view(
-        interval_averages(raw_air), interval_controls, interval_smooth)
-    if measured_thrust is not None:
-        m_thrust = interval_smooth(interval_averages(measured_thrust))
-    w_m = interval_smooth(interval_averages(arrays["rates"]))
-    w_dot = interval_smooth(np.diff(arrays["rates"], axis=0) / step)
-    J = params.inertia
-    moment = w_dot @ J.T + np.cross(w_m, w_m @ J.T)
-    moment[:, 0] -= torque
-    m_q_bar_s = m_q_bar * params.S
-    coefficients = dict(zip(COEFFICIENTS, (
-        CL, CD, CY,
-        moment[:, 0] / (m_q_bar_s * params.b),
-        moment[:, 1] / (m_q_bar_s * params.c),
-        moment[:, 2] / (m_q_bar_s * params.b),
-    ), strict=True))
-    moment_condition = AeroCondition(
-        airspeed=m_air[:, 0], alpha=m_air[:, 1], beta=m_air[:, 2], p=w_m[:, 0], q=w_m[:, 1],
-        r=w_m[:, 2], elevator=m_u[:, 0], aileron=m_u[:, 1], rudder=m_u[:, 2],
-        flap=np.zeros(n),
-        alphadot=interval_smooth(np.diff(raw_air[:, 1]) / step[:, 0]),
-        thrust_coefficient=m_thrust / m_q_bar_s,
-    )
+    view = _control_view(model, raw_air, arrays["controls"], filters.sample, measured_thrust)
+    f, w = filters.sample(arrays["specific_force"]), filters.sample(arrays["rates"])
+    coefficients = force_coefficients(f, view.thrust, view.q_bar, view.air[:, 1],
+                                      params.mass, params.S)
+    alpha_dot = differentiate(filters.time, raw_air[:, 1], filters.window)
+    return _Isolated(view, _condition(view, w, alpha_dot, params.S), coefficients,
+                     specific_force=f)
 
-    noise = np.concatenate([smoothed_noise_variance(time, arrays[k], derivative_window)
+
+def _moment_samples(params, model, filters: _Filters, arrays, measured_thrust) -> _Isolated:
+    """Moments: interval averages through the derivative's own increment weights."""
+    controls = arrays.get("moment_controls")
+    interval_controls = (interval_averages(arrays["controls"]) if controls is None
+                         else controls[:-1])
+    step = np.diff(filters.time)[:, None]
+    raw_air = arrays["air_data"]
+    view = _control_view(model, interval_averages(raw_air), interval_controls, filters.interval,
+                         None if measured_thrust is None else interval_averages(measured_thrust))
+    w = filters.interval(interval_averages(arrays["rates"]))
+    w_dot = filters.interval(np.diff(arrays["rates"], axis=0) / step)
+    coefficients = moment_coefficients(w_dot, w, params.inertia, view.torque, view.q_bar,
+                                       params.S, params.b, params.c)
+    alpha_dot = filters.interval(np.diff(raw_air[:, 1]) / step[:, 0])
+    return _Isolated(view, _condition(view, w, alpha_dot, params.S), coefficients,
+                     rate_derivatives=w_dot)
+
+
+def _noise_variance(filters: _Filters, arrays, raw_noise_variance):
+    """White-noise variance of the smoothed channels (:data:`NOISE_CHANNELS`) and the
+    factor by which the moments' interval filter changes it."""
+    time, window = filters.time, filters.window
+    noise = np.concatenate([smoothed_noise_variance(time, arrays[k], window)
                             for k in ("air_data", "rates", "specific_force")])
     noise_variance = dict(zip(NOISE_CHANNELS, noise.tolist(), strict=True))
-    gain = float(np.sum(_smoothing_coefficients(time, derivative_window, 3) ** 2))
+    gain = float(np.sum(_smoothing_coefficients(time, window, 3) ** 2))
     for name, value in (raw_noise_variance or {}).items():
         if name not in noise_variance:
             raise ValueError(f"isolate_coefficients: raw_noise_variance has unknown '{name}'")
         noise_variance[name] = float(value) * gain
     # White noise through the interval averages and the increment weights.
-    sample_weights = np.convolve(weights, INTERVAL_KERNEL)
-    moment_gain = float(sample_weights @ sample_weights) / gain
-    extra = {k: np.asarray(v, dtype=float) for k, v in (signals or {}).items()}
-    for name, value in extra.items():
-        if value.shape != (n,):
-            raise ValueError(f"isolate_coefficients: signal '{name}' must have shape ({n},)")
-    samples = AeroSamples(
-        time=time, condition=condition, coefficients=coefficients, dynamic_pressure=q_bar,
-        throttle=u[:, 3], thrust=force_thrust, rate_derivatives=differentiate(
-            time, arrays["rates"], derivative_window),
-        specific_force=f, signals=extra, noise_variance=noise_variance,
-        thrust_airspeed_slope=slope, reference_area=params.S,
-    )
-    return dataclasses.replace(samples, moment_view=dataclasses.replace(
-        samples, condition=moment_condition, dynamic_pressure=m_q_bar, thrust=m_thrust,
-        thrust_airspeed_slope=m_slope, throttle=m_u[:, 3], rate_derivatives=w_dot,
-        noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
+    sample_weights = np.convolve(filters.weights, INTERVAL_KERNEL)
+    return noise_variance, float(sample_weights @ sample_weights) / gain
 
 
 def monte_carlo_sigma(

@@ -23,7 +23,7 @@ from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.io.flight_log import FlightLog
-from drake_uav.model.coefficients import body_to_lift_drag
+from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["IdentificationRun", "identify", "identify_derivatives", "coefficient_uncertainty"]
@@ -113,12 +113,12 @@ def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed:
     ranges = np.column_stack([inputs.min(axis=0), inputs.max(axis=0)])
     correlation = np.corrcoef(inputs.T)
     thrust = float(np.mean(samples.thrust))
-    k = params.mass / (0.5 * params.rho * params.S)
 
     def coefficients(va, alpha, ax, ay, az):
-        cx, cz = k * (ax - thrust / params.mass) / va**2, k * az / va**2
-        lift, drag = body_to_lift_drag(cx, cz, alpha)
-        return {"CL": lift, "CD": drag, "CY": k * ay / va**2}
+        lift, drag, side = force_coefficients(np.stack([ax, ay, az], axis=-1), thrust,
+                                              0.5 * params.rho * va**2, alpha, params.mass,
+                                              params.S)
+        return {"CL": lift, "CD": drag, "CY": side}
 
     return {name: monte_carlo_sigma(lambda *x, n=name: coefficients(*x)[n], ranges, error_std,
                                     correlation=correlation, samples=draws, seed=seed)
