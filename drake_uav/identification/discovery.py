@@ -41,14 +41,19 @@ import numpy as np
 from scipy import stats
 
 from drake_uav.identification.effects import Effect, effect_library, product_candidates
-from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.regression import RegressionResult, regression_result
-from drake_uav.identification.residuals import (
-    ResidualDiagnosis,
-    diagnose,
-    effective_sample_size,
+from drake_uav.identification.errors_in_variables import (
+    PropagatedNoise,
+    compensated_normal_equations,
+    is_well_posed,
     long_run_covariance,
+    moment_scores,
+    noise_error_energy,
+    sandwich_covariance,
+    solve_normal_equations,
 )
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.regression import RegressionResult, bcls
+from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -178,78 +183,46 @@ def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples, varia
 
 @dataclasses.dataclass
 class _Design:
-    """One coefficient's regression on some samples, with its noise model."""
+    """One coefficient's regression on some samples, with its noise model.
+
+    The estimator is :func:`~drake_uav.identification.regression.bcls`; this class adds
+    the bookkeeping of the loop (added columns, folds, noise-corrected errors).
+    """
 
     names: list[str]
     X: np.ndarray
-    jac: dict[str, np.ndarray]
-    """signal -> (N, m) derivatives of the columns."""
     z: np.ndarray
-    z_jac: dict[str, np.ndarray]
-    variance: Mapping[str, float]
+    noise: PropagatedNoise
 
     def extended(self, columns: Mapping[str, np.ndarray], jac, prefix: str = "") -> _Design:
         names = [f"{prefix}{k}" for k in columns]
         X = np.column_stack([self.X, *columns.values()])
-        new_jac = {s: np.column_stack([J, *(jac[s][k] for k in columns)]) if s in jac
-                   else np.column_stack([J, np.zeros((len(self.z), len(columns)))])
-                   for s, J in self.jac.items()}
-        return _Design(self.names + names, X, new_jac, self.z, self.z_jac, self.variance)
-
-    def noise_moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
-        """Expected ``(dX^T dX, dX^T dz)`` of the propagated noise over ``rows``."""
-        m = self.X.shape[1]
-        C_xx, c_xz = np.zeros((m, m)), np.zeros(m)
-        for signal, J in self.jac.items():
-            Jr = J if rows is None else J[rows]
-            var = self.variance[signal]
-            C_xx += var * (Jr.T @ Jr)
-            jz = self.z_jac.get(signal)
-            if jz is not None:
-                c_xz += var * (Jr.T @ (jz if rows is None else jz[rows]))
-        return C_xx, c_xz
+        added = {s: np.column_stack([jac[s][k] for k in columns]) for s in jac}
+        return _Design(self.names + names, X, self.z, self.noise.extended(added, len(columns)))
 
     def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
-        X = self.X if rows is None else self.X[rows]
-        z = self.z if rows is None else self.z[rows]
-        C_xx, c_xz = self.noise_moments(rows)
-        return X.T @ X - C_xx, X.T @ z - c_xz
+        return compensated_normal_equations(self.X, self.z, self.noise, rows)
 
     def errors(self, theta: np.ndarray, rows=None) -> tuple[float, float]:
         """Observed squared error over ``rows`` and the same without its regressor-noise part.
 
-        The observed ``|z - X theta|^2`` contains ``theta^T C_xx theta -
-        2 theta^T c_xz`` of regressor noise. Comparing models by the error
-        without it scores how well they predict the true coefficient, so a
-        column that merely stands in for a noisy regressor (a cleaner proxy)
-        gains nothing.
+        Comparing models by the error without it scores how well they predict the true
+        coefficient, so a column that merely stands in for a noisy regressor (a cleaner
+        proxy) gains nothing.
         """
         X = self.X if rows is None else self.X[rows]
         z = self.z if rows is None else self.z[rows]
         r = z - X @ theta
-        C_xx, c_xz = self.noise_moments(rows)
         observed = float(r @ r)
-        return observed, observed - float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
+        return observed, observed - noise_error_energy(theta, *self.noise.moments(rows))
 
-    def well_posed(self, tolerance: float = 1e-8) -> bool:
-        """True when the noise-corrected normal matrix is safely positive definite.
-
-        Removing the noise moments can make a nearly collinear design indefinite:
-        its columns are then not separable from the regressor noise.
-        """
-        A, _ = self.moments()
-        scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
-        return bool(np.min(np.diag(A)) > 0 and
-                    np.linalg.eigvalsh(A / np.outer(scale, scale))[0] > tolerance)
+    def well_posed(self) -> bool:
+        """True when the noise-corrected normal matrix is safely positive definite."""
+        return is_well_posed(self.moments()[0])
 
     def solve(self, rows=None) -> np.ndarray:
-        A, b = self.moments(rows)
-        scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
-        try:
-            return np.linalg.solve(A / np.outer(scale, scale), b / scale) / scale
-        except np.linalg.LinAlgError:
-            return np.linalg.lstsq(A, b, rcond=None)[0]
+        return solve_normal_equations(*self.moments(rows))
 
     def fold_errors(self, folds: Sequence[np.ndarray]) -> np.ndarray:
         """(2, K): observed and noise-corrected held-out squared error of each blocked fold
@@ -263,16 +236,8 @@ class _Design:
         return out
 
     def scores(self, theta: np.ndarray) -> np.ndarray:
-        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``.
-
-        ``x_t (z_t - x_t^T theta)`` plus the sample's expected regressor-noise part
-        ``sum_s var_s J_t (J_t^T theta - dz_t/ds)``; they sum to zero at the estimate.
-        """
-        psi = self.X * (self.z - self.X @ theta)[:, None]
-        for signal, J in self.jac.items():
-            jz = self.z_jac.get(signal, 0.0)
-            psi += self.variance[signal] * J * (J @ theta - jz)[:, None]
-        return psi
+        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``."""
+        return moment_scores(self.X, self.z, theta, self.noise)
 
     def inverse_normal_matrix(self) -> np.ndarray:
         """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse)."""
@@ -280,30 +245,9 @@ class _Design:
 
     def result(self, confidence: float = 0.95,
                scores_covariance: np.ndarray | None = None) -> RegressionResult:
-        """Bias-compensated estimate with a sandwich covariance (method "BCLS").
-
-        The covariance is ``A^-1 S A^-1`` with ``A`` the noise-corrected normal matrix
-        and ``S`` the long-run covariance of the :meth:`scores` (default: estimated
-        here): the residual of smoothed flight data is correlated over several samples
-        (the smoothing window, turbulence), and the white-residual formula would
-        understate sigma about twofold.
-        """
-        theta = self.solve()
-        residual = self.z - self.X @ theta
-        n, p = self.X.shape
-        A_inv = self.inverse_normal_matrix()
-        sigma2 = float(residual @ residual) / max(n - p, 1)
-        if scores_covariance is None:
-            scores_covariance = long_run_covariance(self.scores(theta))
-        covariance = A_inv @ scores_covariance @ A_inv
-        covariance = 0.5 * (covariance + covariance.T)
-        s = np.linalg.svd(self.X / np.maximum(np.linalg.norm(self.X, axis=0), 1e-300),
-                          compute_uv=False)
-        return regression_result(method="BCLS", names=tuple(self.names), theta=theta,
-                       covariance=covariance, noise_std=np.sqrt(sigma2), residual=residual,
-                       z=self.z, dof=n - p, rank=p, singular_values=s, threshold=0.0,
-                       condition=s[0] / max(s[-1], 1e-300), directions=np.zeros((0, p)),
-                       confidence=confidence)
+        """The bias-compensated fit (:func:`~drake_uav.identification.regression.bcls`)."""
+        return bcls(self.X, self.z, self.noise, names=self.names, confidence=confidence,
+                    scores_covariance=scores_covariance)
 
 
 def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
@@ -324,14 +268,15 @@ def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient:
     aligned = samples.aligned(coefficient)
     variance = aligned.noise_variance
     cols, jac = _columns_and_jacobians(columns, samples, variance)
-    return _Design(
-        names=list(names), X=np.column_stack(list(cols.values())),
-        jac={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
-        z=np.asarray(samples.coefficients[coefficient], dtype=float),
-        z_jac={s: v for s, v in aligned.observation_sensitivity(coefficient).items()
-               if s in jac},
+    noise = PropagatedNoise(
+        columns=len(names),
+        regressors={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
+        observation={s: v for s, v in aligned.observation_sensitivity(coefficient).items()
+                     if s in jac},
         variance={s: float(variance[s]) for s in jac},
     )
+    return _Design(names=list(names), X=np.column_stack(list(cols.values())),
+                   z=np.asarray(samples.coefficients[coefficient], dtype=float), noise=noise)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -377,11 +322,10 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
     A_inv = np.zeros_like(S)
     for d, b in zip(designs, blocks, strict=True):
         A_inv[b, b] = d.inverse_normal_matrix()
-    covariance = A_inv @ S @ A_inv
     return IdentifiedDerivatives(
         fits=fits, names=tuple(n for d in designs for n in d.names),
         estimate=np.concatenate([fits[k].estimate for k in coefficients]),
-        covariance=0.5 * (covariance + covariance.T))
+        covariance=sandwich_covariance(A_inv, S))
 
 
 def _folds(n: int, k: int) -> list[np.ndarray]:
@@ -419,7 +363,7 @@ def _round_base(design: _Design, folds) -> _RoundBase:
 
 def _score(name: str, coefficient: str, base: _RoundBase, function: ColumnFunction,
            samples: AeroSamples, folds, rule: EvidenceRule, n_tests: int) -> Evidence | None:
-    columns, jac = _columns_and_jacobians(function, samples, base.design.variance)
+    columns, jac = _columns_and_jacobians(function, samples, base.design.noise.variance)
     columns = {k: v for k, v in columns.items() if not _is_redundant(base.design.X, v)}
     if not columns:
         return None
@@ -528,7 +472,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
             function = (_effect_function(effect, params, k) if effect is not None
                         else _product_function(params, k, ev.columns))
             for design, smp in ((designs, train), (tests, test)):
-                columns, jac = _columns_and_jacobians(function, smp, design[k].variance)
+                columns, jac = _columns_and_jacobians(function, smp, design[k].noise.variance)
                 design[k] = design[k].extended({c: columns[c] for c in ev.columns}, jac,
                                                prefix=f"{best}:")
         found.append(_found(best, effect, accepted))

@@ -46,15 +46,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from drake_uav.identification.regression import (
-    LOADING_TOL,
+from drake_uav.identification.errors_in_variables import (
     excitation_threshold,
     normalization_matrix,
     tls_covariance,
     tls_solution,
-    unidentifiable_loading,
     weight_matrix,
 )
+from drake_uav.identification.regression import LOADING_TOL, unidentifiable_loading
 
 _EPS = float(np.finfo(float).eps)
 

@@ -1,23 +1,28 @@
-"""Batch linear-in-the-parameters regression: OLS, TLS/GTLS and PCA-TLS (Vaiopoulos 2017, ch. 4).
+"""Batch linear-in-the-parameters regression: OLS, TLS/GTLS, PCA-TLS and BCLS (Vaiopoulos 2017,
+ch. 4).
 
-The model is ``z = X theta + v`` (Vaiopoulos 2017, eq. 4.3-4.4): ``X`` is the ``N x n`` regressor
-matrix (one
-row per sample, usually a constant column first), ``z`` the ``N`` observations (an aerodynamic
-coefficient), ``theta`` the ``n`` parameters.
+The model is ``z = X theta + v`` (Vaiopoulos 2017, eq. 4.3-4.4): ``X`` is the ``N x n``
+regressor matrix (one row per sample, usually a constant column first), ``z`` the ``N``
+observations (an aerodynamic coefficient), ``theta`` the ``n`` parameters.
 
-* :func:`ols` -- ordinary least squares (Vaiopoulos 2017, eq. 4.2): estimate, covariance ``s^2 (X^T
-X)^-1`` with
-  ``s`` estimated from the residuals, Student-t ratios and significance (4.12-4.13), R^2 (4.25).
-* :func:`tls` -- total least squares when the regressors are noisy too (Vaiopoulos 2017, eq. 4.3).
-With an error
-  standard deviation per column (or a full error covariance ``W_T = C^T C``) it is generalised
-  TLS: the augmented matrix ``[X | z]`` is normalised by ``C^-1`` and the parameter vector comes
-  from the last right singular vector (4.54-4.61).
-* :func:`pca_tls` -- TLS restricted to the singular directions that the data excite (Vaiopoulos
-2017, eq. 4.3.6):
-  direction ``j <= n`` is excited when ``s_j > (1 + S/n) sqrt(N - n)`` (4.68-4.70); the
-  parameters are the weighted minimum-norm member of the remaining solution space (4.75-4.79)
-  and the parameter combinations the data cannot fix are reported.
+* :func:`ols` -- ordinary least squares (Vaiopoulos 2017, eq. 4.2): estimate, covariance
+  ``s^2 (X^T X)^-1`` with ``s`` estimated from the residuals, Student-t ratios and
+  significance (eq. 4.12-4.13), R^2 (eq. 4.25).
+* :func:`tls` -- total least squares when the regressors are noisy too (Vaiopoulos 2017,
+  eq. 4.3). With an error standard deviation per column (or a full error covariance
+  ``W_T = C^T C``) it is generalised TLS: the augmented matrix ``[X | z]`` is normalised by
+  ``C^-1`` and the parameter vector comes from the last right singular vector (eq. 4.54-4.61).
+* :func:`pca_tls` -- TLS restricted to the singular directions that the data excite
+  (Vaiopoulos 2017, sec. 4.3.6): direction ``j <= n`` is excited when
+  ``s_j > (1 + S/n) sqrt(N - n)`` (eq. 4.68-4.70); the parameters are the weighted
+  minimum-norm member of the remaining solution space (eq. 4.75-4.79) and the parameter
+  combinations the data cannot fix are reported.
+* :func:`bcls` -- bias-compensated least squares when the regressor noise is known in
+  absolute terms but differs from sample to sample (noise of the air data carried through
+  the coefficient isolation), with the long-run sandwich covariance of correlated residuals.
+
+The errors-in-variables pieces (noise moments, bias compensation, sandwich covariance, the
+SVD solution of TLS) are in :mod:`drake_uav.identification.errors_in_variables`.
 
 All return one :class:`RegressionResult`. Data that do not support every parameter (rank
 deficiency, ill conditioning, insufficient excitation) never crash and never give a silent huge
@@ -25,44 +30,53 @@ number: :func:`ols` and :func:`tls` emit :class:`InsufficientExcitationWarning` 
 reduced (PCA-style) answer, with ``sigma = inf`` for the parameters that load on an
 unidentifiable direction.
 
-Covariance of TLS/GTLS. Vaiopoulos 2017, eq. 4.62 gives ``s^2 (X0^T X0)^-1`` with ``s^2 = [theta;
--1]^T W_T
-[theta; -1]``; that is the Cramer-Rao bound of the errors-in-variables model (see
-``crlb.py``). The estimator's asymptotic covariance adds a second term of order (regressor
-noise / regressor signal)^2 (Fuller, *Measurement Error Models*, 1987, Thm 2.3.2); the sum is
-returned, so the reported sigma stays honest when the regressor noise is large. ``X0^T X0`` is
-estimated as ``X^T X`` minus the noise energy ``s_min^2`` along every retained singular
-direction (as in Vaiopoulos 2017, eq. 4.63), and the error covariance is known up to a scale factor
-estimated
-from the smallest singular value (``scale_from_data``), the TLS analogue of the residual variance
-of OLS; the excitation threshold then reads ``(1 + S/n) s_min``, equal to Vaiopoulos 2017, eq. 4.68
-when the
-given error covariance is right.
+Covariance of TLS/GTLS. Vaiopoulos 2017, eq. 4.62 gives ``s^2 (X0^T X0)^-1`` with
+``s^2 = [theta; -1]^T W_T [theta; -1]``; that is the Cramer-Rao bound of the
+errors-in-variables model (see ``crlb.py``). The estimator's asymptotic covariance adds a
+second term of order (regressor noise / regressor signal)^2 (Fuller 1987, Thm 2.3.2); the sum
+is returned, so the reported sigma stays honest when the regressor noise is large. ``X0^T X0``
+is estimated as ``X^T X`` minus the noise energy ``s_min^2`` along every retained singular
+direction (as in Vaiopoulos 2017, eq. 4.63), and the error covariance is known up to a scale
+factor estimated from the smallest singular value (``scale_from_data``), the TLS analogue of
+the residual variance of OLS; the excitation threshold then reads ``(1 + S/n) s_min``, equal
+to Vaiopoulos 2017, eq. 4.68 when the given error covariance is right.
 """
 
 from __future__ import annotations
 
-import math
+import inspect
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
+from drake_uav.identification.errors_in_variables import (
+    PropagatedNoise,
+    compensated_normal_equations,
+    excitation_threshold,
+    long_run_covariance,
+    moment_scores,
+    normalization_matrix,
+    orthonormal_columns,
+    restricted_inverse,
+    sandwich_covariance,
+    solve_normal_equations,
+    tls_covariance,
+    tls_solution,
+    weight_matrix,
+)
+
 __all__ = [
     "regression_result",
     "IdentificationWarning",
     "InsufficientExcitationWarning",
     "RegressionResult",
-    "excitation_threshold",
-    "normalization_matrix",
+    "bcls",
     "ols",
     "pca_tls",
     "tls",
-    "tls_covariance",
-    "tls_solution",
     "unidentifiable_loading",
-    "weight_matrix",
 ]
 
 #: A parameter whose unit vector has a squared projection above this on the unidentifiable
@@ -189,14 +203,6 @@ def _names(names, n: int) -> tuple[str, ...]:
     return names
 
 
-def _orthonormal_columns(A: np.ndarray) -> np.ndarray:
-    """Orthonormal basis (columns) of the range of A, empty if A has no columns."""
-    if A.shape[1] == 0:
-        return A
-    u, s, _ = np.linalg.svd(A, full_matrices=False)
-    return u[:, s > s[0] * 1e-12] if s[0] > 0 else u[:, :0]
-
-
 def _r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
     """Upper-triangular R with R^T R = A^T A, by QR of row blocks then of the stacked R's.
 
@@ -208,54 +214,11 @@ def _r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
     return np.linalg.qr(np.vstack(blocks), mode="r")
 
 
-def excitation_threshold(n_rows: float, n_params: int, snr_min: float, scale: float = 1.0):
-    """Singular-value threshold of sufficient excitation (Vaiopoulos 2017, eq. 4.68-4.69),
-    normalised units.
-
-    ``(1 + S/n) * sqrt(scale * (n_rows - n_params))``: the noise energy of a normalised
-    direction is ``scale * (n_rows - n_params)`` (Vaiopoulos 2017, eq. 4.67), ``scale`` = 1 when
-    the error
-    covariance is exact. ``n_rows`` may be an effective (forgetting-weighted) row count.
-    """
-    return (1.0 + snr_min) * np.sqrt(scale * max(n_rows - n_params, 0.0))
-
-
 def unidentifiable_loading(directions: np.ndarray, n: int) -> np.ndarray:
     """Squared projection of each parameter axis on the unidentifiable subspace, (n,) in [0, 1]."""
     if directions.size == 0:
         return np.zeros(n)
     return np.sum(directions**2, axis=0)
-
-
-def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.ndarray:
-    """Upper-triangular error std matrix C with C^T C = W_T (Vaiopoulos 2017, eq. 4.38-4.40).
-
-    ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
-    Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
-    batch :func:`tls` replaces zero stds of exact columns before calling this.
-    """
-    if error_std is not None and error_cov is not None:
-        raise ValueError("give error_std or error_cov, not both")
-    if error_cov is not None:
-        W = np.asarray(error_cov, dtype=float)
-        if W.shape != (n_cols, n_cols):
-            raise ValueError(f"error_cov must have shape ({n_cols}, {n_cols}), got {W.shape}")
-        if not np.allclose(W, W.T):
-            raise ValueError("error_cov must be symmetric")
-        try:
-            return np.linalg.cholesky(W).T
-        except np.linalg.LinAlgError:
-            raise ValueError(
-                "error_cov must be positive definite (use error_std with 0 for exact columns)"
-            ) from None
-    if error_std is None:
-        return np.eye(n_cols)
-    c = np.asarray(error_std, dtype=float)
-    if c.shape != (n_cols,):
-        raise ValueError(f"error_std must have shape ({n_cols},), got {c.shape}")
-    if not (np.isfinite(c).all() and (c > 0).all()):
-        raise ValueError("error_std entries must be finite and positive")
-    return np.diag(c)
 
 
 # ----------------------------------------------------------------------------- OLS
@@ -286,7 +249,7 @@ def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND)
     rank = int(np.sum(s > rcond * s[0])) if s[0] > 0 else 0
     qtz = u[:, :rank].T @ R[:n, n]
     theta = (vt[:rank].T @ (qtz / s[:rank])) / scale
-    directions = _orthonormal_columns((vt[rank:] / scale).T).T
+    directions = orthonormal_columns((vt[rank:] / scale).T).T
     if rank < n:
         warnings.warn(
             f"OLS: regressors support only {rank} of {n} parameter directions "
@@ -300,7 +263,7 @@ def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND)
     dof = N - rank
     noise_var = float(residual @ residual) / dof
     info_equilibrated = R[:n, :n].T @ R[:n, :n]
-    cov_unit = _restricted_inverse(info_equilibrated, directions, scale)
+    cov_unit = restricted_inverse(info_equilibrated, directions, scale)
     return regression_result(
         method="OLS",
         names=names,
@@ -317,27 +280,6 @@ def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND)
         directions=directions,
         confidence=confidence,
     )
-
-
-def _restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.ndarray):
-    """Inverse of an information matrix on the complement of unidentifiable directions.
-
-    ``info_eq`` is given in equilibrated coordinates (theta_eq = scale * theta), ``null_dirs``
-    holds the orthonormal raw unidentifiable directions (rows). Returns the raw covariance
-    factor B (B^T I B)^-1 B^T, B an orthonormal raw basis of the complement of ``null_dirs``.
-    """
-    n = info_eq.shape[0]
-    if null_dirs.shape[0] == 0:
-        inv_eq = np.linalg.inv(info_eq)
-        inv_eq = 0.5 * (inv_eq + inv_eq.T)
-        return inv_eq / np.outer(scale, scale)
-    m = null_dirs.shape[0]
-    q, _ = np.linalg.qr(np.column_stack([null_dirs.T, np.eye(n)]))
-    basis = q[:, m:n]  # raw orthonormal complement
-    basis_eq = basis * scale[:, None]
-    reduced = basis_eq.T @ info_eq @ basis_eq
-    cov = basis @ np.linalg.inv(reduced) @ basis.T
-    return 0.5 * (cov + cov.T)
 
 
 def regression_result(
@@ -389,100 +331,7 @@ def regression_result(
     )
 
 
-# ----------------------------------------------------------------------------- TLS core
-
-
-def weight_matrix(weights) -> np.ndarray | None:
-    """W (n, n) of the minimum-norm choice from a matrix, a diagonal (n,) or None (identity)."""
-    if weights is None:
-        return None
-    w = np.asarray(weights, dtype=float)
-    return np.diag(w) if w.ndim == 1 else w
-
-
-def _null_basis(g: np.ndarray, g_norm: float) -> np.ndarray:
-    """Orthonormal basis (m, m-1) of {mu : g^T mu = 0}, from a Householder reflector of g."""
-    if g.size == 2:
-        return np.array([[-g[1]], [g[0]]]) / g_norm
-    v = g.copy()
-    v[0] += math.copysign(g_norm, g[0])
-    H = np.eye(g.size) - (2.0 / float(v @ v)) * np.outer(v, v)
-    return H[:, 1:]
-
-
-def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = True):
-    """Weighted minimum-norm TLS solution from the SVD of the normalised augmented matrix.
-
-    Args:
-        s: singular values (n+1,) in decreasing order. V: right singular vectors (n+1, n+1),
-            columns. C_inv: inverse error std matrix (n+1, n+1).
-        k: number of excited directions (<= n); k = n is plain TLS/GTLS (Vaiopoulos 2017, eq. 4.61).
-        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (Vaiopoulos 2017, eq. 4.76);
-        None = identity.
-        with_directions: also return the unidentifiable directions (else None, faster).
-
-    Returns:
-        (theta, k_used, directions): estimate (n,), the number of directions actually kept
-        (lowered if the kept subspace cannot represent [theta; -1], the non-generic TLS case),
-        and the orthonormal parameter-space directions (rows) the data do not determine.
-    """
-    n = V.shape[0] - 1
-    Wm = weight_matrix(weights)
-    while k >= 0:
-        G = C_inv @ V[:, k:]  # solution space of [theta; -1] (Vaiopoulos 2017, eq. 4.75)
-        G_theta, g = G[:n], G[n]
-        g_norm = math.sqrt(float(g @ g))
-        if g_norm > 1e-12 * math.sqrt(float(np.vdot(G, G))):
-            if G.shape[1] == 1:
-                return -G_theta[:, 0] / g[0], k, np.zeros((0, n))
-            # min ||W G_theta mu|| subject to g^T mu = -1 (Vaiopoulos 2017, eq. 4.76-4.79 without
-            # the big number):
-            # mu = mu_p + N nu, mu_p = -g / |g|^2, N an orthonormal basis of {mu : g^T mu = 0}.
-            N = _null_basis(g, g_norm)
-            mu_p = -g / g_norm**2
-            A = G_theta if Wm is None else Wm @ G_theta
-            AN = A @ N
-            b = A @ mu_p
-            if AN.shape[1] == 1:
-                a2 = float(AN[:, 0] @ AN[:, 0])
-                nu = np.array([-float(AN[:, 0] @ b) / a2 if a2 > 0.0 else 0.0])
-            else:
-                nu = np.linalg.lstsq(AN, -b, rcond=None)[0]
-            theta = G_theta @ (mu_p + N @ nu)
-            directions = _orthonormal_columns(G_theta @ N).T if with_directions else None
-            return theta, k, directions
-        k -= 1
-    return np.zeros(n), 0, np.eye(n)
-
-
-def tls_covariance(s, V, C, theta, k: int, directions, n_rows: float, scale: float):
-    """Asymptotic covariance of the (PCA-)TLS estimate (Vaiopoulos 2017, eq. 4.62-4.63, 4.80;
-    Fuller Thm 2.3.2).
-
-    Args:
-        s, V: SVD of the normalised augmented matrix (singular values, right vectors as columns).
-        C: error std matrix (n+1, n+1), W_T = C^T C. theta: estimate (n,). k: kept directions.
-        directions: unidentifiable parameter directions (rows); the covariance is zero along them.
-        n_rows: (effective) number of rows. scale: error-variance scale factor (1 if C exact).
-
-    Returns:
-        (covariance (n, n), equation-error variance s^2 = scale [theta; -1]^T W_T [theta; -1]).
-    """
-    n = theta.size
-    W_T = C.T @ C
-    w = np.append(theta, -1.0)
-    s2 = scale * float(w @ W_T @ w)
-    energy = np.clip(s[:k] ** 2 - s[-1] ** 2, 0.0, None)
-    CV = C.T @ V[:, :k]
-    M = (CV * energy) @ CV.T  # estimate of [X0|y0]^T [X0|y0]
-    Mxx = M[:n, :n]
-    d = np.sqrt(np.clip(np.diag(Mxx), 0.0, None))
-    d[d == 0.0] = 1.0
-    Mp = _restricted_inverse(Mxx / np.outer(d, d), directions, d)
-    S_uu = scale * W_T[:n, :n]
-    S_uv = scale * (W_T[:n, n] - W_T[:n, :n] @ theta)
-    cov = s2 * Mp + n_rows * Mp @ (s2 * S_uu - np.outer(S_uv, S_uv)) @ Mp
-    return 0.5 * (cov + cov.T), s2
+# ----------------------------------------------------------------------------- TLS
 
 
 def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, warn):
@@ -567,8 +416,8 @@ def tls(
             Neither: plain TLS (C = I).
         names: parameter names.
         snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
-        weights: W of the minimum-norm choice if some direction is not excited (Vaiopoulos 2017,
-        eq. 4.76).
+        weights: W of the minimum-norm choice if some direction is not excited (Vaiopoulos
+            2017, eq. 4.76).
         confidence: level of the significance test.
         scale_from_data: estimate the error-variance scale from the smallest singular value
             (C known up to a factor); False trusts C exactly.
@@ -582,20 +431,9 @@ def tls(
     )
 
 
-def pca_tls(
-    X,
-    z,
-    error_std=None,
-    *,
-    error_cov=None,
-    names=None,
-    snr_min: float = 1.0,
-    weights=None,
-    confidence: float = 0.95,
-    scale_from_data: bool = True,
-):
-    """PCA-TLS: GTLS restricted to the excited singular directions (Vaiopoulos 2017, eq. 4.3.6,
-    A.14).
+def pca_tls(X, z, error_std=None, **options):
+    """PCA-TLS: GTLS restricted to the excited singular directions (Vaiopoulos 2017, sec.
+    4.3.6, A.14).
 
     Same arguments as :func:`tls`. Estimates only what the data support, without a warning:
     ``result.rank`` directions are kept, ``result.unidentifiable`` lists the parameter
@@ -603,6 +441,50 @@ def pca_tls(
     ``result.sigma`` (inf) mark the parameters involved. Method "PCA-TLS" when rank < n,
     otherwise "TLS"/"GTLS".
     """
-    return _tls(
-        X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, False
-    )
+    arguments = inspect.signature(tls).bind(X, z, error_std, **options)
+    arguments.apply_defaults()
+    return _tls(**arguments.arguments, warn=False)
+
+
+pca_tls.__signature__ = inspect.signature(tls)
+
+
+# ----------------------------------------------------------------------------- BCLS
+
+
+def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
+         scores_covariance=None) -> RegressionResult:
+    """Bias-compensated least squares with a sandwich covariance (method "BCLS").
+
+    Args:
+        X: (N, n) measured regressors. z: (N,) measured observations.
+        noise: the regressor and observation noise propagated from its sources
+            (:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`), with
+            known variances.
+        names: parameter names.
+        confidence: level of the significance test.
+        scores_covariance: (n, n) covariance ``S`` of the summed moment scores; default: their
+            long-run (Newey-West) covariance estimated here.
+
+    Returns:
+        RegressionResult: the root of the compensated normal equations
+        (:func:`~drake_uav.identification.errors_in_variables.compensated_normal_equations`)
+        with covariance ``A^-1 S A^-1``. The residual of smoothed flight data is correlated
+        over several samples (the smoothing window, turbulence), so ``S`` is the long-run
+        covariance, not the white-residual one, which would understate sigma about twofold.
+    """
+    X, z = _as_data(X, z)
+    n, p = X.shape
+    A, b = compensated_normal_equations(X, z, noise)
+    theta = solve_normal_equations(A, b)
+    residual = z - X @ theta
+    if scores_covariance is None:
+        scores_covariance = long_run_covariance(moment_scores(X, z, theta, noise))
+    covariance = sandwich_covariance(np.linalg.pinv(A), scores_covariance)
+    s = np.linalg.svd(X / np.maximum(np.linalg.norm(X, axis=0), 1e-300), compute_uv=False)
+    return regression_result(
+        method="BCLS", names=_names(names, p), theta=theta, covariance=covariance,
+        noise_std=np.sqrt(float(residual @ residual) / max(n - p, 1)), residual=residual,
+        z=z, dof=n - p, rank=p, singular_values=s, threshold=0.0,
+        condition=s[0] / max(s[-1], 1e-300), directions=np.zeros((0, p)),
+        confidence=confidence)

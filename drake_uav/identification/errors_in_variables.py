@@ -1,0 +1,356 @@
+"""Errors-in-variables core: regressor noise, bias compensation and parameter covariance.
+
+The model ``z = X0 theta + e`` is measured as ``[X | z] = [X0 | z0] + [dX | dz]``: the
+regressors are noisy too (air data, rates). Least squares on the measured ``X`` then
+attenuates ``theta`` (Vaiopoulos 2017, Table 5). Every estimator of the package that
+corrects for this (batch TLS/GTLS/PCA-TLS and BCLS in :mod:`.regression`, the recursive
+PCA-GTLS in :mod:`.recursive`, the flight-log fits of :mod:`.discovery`) is built from the
+three pieces below (Fuller, *Measurement Error Models*, 1987, sec. 2.2-2.3).
+
+1. **Noise of the regressors.** Either one error covariance ``W_T = C^T C`` per row of
+   ``[X | z]``, known up to a scale factor (:func:`normalization_matrix`, Vaiopoulos 2017,
+   eq. 4.38-4.40), or the noise of independent sources (sensor channels) carried to every
+   column and to the observation by per-sample sensitivities, with known variances
+   (:class:`PropagatedNoise`). Both give the expected noise moments
+   ``E[dD^T dD]`` of the augmented data ``D = [X | z]``.
+2. **Bias compensation.** The normal equations of the true regressors are the measured
+   ones minus the noise moments: ``(X^T X - E[dX^T dX]) theta = X^T z - E[dX^T dz]``
+   (:func:`compensated_normal_equations`). With ``W_T`` known only up to a scale the
+   scale is the smallest singular value of the normalised ``D`` and the estimate its
+   last right singular vector (TLS/GTLS, :func:`tls_solution`, Vaiopoulos 2017, eq.
+   4.54-4.61); the compensated Gram matrix is then :func:`compensated_gram` (eq. 4.63).
+3. **Covariance.** The estimate solves ``sum_t psi_t(theta) = 0``; its covariance is the
+   sandwich ``A^-1 S A^-1`` (:func:`sandwich_covariance`) with ``A`` the compensated
+   normal matrix and ``S`` the covariance of the summed scores ``psi_t``: for white
+   Gaussian errors ``s^2 A + N (s^2 S_uu - S_uv S_uv^T)`` (Fuller 1987, Thm 2.3.2;
+   :func:`white_noise_covariance`, the TLS covariance of Vaiopoulos 2017, eq. 4.62 plus
+   its second-order term), for correlated residuals (smoothed flight data) the long-run
+   Newey-West covariance of the scores (:func:`long_run_covariance`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from drake_uav.identification.residuals import long_run_covariance
+
+__all__ = [
+    "PropagatedNoise",
+    "compensated_gram",
+    "compensated_normal_equations",
+    "excitation_threshold",
+    "is_well_posed",
+    "long_run_covariance",
+    "moment_scores",
+    "noise_error_energy",
+    "normalization_matrix",
+    "orthonormal_columns",
+    "restricted_inverse",
+    "sandwich_covariance",
+    "solve_normal_equations",
+    "tls_covariance",
+    "tls_solution",
+    "weight_matrix",
+    "white_noise_covariance",
+]
+
+
+# ----------------------------------------------------------------------------- noise models
+
+
+def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.ndarray:
+    """Upper-triangular error std matrix C with C^T C = W_T (Vaiopoulos 2017, eq. 4.38-4.40).
+
+    ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
+    Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
+    batch :func:`~drake_uav.identification.regression.tls` replaces zero stds of exact columns
+    before calling this.
+    """
+    if error_std is not None and error_cov is not None:
+        raise ValueError("give error_std or error_cov, not both")
+    if error_cov is not None:
+        W = np.asarray(error_cov, dtype=float)
+        if W.shape != (n_cols, n_cols):
+            raise ValueError(f"error_cov must have shape ({n_cols}, {n_cols}), got {W.shape}")
+        if not np.allclose(W, W.T):
+            raise ValueError("error_cov must be symmetric")
+        try:
+            return np.linalg.cholesky(W).T
+        except np.linalg.LinAlgError:
+            raise ValueError(
+                "error_cov must be positive definite (use error_std with 0 for exact columns)"
+            ) from None
+    if error_std is None:
+        return np.eye(n_cols)
+    c = np.asarray(error_std, dtype=float)
+    if c.shape != (n_cols,):
+        raise ValueError(f"error_std must have shape ({n_cols},), got {c.shape}")
+    if not (np.isfinite(c).all() and (c > 0).all()):
+        raise ValueError("error_std entries must be finite and positive")
+    return np.diag(c)
+
+
+@dataclasses.dataclass(frozen=True)
+class PropagatedNoise:
+    """Noise of independent sources carried to the regressors and the observation.
+
+    Source ``s`` (e.g. the airspeed sensor) has white noise of variance ``variance[s]``;
+    ``regressors[s]`` (N, n) holds d x_t / d s and ``observation[s]`` (N,) d z_t / d s at
+    every sample (a source missing there does not enter the observation). To first
+    order the noise of row t is ``sum_s J_(s,t) n_(s,t)``, so its moments are
+    ``sum_s var_s J_s^T J_s``: sample-dependent, which no single row covariance ``W_T``
+    describes.
+    """
+
+    columns: int
+    """Number of regressor columns n."""
+    regressors: Mapping[str, np.ndarray]
+    observation: Mapping[str, np.ndarray]
+    variance: Mapping[str, float]
+
+    def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """Expected ``(dX^T dX, dX^T dz)`` over ``rows`` (a mask or indices; None: all)."""
+        C_xx, c_xz = np.zeros((self.columns, self.columns)), np.zeros(self.columns)
+        for source, J in self.regressors.items():
+            Jr = J if rows is None else J[rows]
+            var = self.variance[source]
+            C_xx += var * (Jr.T @ Jr)
+            jz = self.observation.get(source)
+            if jz is not None:
+                c_xz += var * (Jr.T @ (jz if rows is None else jz[rows]))
+        return C_xx, c_xz
+
+    def extended(self, regressors: Mapping[str, np.ndarray], n_new: int) -> PropagatedNoise:
+        """The noise of ``n_new`` added columns appended; ``regressors`` maps a source to
+        their (N, n_new) sensitivities (missing: the columns do not depend on it)."""
+        new = {}
+        for source, J in self.regressors.items():
+            added = regressors.get(source)
+            new[source] = np.column_stack(
+                [J, np.zeros((J.shape[0], n_new)) if added is None else added])
+        return PropagatedNoise(self.columns + n_new, new, self.observation, self.variance)
+
+
+# ----------------------------------------------------------------------------- moment form
+
+
+def compensated_normal_equations(X, z, noise: PropagatedNoise, rows=None):
+    """Bias-compensated normal equations ``(X^T X - E[dX^T dX], X^T z - E[dX^T dz])``
+    over ``rows`` (Fuller 1987, eq. 2.2.4, with sample-dependent noise moments)."""
+    X = X if rows is None else X[rows]
+    z = z if rows is None else z[rows]
+    C_xx, c_xz = noise.moments(rows)
+    return X.T @ X - C_xx, X.T @ z - c_xz
+
+
+def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A^-1 b`` with A equilibrated to a unit diagonal (least squares if A is singular)."""
+    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    try:
+        return np.linalg.solve(A / np.outer(scale, scale), b / scale) / scale
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def is_well_posed(A: np.ndarray, tolerance: float = 1e-8) -> bool:
+    """True when the compensated normal matrix ``A`` is safely positive definite.
+
+    Removing the noise moments can make a nearly collinear design indefinite: its
+    columns are then not separable from the regressor noise.
+    """
+    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    return bool(np.min(np.diag(A)) > 0 and
+                np.linalg.eigvalsh(A / np.outer(scale, scale))[0] > tolerance)
+
+
+def moment_scores(X, z, theta, noise: PropagatedNoise) -> np.ndarray:
+    """(N, n) per-sample terms of the compensated normal equations at ``theta``.
+
+    ``x_t (z_t - x_t^T theta)`` plus the sample's expected regressor-noise part
+    ``sum_s var_s J_(s,t) (J_(s,t)^T theta - dz_t/ds)``; they sum to zero at the estimate.
+    """
+    psi = X * (z - X @ theta)[:, None]
+    for source, J in noise.regressors.items():
+        jz = noise.observation.get(source, 0.0)
+        psi += noise.variance[source] * J * (J @ theta - jz)[:, None]
+    return psi
+
+
+def noise_error_energy(theta, C_xx, c_xz) -> float:
+    """Expected regressor-noise part ``theta^T C_xx theta - 2 theta^T c_xz`` of the observed
+    squared error ``|z - X theta|^2`` (noise moments from :meth:`PropagatedNoise.moments`)."""
+    return float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
+
+
+# ----------------------------------------------------------------------------- covariance
+
+
+def sandwich_covariance(A_inv: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """``A^-1 S A^-1`` (symmetrised): covariance of the root of ``sum_t psi_t = 0`` whose
+    Jacobian is ``-A`` and whose summed scores have covariance ``S``."""
+    covariance = A_inv @ S @ A_inv
+    return 0.5 * (covariance + covariance.T)
+
+
+def white_noise_covariance(A_inv, s2: float, noise_xx, noise_xv, n_rows: float) -> np.ndarray:
+    """Sandwich covariance for white Gaussian row errors (Fuller 1987, Thm 2.3.2).
+
+    The summed scores have covariance ``s^2 A + N (s^2 S_uu - S_uv S_uv^T)``: ``s2`` the
+    equation-error variance, ``noise_xx`` ``S_uu`` the regressor-noise covariance of one
+    row, ``noise_xv`` ``S_uv`` its covariance with the equation error, ``n_rows`` N.
+    ``A^-1 A A^-1 = A^-1`` is written out: ``s^2 A^-1`` (Vaiopoulos 2017, eq. 4.62) plus
+    the term of order (regressor noise / regressor signal)^2.
+    """
+    second = n_rows * A_inv @ (s2 * noise_xx - np.outer(noise_xv, noise_xv)) @ A_inv
+    covariance = s2 * A_inv + second
+    return 0.5 * (covariance + covariance.T)
+
+
+def restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.ndarray):
+    """Inverse of an information matrix on the complement of unidentifiable directions.
+
+    ``info_eq`` is given in equilibrated coordinates (theta_eq = scale * theta), ``null_dirs``
+    holds the orthonormal raw unidentifiable directions (rows). Returns the raw covariance
+    factor B (B^T I B)^-1 B^T, B an orthonormal raw basis of the complement of ``null_dirs``.
+    """
+    n = info_eq.shape[0]
+    if null_dirs.shape[0] == 0:
+        inv_eq = np.linalg.inv(info_eq)
+        inv_eq = 0.5 * (inv_eq + inv_eq.T)
+        return inv_eq / np.outer(scale, scale)
+    m = null_dirs.shape[0]
+    q, _ = np.linalg.qr(np.column_stack([null_dirs.T, np.eye(n)]))
+    basis = q[:, m:n]  # raw orthonormal complement
+    basis_eq = basis * scale[:, None]
+    reduced = basis_eq.T @ info_eq @ basis_eq
+    cov = basis @ np.linalg.inv(reduced) @ basis.T
+    return 0.5 * (cov + cov.T)
+
+
+def orthonormal_columns(A: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns) of the range of A, empty if A has no columns."""
+    if A.shape[1] == 0:
+        return A
+    u, s, _ = np.linalg.svd(A, full_matrices=False)
+    return u[:, s > s[0] * 1e-12] if s[0] > 0 else u[:, :0]
+
+
+# ----------------------------------------------------------------------------- SVD form (TLS)
+
+
+def excitation_threshold(n_rows: float, n_params: int, snr_min: float, scale: float = 1.0):
+    """Singular-value threshold of sufficient excitation (Vaiopoulos 2017, eq. 4.68-4.69),
+    normalised units.
+
+    ``(1 + S/n) * sqrt(scale * (n_rows - n_params))``: the noise energy of a normalised
+    direction is ``scale * (n_rows - n_params)`` (Vaiopoulos 2017, eq. 4.67), ``scale`` = 1
+    when the error covariance is exact. ``n_rows`` may be an effective (forgetting-weighted)
+    row count.
+    """
+    return (1.0 + snr_min) * np.sqrt(scale * max(n_rows - n_params, 0.0))
+
+
+def weight_matrix(weights) -> np.ndarray | None:
+    """W (n, n) of the minimum-norm choice from a matrix, a diagonal (n,) or None (identity)."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=float)
+    return np.diag(w) if w.ndim == 1 else w
+
+
+def _null_basis(g: np.ndarray, g_norm: float) -> np.ndarray:
+    """Orthonormal basis (m, m-1) of {mu : g^T mu = 0}, from a Householder reflector of g."""
+    if g.size == 2:
+        return np.array([[-g[1]], [g[0]]]) / g_norm
+    v = g.copy()
+    v[0] += math.copysign(g_norm, g[0])
+    H = np.eye(g.size) - (2.0 / float(v @ v)) * np.outer(v, v)
+    return H[:, 1:]
+
+
+def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = True):
+    """Weighted minimum-norm TLS solution from the SVD of the normalised augmented matrix.
+
+    Args:
+        s: singular values (n+1,) in decreasing order. V: right singular vectors (n+1, n+1),
+            columns. C_inv: inverse error std matrix (n+1, n+1).
+        k: number of excited directions (<= n); k = n is plain TLS/GTLS (Vaiopoulos 2017,
+            eq. 4.61).
+        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (Vaiopoulos 2017, eq.
+            4.76); None = identity.
+        with_directions: also return the unidentifiable directions (else None, faster).
+
+    Returns:
+        (theta, k_used, directions): estimate (n,), the number of directions actually kept
+        (lowered if the kept subspace cannot represent [theta; -1], the non-generic TLS case),
+        and the orthonormal parameter-space directions (rows) the data do not determine.
+    """
+    n = V.shape[0] - 1
+    Wm = weight_matrix(weights)
+    while k >= 0:
+        G = C_inv @ V[:, k:]  # solution space of [theta; -1] (Vaiopoulos 2017, eq. 4.75)
+        G_theta, g = G[:n], G[n]
+        g_norm = math.sqrt(float(g @ g))
+        if g_norm > 1e-12 * math.sqrt(float(np.vdot(G, G))):
+            if G.shape[1] == 1:
+                return -G_theta[:, 0] / g[0], k, np.zeros((0, n))
+            # min ||W G_theta mu|| subject to g^T mu = -1 (Vaiopoulos 2017, eq. 4.76-4.79
+            # without the big number): mu = mu_p + N nu, mu_p = -g / |g|^2, N an orthonormal
+            # basis of {mu : g^T mu = 0}.
+            N = _null_basis(g, g_norm)
+            mu_p = -g / g_norm**2
+            A = G_theta if Wm is None else Wm @ G_theta
+            AN = A @ N
+            b = A @ mu_p
+            if AN.shape[1] == 1:
+                a2 = float(AN[:, 0] @ AN[:, 0])
+                nu = np.array([-float(AN[:, 0] @ b) / a2 if a2 > 0.0 else 0.0])
+            else:
+                nu = np.linalg.lstsq(AN, -b, rcond=None)[0]
+            theta = G_theta @ (mu_p + N @ nu)
+            directions = orthonormal_columns(G_theta @ N).T if with_directions else None
+            return theta, k, directions
+        k -= 1
+    return np.zeros(n), 0, np.eye(n)
+
+
+def compensated_gram(s, V, C, k: int) -> np.ndarray:
+    """``[X0 | z0]^T [X0 | z0]`` estimated from the SVD of the normalised augmented matrix.
+
+    The measured Gram matrix minus the noise energy ``s_min^2`` along every one of the ``k``
+    retained singular directions (Vaiopoulos 2017, eq. 4.63): the SVD form of the bias
+    compensation, with the noise scale estimated by the smallest singular value.
+    """
+    energy = np.clip(s[:k] ** 2 - s[-1] ** 2, 0.0, None)
+    CV = C.T @ V[:, :k]
+    return (CV * energy) @ CV.T
+
+
+def tls_covariance(s, V, C, theta, k: int, directions, n_rows: float, scale: float):
+    """Asymptotic covariance of the (PCA-)TLS estimate (Vaiopoulos 2017, eq. 4.62-4.63, 4.80;
+    Fuller 1987, Thm 2.3.2).
+
+    Args:
+        s, V: SVD of the normalised augmented matrix (singular values, right vectors as columns).
+        C: error std matrix (n+1, n+1), W_T = C^T C. theta: estimate (n,). k: kept directions.
+        directions: unidentifiable parameter directions (rows); the covariance is zero along them.
+        n_rows: (effective) number of rows. scale: error-variance scale factor (1 if C exact).
+
+    Returns:
+        (covariance (n, n), equation-error variance s^2 = scale [theta; -1]^T W_T [theta; -1]).
+    """
+    n = theta.size
+    W_T = C.T @ C
+    w = np.append(theta, -1.0)
+    s2 = scale * float(w @ W_T @ w)
+    Mxx = compensated_gram(s, V, C, k)[:n, :n]
+    d = np.sqrt(np.clip(np.diag(Mxx), 0.0, None))
+    d[d == 0.0] = 1.0
+    A_inv = restricted_inverse(Mxx / np.outer(d, d), directions, d)
+    S_uu = scale * W_T[:n, :n]
+    S_uv = scale * (W_T[:n, n] - W_T[:n, :n] @ theta)
+    return white_noise_covariance(A_inv, s2, S_uu, S_uv, n_rows), s2
