@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from drake_uav.diagrams.identification_flight import build_identification_flight, fly
+from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.estimation.ekf import ExtendedKalmanFilter
-from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.systems.estimators import (
     AirDataEkf,
     EkfSystemParams,

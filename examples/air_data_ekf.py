@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from drake_uav.diagrams.identification_flight import fly
+from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter
-from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel
 from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.vehicles.fixed_wing import aerosonde
 

@@ -11,6 +11,7 @@ from pydrake.math import min as smin
 from scipy.linalg import expm
 from scipy.stats import chi2
 
+from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.estimation.ekf import (
     EkfModel,
     EkfNoise,
@@ -19,7 +20,6 @@ from drake_uav.estimation.ekf import (
     run_filter,
     wrap_angle,
 )
-from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.model.compiled import CompiledFunction
 from drake_uav.optimization.trim import trim
 from drake_uav.vehicles.fixed_wing import aerosonde

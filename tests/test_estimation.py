@@ -1,4 +1,4 @@
-"""Filter models (estimation/models.py) and the EKF LeafSystems (systems/estimation.py)."""
+"""Filter models (drake_uav.estimation) and the EKF LeafSystems (systems/estimators.py)."""
 
 import math
 
@@ -10,12 +10,10 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.diagrams.identification_flight import fly
-from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter, wrap_angle
-from drake_uav.estimation.models import (
+from drake_uav.estimation import (
     AirDataModel,
     ModelBasedAirDataModel,
     ParameterModel,
-    air_data_rates,
     fresh_samples,
     gps_latency_correction,
     gust_rate_psd,
@@ -23,7 +21,12 @@ from drake_uav.estimation.models import (
     smoothed_attitude,
     smoothed_attitude_std,
 )
-from drake_uav.model.air_data import air_data_from_velocity, velocity_from_air_data
+from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter, wrap_angle
+from drake_uav.model.air_data import (
+    air_data_from_velocity,
+    air_data_rates,
+    velocity_from_air_data,
+)
 from drake_uav.model.dryden import dryden_psd, dryden_scales
 from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.model.rotations import euler_rates, euler_to_quat, euler_to_rotmat

@@ -1,11 +1,15 @@
-"""Air-data relations: airspeed, alpha and sideslip from the air-relative velocity and back."""
+"""Air-data relations: airspeed, alpha and sideslip from the air-relative velocity and back,
+their rates, and the dynamic pressure."""
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.math import atan2, cos, sin, sqrt
 
-__all__ = ["air_data_from_velocity", "velocity_from_air_data"]
+from drake_uav.model.scalar import smax
+
+__all__ = ["air_data_from_velocity", "velocity_from_air_data", "air_data_rates",
+           "dynamic_pressure", "airspeed_from_dynamic_pressure"]
 
 
 def air_data_from_velocity(u_r, v_r, w_r) -> tuple:
@@ -29,3 +33,33 @@ def velocity_from_air_data(airspeed, alpha, beta) -> tuple:
         cos_, sin_ = cos, sin
     cb = cos_(beta)
     return airspeed * cos_(alpha) * cb, airspeed * sin_(beta), airspeed * sin_(alpha) * cb
+
+
+def air_data_rates(v_r, v_r_dot) -> tuple:
+    """``(Va_dot, alpha_dot, beta_dot)`` [m/s^2, rad/s, rad/s] from the air-relative body
+    velocity [m/s] and its rate [m/s^2].
+
+    Time derivative of Vaiopoulos 2017, eq. 2.12-2.14 (``Va = |v_r|``,
+    ``alpha = atan2(w, u)``, ``beta = atan2(v, sqrt(u^2 + w^2))``).
+    """
+    u, v, w = v_r[0], v_r[1], v_r[2]
+    ud, vd, wd = v_r_dot[0], v_r_dot[1], v_r_dot[2]
+    uw2 = u * u + w * w
+    va2 = uw2 + v * v
+    uw_dot = u * ud + w * wd
+    va_dot = (uw_dot + v * vd) / sqrt(va2)
+    alpha_dot = (u * wd - w * ud) / uw2
+    beta_dot = (uw2 * vd - v * uw_dot) / (va2 * sqrt(uw2))
+    return va_dot, alpha_dot, beta_dot
+
+
+def dynamic_pressure(airspeed, rho):
+    """Dynamic pressure ``qbar = rho Va^2 / 2`` [Pa] at ``airspeed`` [m/s] and air density
+    ``rho`` [kg/m^3] (what a pitot-static probe measures)."""
+    return 0.5 * rho * airspeed * airspeed
+
+
+def airspeed_from_dynamic_pressure(qbar, rho):
+    """Airspeed ``sqrt(2 qbar / rho)`` [m/s] of a dynamic pressure [Pa] at air density
+    ``rho`` [kg/m^3]; a negative pressure (sensor noise near rest) gives 0, NaN stays NaN."""
+    return sqrt(2.0 * smax(0.0, qbar) / rho)

@@ -48,6 +48,8 @@ from drake_uav.model.scalar import smax
 
 __all__ = [
     "COEFFICIENTS",
+    "LONGITUDINAL_COEFFICIENTS",
+    "LATERAL_COEFFICIENTS",
     "SIGNALS",
     "AeroCondition",
     "CoefficientModel",
@@ -62,6 +64,10 @@ __all__ = [
 
 COEFFICIENTS: tuple[str, ...] = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
 """Coefficient names: lift, drag, side force, rolling, pitching, yawing moment."""
+LONGITUDINAL_COEFFICIENTS: tuple[str, ...] = ("CL", "CD", "Cm")
+"""Coefficients of the longitudinal motion (Ortiz & Gutierrez 2009, eq. 48)."""
+LATERAL_COEFFICIENTS: tuple[str, ...] = ("CY", "Cl", "Cn")
+"""Coefficients of the lateral-directional motion (Ortiz & Gutierrez 2009, eq. 43)."""
 
 SIGNALS: dict[str, str] = {
     "0": "constant term",

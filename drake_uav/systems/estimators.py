@@ -35,10 +35,11 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from drake_uav.estimation.ekf import EkfNoise, ExtendedKalmanFilter
-from drake_uav.estimation.models import (
+from drake_uav.estimation import (
     DEFAULT_GPS_LATENCY,
     AirDataModel,
+    EkfNoise,
+    ExtendedKalmanFilter,
     ModelBasedAirDataModel,
     ParameterModel,
     is_new_sample,

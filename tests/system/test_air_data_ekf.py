@@ -18,8 +18,8 @@ import pytest
 from scipy.stats import chi2
 
 from drake_uav.diagrams.identification_flight import fly
+from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, chi2_bounds, run_filter
-from drake_uav.estimation.models import AirDataModel, ModelBasedAirDataModel, ParameterModel
 from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.model.coefficients import AeroCondition, body_to_lift_drag, regressor_matrix
 from drake_uav.vehicles.fixed_wing import aerosonde

@@ -1,0 +1,64 @@
+"""The signals the filters read: their names, the flight-log channel of each, and which
+samples of a held (sample-and-hold) sensor channel are new.
+
+A filter model names its inputs and measurements with the names below; the offline runs
+find them in a :class:`~drake_uav.io.flight_log.FlightLog` through
+:data:`LOG_CHANNELS`, the LeafSystems on the sensor ports.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "IMU",
+    "ATTITUDE",
+    "CONTROLS",
+    "GPS_VELOCITY",
+    "AIR_DATA_SENSORS",
+    "AIR_DATA",
+    "WIND",
+    "LOG_CHANNELS",
+    "is_new_sample",
+    "fresh_samples",
+]
+
+IMU = ("ax", "ay", "az", "p", "q", "r")
+"""Accelerometer [m/s^2] and gyro [rad/s]."""
+ATTITUDE = ("roll", "pitch", "yaw")
+"""Attitude sensor [rad]."""
+CONTROLS = ("elevator", "aileron", "rudder", "throttle")
+"""Commands [rad, rad, rad, 0..1]."""
+GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
+"""GPS ground velocity NED [m/s]."""
+AIR_DATA_SENSORS = ("pitot", "alpha_vane", "beta_vane")
+"""Pitot dynamic pressure [Pa] and vanes [rad]."""
+AIR_DATA = ("airspeed", "alpha", "beta")
+"""Stability triplet [m/s, rad, rad] (the truth channels of a simulated flight)."""
+WIND = ("wind_n", "wind_e", "wind_d")
+"""Wind NED [m/s] (the truth channels of a simulated flight)."""
+
+LOG_CHANNELS = {
+    "ax": "imu_ax", "ay": "imu_ay", "az": "imu_az", "p": "imu_p", "q": "imu_q", "r": "imu_r",
+    "roll": "att_roll", "pitch": "att_pitch", "yaw": "att_yaw", "gps_vn": "gps_vn",
+    "gps_ve": "gps_ve", "gps_vd": "gps_vd", "pitot": "pitot_qbar", "alpha_vane": "vane_alpha",
+    "beta_vane": "vane_beta", "airspeed": "pitot_airspeed", "alpha": "vane_alpha",
+    "beta": "vane_beta", "elevator": "cmd_elevator", "aileron": "cmd_aileron",
+    "rudder": "cmd_rudder", "throttle": "cmd_throttle",
+}
+"""Filter signal name -> measured channel of :func:`~drake_uav.diagrams.fly` logs."""
+
+
+def is_new_sample(value, previous) -> np.ndarray:
+    """True where a held (sample-and-hold) sensor value differs from the previous one;
+    a NaN that repeats is not new (so a NaN sample is counted once)."""
+    value, previous = np.asarray(value, float), np.asarray(previous, float)
+    return ~((value == previous) | (np.isnan(value) & np.isnan(previous)))
+
+
+def fresh_samples(values: np.ndarray) -> np.ndarray:
+    """True where a held sensor channel delivered a new sample (the first row is new)."""
+    values = np.asarray(values, float)
+    fresh = np.ones(len(values), bool)
+    fresh[1:] = is_new_sample(values[1:], values[:-1])
+    return fresh
