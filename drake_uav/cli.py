@@ -141,6 +141,10 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.set_defaults(handler=_cmd_identify)
+
+    from drake_uav.campaigns.command import add_campaign_parser
+
+    add_campaign_parser(sub)
     return parser
 
 

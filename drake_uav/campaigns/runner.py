@@ -1,0 +1,183 @@
+"""Runs a campaign on Dask (or in this process) and streams its rows to Parquet.
+
+:func:`run_campaign` expands the campaign into runs, skips the runs whose rows
+are already on disk (a resumed campaign), submits the others and writes each
+finished row as it arrives (:class:`~drake_uav.campaigns.results.ResultsStore`).
+A run that raises gives an error row; the campaign goes on.
+
+Where the runs go:
+
+* ``workers=None`` (default): a Dask ``LocalCluster`` with one worker process
+  per core, one thread per worker (numerical libraries single-threaded, so the
+  rows do not depend on how many runs share a core);
+* ``workers=N``: a ``LocalCluster`` of N workers;
+* ``scheduler="tcp://host:8786"``: an existing Dask cluster;
+* ``workers=0``: every run in this process, one after the other (no Dask).
+
+The rows are the same, bit for bit, whatever the workers and the order in
+which the runs finish: each run depends only on its seed and parameters, and
+the merged file is sorted by (point, seed). Only ``wall_time_s`` differs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, TextIO
+
+import pyarrow as pa
+
+import drake_uav
+from drake_uav.campaigns.definition import Campaign, RunSpec
+from drake_uav.campaigns.progress import ProgressBar
+from drake_uav.campaigns.registry import scenario as resolve_scenario
+from drake_uav.campaigns.results import METRIC, PARAM, ResultsStore
+
+__all__ = ["CampaignRun", "run_campaign", "execute_run"]
+
+_METRIC_KINDS = (bool, int, float, str, type(None))
+
+
+@dataclasses.dataclass(frozen=True)
+class CampaignRun:
+    """What :func:`run_campaign` did."""
+
+    path: Path
+    """The merged Parquet file."""
+    table: pa.Table
+    """Every row of the campaign (sorted by point, seed)."""
+    ran: int
+    """Runs done in this session."""
+    resumed: int
+    """Runs found on disk and not run again."""
+    errors: int
+    """Error rows in the whole campaign."""
+
+
+def _checked_metrics(metrics: Any) -> dict[str, Any]:
+    if not isinstance(metrics, Mapping):
+        raise TypeError(f"the scenario returned {type(metrics).__name__}, not a dict of metrics")
+    out = {}
+    for name, value in metrics.items():
+        if hasattr(value, "item") and getattr(value, "ndim", 1) == 0:
+            value = value.item()  # numpy scalar
+        if not isinstance(value, _METRIC_KINDS):
+            raise TypeError(f"metric {name!r}: {type(value).__name__} is not a bool, int, "
+                            f"float or str")
+        out[METRIC + str(name)] = value
+    return out
+
+
+def execute_run(scenario, run: RunSpec, version: str) -> dict[str, Any]:
+    """Runs one scenario run and returns its row (an error row if it raises)."""
+    start = time.perf_counter()
+    row = {"point": run.point, "seed": run.seed, "version": version,
+           **{PARAM + k: v for k, v in run.params.items()}}
+    try:
+        metrics = _checked_metrics(resolve_scenario(scenario)(run.seed, dict(run.params)))
+        row.update(status="ok", error=None, **metrics)
+    except Exception as err:  # a failed run is a row, never a lost campaign
+        row.update(status="error", error=f"{type(err).__name__}: {err}")
+    row["wall_time_s"] = time.perf_counter() - start
+    return row
+
+
+def _error_row(run: RunSpec, version: str, err: BaseException) -> dict[str, Any]:
+    return {"point": run.point, "seed": run.seed, "version": version, "status": "error",
+            "error": f"{type(err).__name__}: {err}", "wall_time_s": float("nan"),
+            **{PARAM + k: v for k, v in run.params.items()}}
+
+
+def _run_local(pending, scenario, version, store, bar, rows, flush_every) -> None:
+    for i, run in enumerate(pending, 1):
+        row = execute_run(scenario, run, version)
+        _finish(row, store, bar, rows, flush=i % flush_every == 0)
+
+
+def _finish(row, store, bar, rows, flush: bool) -> None:
+    rows.append(row)
+    store.add(row)
+    if flush:
+        store.flush()
+    bar.update(error=row["status"] != "ok")
+
+
+def _client(workers: int | None, scheduler: str | None):
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        return Client(scheduler), None
+    n = os.cpu_count() or 1 if workers is None else workers
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                           dashboard_address=None, scheduler_kwargs={"dashboard": False})
+    return Client(cluster), cluster
+
+
+def _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers, scheduler):
+    from dask.distributed import as_completed
+
+    client, cluster = _client(workers, scheduler)
+    try:
+        futures = {client.submit(execute_run, scenario, run, version, pure=False): run
+                   for run in pending}
+        for i, future in enumerate(as_completed(futures), 1):
+            try:
+                row = future.result()
+            except Exception as err:  # the worker died (KilledWorker) or could not unpickle
+                row = _error_row(futures[future], version, err)
+            _finish(row, store, bar, rows, flush=i % flush_every == 0)
+            future.release()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_campaign(campaign: Campaign, out: str | os.PathLike, *, workers: int | None = None,
+                 scheduler: str | None = None, progress: bool | TextIO = True,
+                 flush_every: int = 1) -> CampaignRun:
+    """Runs ``campaign`` and writes its rows to the Parquet file ``out``.
+
+    Args:
+        campaign: the scenario, parameters and seeds.
+        out: the results file; if it (or its ``.parts`` folder of an interrupted
+            run) holds rows of the same campaign, only the missing runs are run.
+        workers: Dask workers of a new ``LocalCluster`` (default: one per core);
+            0 runs everything in this process.
+        scheduler: address of an existing Dask scheduler (``workers`` is then unused).
+        progress: a progress bar on stderr (True), on a given stream, or none (False).
+        flush_every: finished rows per part file (1: nothing finished is lost when
+            the campaign is interrupted).
+
+    Raises:
+        ValueError: ``out`` holds rows of another campaign definition.
+    """
+    if flush_every < 1:
+        raise ValueError(f"flush_every must be >= 1, got {flush_every}")
+    store = ResultsStore(out, campaign.definition())
+    rows = store.load()
+    done = {(r["point"], r["seed"]) for r in rows}
+    pending = [run for run in campaign.runs() if run.key not in done]
+    stream = (sys.stderr if progress is True else None) if isinstance(progress, bool) else progress
+    bar = ProgressBar(len(pending), done=len(done), stream=stream)
+    scenario = campaign.scenario
+    resolve_scenario(scenario)  # an unknown name fails here, not in every run
+    version = drake_uav.__version__
+    try:
+        if not pending:
+            pass
+        elif workers == 0 and scheduler is None:
+            _run_local(pending, scenario, version, store, bar, rows, flush_every)
+        else:
+            _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers,
+                      scheduler)
+    finally:
+        store.flush()
+        bar.close()
+    table = store.merge(rows)
+    errors = sum(r["status"] != "ok" for r in rows)
+    return CampaignRun(store.path, table, len(pending), len(done), errors)
