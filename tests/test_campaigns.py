@@ -243,3 +243,17 @@ def test_main_job_scenario_bit_identical_on_one_and_two_workers(tmp_path):
     assert one.errors == 0 and results_equal(one.table, two.table)
     assert {"metric.detected", "metric.false_discoveries", "metric.rms_before",
             "metric.rms_after"} <= set(one.table.column_names)
+
+
+def test_built_in_scenarios_return_their_metrics():
+    from drake_uav.campaigns import scenario, scenario_names
+
+    assert {"main_job", "air_data_ekf"} <= set(scenario_names())
+    ekf = scenario("air_data_ekf")(1, {"duration": 30.0})
+    assert set(ekf) == {"nees", "nis_per_dof", "mae_airspeed", "mae_alpha_deg", "mae_beta_deg",
+                        "mae_wind", "rejected"}
+    assert 0.5 < ekf["nis_per_dof"] < 2.0 and ekf["mae_airspeed"] < 0.5
+    with pytest.raises(ValueError, match="effect 'gremlins' unknown"):
+        scenario("main_job")(1, {"effect": "gremlins"})
+    with pytest.raises(ValueError, match="unknown"):
+        scenario("no_such_scenario")
