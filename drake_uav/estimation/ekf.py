@@ -595,6 +595,130 @@ class FilterRun:
         return {g: int(n) for g, n in zip(self.group_names, total, strict=True)}
 
 
+@dataclasses.dataclass
+class _Samples:
+    """Logged samples checked for :func:`run_filter`, always with a leading batch axis."""
+
+    time: np.ndarray
+    inputs: np.ndarray
+    """(B, N, n_inputs), NaN entries replaced and smoothed inputs smoothed."""
+    measurements: np.ndarray
+    available: np.ndarray
+    """(B, N, n_measurements): a new, finite sample."""
+    nan_measurements: np.ndarray
+    nan_inputs: np.ndarray
+    single: bool
+    """The arrays had no batch axis."""
+
+
+def _samples(ekf: ExtendedKalmanFilter, time, inputs, measurements, available) -> _Samples:
+    """Checks the shapes, counts the NaN samples and prepares the inputs."""
+    time = np.asarray(time, float)
+    U = np.array(inputs, float)
+    Y = np.asarray(measurements, float)
+    single = U.ndim == 2
+    if single:
+        U, Y = U[None], Y[None]
+    batch, n = U.shape[0], time.size
+    if U.shape != (batch, n, ekf.n_inputs) or Y.shape != (batch, n, ekf.n_measurements):
+        raise ValueError(f"run_filter: inputs {U.shape} / measurements {Y.shape} do not match "
+                         f"({batch}, {n}, {ekf.n_inputs}) / ({batch}, {n}, {ekf.n_measurements})")
+    finite = np.isfinite(Y)
+    avail = finite if available is None else np.asarray(available, bool).reshape(Y.shape)
+    nan_measurements = (avail & ~finite).sum(axis=1)
+    bad_u = ~np.isfinite(U)
+    if bad_u[:, 0].any():
+        raise ValueError("run_filter: the first input sample must be finite")
+    _prepare_inputs(ekf.model, time, U, bad_u)
+    return _Samples(time, U, Y, avail & finite, nan_measurements, bad_u.sum(axis=1), single)
+
+
+def _prepare_inputs(model: EkfModel, time: np.ndarray, U: np.ndarray, bad: np.ndarray) -> None:
+    """Replaces NaN inputs by the previous value used and smooths the model's
+    ``smoothed_inputs``, sample by sample as the LeafSystems do (``U`` in place)."""
+    batch, n = U.shape[:2]
+    if not model.smoothed_inputs:
+        for k in np.flatnonzero(bad.any(axis=(0, 2))):
+            U[:, k] = np.where(bad[:, k], U[:, k - 1], U[:, k])
+        return
+    for k in range(1, n):
+        row = np.where(bad[:, k], U[:, k - 1], U[:, k])
+        if batch == 1:
+            U[0, k] = model.smooth_inputs(U[0, k - 1], row[0], time[k] - time[k - 1])
+        else:
+            U[:, k] = model.smooth_inputs(U[:, k - 1], row, time[k] - time[k - 1])
+
+
+def _start(ekf: ExtendedKalmanFilter, samples: _Samples, x0, P0) -> tuple:
+    """Initial states (B, n) and covariances (B, n, n)."""
+    U, Y, avail = samples.inputs, samples.measurements, samples.available
+    batch = len(U)
+    if x0 is None:
+        X = np.array([ekf.model.initial_state(U[b, 0], Y[b, 0], avail[b, 0])
+                      for b in range(batch)])
+        if not np.all(np.isfinite(X)):
+            raise ValueError("run_filter: the first samples do not determine the initial state "
+                             "(missing sensors at the first sample); give x0")
+    else:
+        X = np.broadcast_to(np.asarray(x0, float), (batch, ekf.n_states)).copy()
+    P = np.broadcast_to(ekf.initial_covariance if P0 is None else np.asarray(P0, float),
+                        (batch, ekf.n_states, ekf.n_states)).copy()
+    return X, P
+
+
+class _History:
+    """The per-sample results of :func:`run_filter` as they are filled in."""
+
+    def __init__(self, ekf: ExtendedKalmanFilter, batch: int, n: int, truth,
+                 store_covariance: bool):
+        nx, ny = ekf.n_states, ekf.n_measurements
+        self.truth = None if truth is None else np.asarray(truth, float).reshape(batch, n, nx)
+        self.states, self.stds = np.empty((batch, n, nx)), np.empty((batch, n, nx))
+        self.covariances = np.empty((batch, n, nx, nx)) if store_covariance else None
+        self.nees = None if self.truth is None else np.empty((batch, n))
+        self.nis, self.dof = np.full((batch, n), np.nan), np.zeros((batch, n), int)
+        self.innovation = np.full((batch, n, ny), np.nan)
+        self.innovation_var = np.full((batch, n, ny), np.nan)
+        self.used = np.zeros((batch, n, ny), bool)
+        self.rejected = np.zeros((batch, len(ekf.group_names)), int)
+        self._angle_states = list(ekf.model.angle_states)
+
+    def update(self, k: int, result: UpdateResult) -> None:
+        """Keeps the diagnostics of the update at sample ``k``."""
+        self.nis[:, k], self.dof[:, k], self.used[:, k] = result.nis, result.dof, result.used
+        self.innovation[:, k] = result.innovation
+        self.innovation_var[:, k] = result.innovation_var
+        self.rejected += result.rejected
+
+    def posterior(self, k: int, X: np.ndarray, P: np.ndarray) -> None:
+        """Keeps the posterior at sample ``k`` and its NEES against the truth."""
+        self.states[:, k] = X
+        self.stds[:, k] = np.sqrt(_diagonal(P))
+        if self.covariances is not None:
+            self.covariances[:, k] = P
+        if self.truth is not None:
+            error = X - self.truth[:, k]
+            if self._angle_states:
+                error[:, self._angle_states] = wrap_angle(error[:, self._angle_states])
+            self.nees[:, k] = np.einsum("bi,bi->b", error,
+                                        np.linalg.solve(P, error[..., None])[..., 0])
+
+    def run(self, ekf: ExtendedKalmanFilter, samples: _Samples) -> FilterRun:
+        """The :class:`FilterRun` (without the batch axis for a single flight)."""
+        model = ekf.model
+        out = FilterRun(samples.time, self.states, self.stds, self.nis, self.dof, self.nees,
+                        self.innovation, self.innovation_var, self.used, self.rejected,
+                        samples.nan_measurements, samples.nan_inputs, self.covariances,
+                        tuple(model.state_names), tuple(model.measurement_names),
+                        ekf.group_names)
+        if samples.single:
+            for f in dataclasses.fields(FilterRun):
+                value = getattr(out, f.name)
+                if isinstance(value, np.ndarray) and f.name != "time":
+                    setattr(out, f.name, value[0])
+        return out
+
+
 def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=None, *,
                x0: np.ndarray | None = None, P0: np.ndarray | None = None, truth=None,
                store_covariance: bool = False) -> FilterRun:
@@ -617,55 +741,11 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
         truth: ([B,] N, n) true states for the NEES.
         store_covariance: also return the full covariance history.
     """
-    model = ekf.model
-    time = np.asarray(time, float)
-    U = np.array(inputs, float)
-    Y = np.asarray(measurements, float)
-    single = U.ndim == 2
-    if single:
-        U, Y = U[None], Y[None]
-    batch, n = U.shape[0], time.size
-    if U.shape != (batch, n, ekf.n_inputs) or Y.shape != (batch, n, ekf.n_measurements):
-        raise ValueError(f"run_filter: inputs {U.shape} / measurements {Y.shape} do not match "
-                         f"({batch}, {n}, {ekf.n_inputs}) / ({batch}, {n}, {ekf.n_measurements})")
-    finite = np.isfinite(Y)
-    avail = finite if available is None else np.asarray(available, bool).reshape(Y.shape)
-    nan_measurements = (avail & ~finite).sum(axis=1)
-    avail = avail & finite
-    bad_u = ~np.isfinite(U)
-    nan_inputs = bad_u.sum(axis=1)
-    if bad_u[:, 0].any():
-        raise ValueError("run_filter: the first input sample must be finite")
-    if model.smoothed_inputs:
-        # Sample by sample, as the LeafSystem: a NaN input takes the previous value used.
-        for k in range(1, n):
-            row = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
-            if batch == 1:
-                U[0, k] = model.smooth_inputs(U[0, k - 1], row[0], time[k] - time[k - 1])
-            else:
-                U[:, k] = model.smooth_inputs(U[:, k - 1], row, time[k] - time[k - 1])
-    else:
-        for k in np.flatnonzero(bad_u.any(axis=(0, 2))):
-            U[:, k] = np.where(bad_u[:, k], U[:, k - 1], U[:, k])
-    if x0 is None:
-        X = np.array([model.initial_state(U[b, 0], Y[b, 0], avail[b, 0]) for b in range(batch)])
-        if not np.all(np.isfinite(X)):
-            raise ValueError("run_filter: the first samples do not determine the initial state "
-                             "(missing sensors at the first sample); give x0")
-    else:
-        X = np.broadcast_to(np.asarray(x0, float), (batch, ekf.n_states)).copy()
-    P = np.broadcast_to(ekf.initial_covariance if P0 is None else np.asarray(P0, float),
-                        (batch, ekf.n_states, ekf.n_states)).copy()
-    E = None if truth is None else np.asarray(truth, float).reshape(batch, n, ekf.n_states)
-    nx, ny, ng = ekf.n_states, ekf.n_measurements, len(ekf.group_names)
-    states, stds = np.empty((batch, n, nx)), np.empty((batch, n, nx))
-    covariances = np.empty((batch, n, nx, nx)) if store_covariance else None
-    nees = None if E is None else np.empty((batch, n))
-    nis, dof = np.full((batch, n), np.nan), np.zeros((batch, n), int)
-    innovation, innovation_var = np.full((batch, n, ny), np.nan), np.full((batch, n, ny), np.nan)
-    used = np.zeros((batch, n, ny), bool)
-    rejected = np.zeros((batch, ng), int)
-    angle_states = list(model.angle_states)
+    samples = _samples(ekf, time, inputs, measurements, available)
+    time, U, Y, avail = samples.time, samples.inputs, samples.measurements, samples.available
+    batch, n = U.shape[:2]
+    X, P = _start(ekf, samples, x0, P0)
+    history = _History(ekf, batch, n, truth, store_covariance)
     # A single flight runs as one filter (the cheaper per-sample path).
     cut = (lambda a: a[0]) if batch == 1 else (lambda a: a)
     X, P = cut(X), cut(P)
@@ -676,26 +756,6 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
         if avail[:, k].any():
             result = ekf.update(X, P, cut(U[:, k]), cut(Y[:, k]), cut(avail[:, k]))
             X, P = result.x, result.P
-            nis[:, k], dof[:, k], used[:, k] = result.nis, result.dof, result.used
-            innovation[:, k], innovation_var[:, k] = result.innovation, result.innovation_var
-            rejected += result.rejected
-        states[:, k] = X
-        stds[:, k] = np.sqrt(_diagonal(P))
-        if covariances is not None:
-            covariances[:, k] = P
-        if E is not None:
-            error = X - E[:, k]
-            if angle_states:
-                error[:, angle_states] = wrap_angle(error[:, angle_states])
-            nees[:, k] = np.einsum("bi,bi->b", error,
-                                   np.linalg.solve(P, error[..., None])[..., 0])
-    out = FilterRun(time, states, stds, nis, dof, nees, innovation, innovation_var, used,
-                    rejected, nan_measurements, nan_inputs, covariances,
-                    tuple(model.state_names), tuple(model.measurement_names),
-                    ekf.group_names)
-    if single:
-        for f in dataclasses.fields(FilterRun):
-            value = getattr(out, f.name)
-            if isinstance(value, np.ndarray) and f.name != "time":
-                setattr(out, f.name, value[0])
-    return out
+            history.update(k, result)
+        history.posterior(k, X, P)
+    return history.run(ekf, samples)
