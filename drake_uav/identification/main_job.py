@@ -15,6 +15,7 @@ import numpy as np
 from drake_uav.identification.discovery import (
     DiscoveryResult,
     EvidenceRule,
+    FoundEffect,
     IdentifiedDerivatives,
     discover,
     fit_derivatives,
@@ -26,10 +27,13 @@ from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["IdentificationRun", "identify", "identify_derivatives", "coefficient_uncertainty"]
+__all__ = ["IdentificationRun", "identify", "identify_samples", "identify_derivatives",
+           "coefficient_uncertainty"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 """Reconstructed outputs, in the order of :class:`Reconstruction` columns."""
+RECONSTRUCTED_UNITS = ("m/s", "rad", "rad", "rad/s", "rad/s", "rad/s")
+"""Units of :data:`RECONSTRUCTED_OUTPUTS`."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,7 +50,13 @@ class IdentificationRun:
     """Monte-Carlo standard deviation of the measured C_L, C_D, C_Y (Vaiopoulos 2017, sec. 5.6)."""
 
     def summary(self) -> dict:
-        """JSON-ready summary: effects with evidence, errors before/after, parameters."""
+        """JSON-ready summary: effects with evidence, errors before/after, parameters.
+
+        Run-level keys: ``source, aircraft, message, samples, holdout_start_s, effects,
+        equation_error_rms_holdout, reconstruction_mae_holdout, reconstruction_divergences,
+        measured_coefficient_sigma_monte_carlo, parameters``; each entry of ``effects`` has
+        ``name, kind, explanation, coefficients, evidence, parameters``.
+        """
         d = self.discovery
         rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0}
                for k, (b, a) in d.rms_change().items()}
@@ -57,22 +67,11 @@ class IdentificationRun:
             "message": d.message,
             "samples": len(self.samples),
             "holdout_start_s": d.holdout_start,
-            "effects": [
-                {"name": f.name, "kind": f.kind, "explanation": f.explanation,
-                 "coefficients": list(f.coefficients),
-                 "evidence": [dataclasses.asdict(e) for e in f.evidence],
-                 "reconstruction_divergences": {"before": self.reconstruction_before.divergences,
-                                           "after": self.reconstruction_after.divergences},
-            "measured_coefficient_sigma_monte_carlo": self.coefficient_sigma,
-            "parameters": {k: {"estimate": v[0], "sigma": v[1]}
-                                for k, v in f.parameters.items()}}
-                for f in d.found
-            ],
+            "effects": [_effect_summary(f) for f in d.found],
             "equation_error_rms_holdout": rms,
             "reconstruction_mae_holdout": {
                 name: {"before": float(b), "after": float(a), "unit": unit}
-                for name, unit, b, a in zip(RECONSTRUCTED_OUTPUTS,
-                                            ("m/s", "rad", "rad", "rad/s", "rad/s", "rad/s"),
+                for name, unit, b, a in zip(RECONSTRUCTED_OUTPUTS, RECONSTRUCTED_UNITS,
                                             mae_b, mae_a, strict=True)
             },
             "reconstruction_divergences": {"before": self.reconstruction_before.divergences,
@@ -86,6 +85,15 @@ class IdentificationRun:
                 for k, fit in d.final.items()
             },
         }
+
+
+def _effect_summary(found: FoundEffect) -> dict:
+    """JSON-ready entry of one found effect: what it is, its evidence and parameters."""
+    return {"name": found.name, "kind": found.kind, "explanation": found.explanation,
+            "coefficients": list(found.coefficients),
+            "evidence": [dataclasses.asdict(e) for e in found.evidence],
+            "parameters": {k: {"estimate": v[0], "sigma": v[1]}
+                           for k, v in found.parameters.items()}}
 
 
 def _reconstruct(samples: AeroSamples, params, discovery: DiscoveryResult, fits,
@@ -154,6 +162,22 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     say = progress or (lambda message: None)
     say("isolating aerodynamic coefficients")
     samples = samples_from_log(log, params, rate_hz=rate_hz)
+    return identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
+                            progress=say, source=source, seed=seed)
+
+
+def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
+                     rule: EvidenceRule | None = None, reset_interval: float = 5.0,
+                     progress: Callable[[str], None] | None = None,
+                     source: str = "flight samples", seed: int = 0) -> IdentificationRun:
+    """The main job after the isolation: discovery, reconstruction, uncertainty.
+
+    :func:`identify` with the measured coefficients already in ``samples``
+    (:func:`~drake_uav.identification.flight_data.samples_from_log` or
+    :func:`~drake_uav.identification.isolation.isolate_coefficients`); the
+    ``samples.signals`` must hold ``roll`` and ``pitch`` [rad].
+    """
+    say = progress or (lambda message: None)
     result = discover(samples, params, rule=rule, progress=say)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)

@@ -1,0 +1,44 @@
+"""The main job's result: the structure of ``IdentificationRun.summary()`` (summary.json)."""
+
+import json
+
+import pytest
+from synthetic_flight import synthetic_samples
+
+from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS, identify_samples
+
+RUN_KEYS = {"source", "aircraft", "message", "samples", "holdout_start_s", "effects",
+            "equation_error_rms_holdout", "reconstruction_mae_holdout",
+            "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
+            "parameters"}
+EFFECT_KEYS = {"name", "kind", "explanation", "coefficients", "evidence", "parameters"}
+
+
+@pytest.fixture(scope="module")
+def run():
+    """A 40 s flight whose lift bends with alpha^3: the loop finds one effect."""
+    params, samples, _ = synthetic_samples(
+        increment=lambda c: (-30.0 * c.alpha**3, 0, 0, 0, 0, 0), seed=2, duration=40.0)
+    return identify_samples(samples, params, source="synthetic")
+
+
+def test_summary_has_each_run_level_key_once_and_effects_only_their_own(run):
+    summary = run.summary()
+    assert set(summary) == RUN_KEYS
+    assert [e["name"] for e in summary["effects"]] == ["stall_onset"]
+    for effect in summary["effects"]:
+        assert set(effect) == EFFECT_KEYS
+        assert effect["coefficients"] == ["CL"]
+        assert set(effect["parameters"]) == {"CL:alpha3", "CL:alpha4"}
+        assert all(e["coefficient"] == "CL" for e in effect["evidence"])
+    assert summary["reconstruction_divergences"] == {
+        "before": run.reconstruction_before.divergences,
+        "after": run.reconstruction_after.divergences}
+    assert set(summary["measured_coefficient_sigma_monte_carlo"]) == {"CL", "CD", "CY"}
+    assert set(summary["reconstruction_mae_holdout"]) == set(RECONSTRUCTED_OUTPUTS)
+    assert set(summary["parameters"]) == set(summary["equation_error_rms_holdout"]) == {
+        "CL", "CD", "CY", "Cl", "Cm", "Cn"}
+    assert summary["parameters"]["CL"]["stall_onset:alpha3"]["significant"]
+    text = json.dumps(summary, default=lambda value: value.item())  # numpy scalars
+    assert text.count('"reconstruction_divergences"') == 1
+    assert text.count('"measured_coefficient_sigma_monte_carlo"') == 1
