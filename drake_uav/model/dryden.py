@@ -1,33 +1,33 @@
-"""Dryden turbulence (MIL-F-8785C) plus steady wind, as a Drake system.
+"""Dryden turbulence: length scales, spectra and the exact discrete shaping filters.
 
-The gust components follow Vaiopoulos 2017, eq. (2.11), the Dryden shaping filters of
-MIL-F-8785C driven by unit-intensity white noise (a = V/L, V airspeed):
+The gust components are the Dryden shaping filters of MIL-F-8785C (Vaiopoulos
+2017, eq. 2.11) driven by unit-intensity white noise, with ``a = V / L`` [1/s]
+(V airspeed [m/s], L length scale [m], sigma rms intensity [m/s]):
 
     H_u(s) = sigma_u sqrt(2 a_u) / (s + a_u)
     H_v(s) = sigma_v sqrt(3 a_v) (s + a_v/sqrt(3)) / (s + a_v)^2
     H_w(s) = sigma_w sqrt(3 a_w) (s + a_w/sqrt(3)) / (s + a_w)^2
 
-Seed typo: Vaiopoulos 2017, eq. 2.11b prints L_u in the gain and the pole of H_v. The filter here
-uses L_v, as MIL-F-8785C does (the two coincide in the seed's own table).
+H_v uses L_v where eq. 2.11b prints L_u (docs/references.md).
 
-Gusts are body-axis components (translational only, as in the seed); the output
-``wind_ned`` is the steady wind plus the gust rotated to NED with the aircraft
-attitude. MIL-F-8785C orients the low-altitude components along the mean wind
-instead; for a small UAV flying through a short identification pattern the
-body-axis form of the seed is used throughout.
+Scales: :func:`dryden_scales` with ``model="mil-f-8785c"`` (altitude-dependent)
+or ``model="seed"`` (the rows of Vaiopoulos 2017, Figure 7, after Beard &
+McLain; light and moderate only).
 
-Discretisation: each filter is realised as the cascade z1 = xi/(s + a),
-z2 = z1/(s + a) and advanced with its exact transition matrix and the exact
-covariance of the integrated white noise. Sampled gusts therefore have the
-continuous process's variance and autocorrelation for any update period. The
-filter starts in its stationary distribution (drawn from the first noise sample).
+Gusts are body-axis, translational components, as in Vaiopoulos 2017. MIL-F-8785C
+orients the low-altitude components along the mean wind instead; over the short
+pattern of a small-UAV identification flight the two differ little, and the
+body-axis form needs no wind heading.
 
-Hold: real wind is continuous. With ``hold="first_order"`` (default) the wind
-reaching the plant is the piecewise-linear interpolation of the filter samples,
-one update period late (a Drake ``Integrator`` of the held slope between two
-samples), so no step of the wind ever coincides with a sensor sample and a
-fixed-step integrator needs no extra step boundary. ``hold="zero_order"`` holds
-each sample for a period (steps at the updates).
+Discretisation: each filter is the cascade z1 = xi/(s + a), z2 = z1/(s + a),
+advanced with its exact transition matrix and the exact covariance of the
+integrated white noise (:func:`dryden_transition`). The sampled gusts then have
+the continuous process's variance and autocorrelation for any update period,
+which an Euler step would not give; the first sample is drawn from the
+stationary distribution. :func:`_filter_step`, one update period of the three
+filters, is written once, scalar-generic, and runs as compiled code
+(:func:`compiled_filter_step`); the Drake systems that hold it are in
+:mod:`drake_uav.systems.wind`.
 """
 
 from __future__ import annotations
@@ -80,14 +80,14 @@ _HIGH_ALT_SIGMA_FPS = {
 _HIGH_ALT_LENGTH_FT = 1750.0
 
 # Vaiopoulos 2017, Figure 7 (after Beard & McLain): (altitude, L_u = L_v, L_w, sigma_u = sigma_v,
-# sigma_w) in m and m/s per level. The seed gives no "severe" rows.
+# sigma_w) in m and m/s per level. The figure gives no "severe" rows.
 _SEED_TABLE = {
     ("low", "light"): (50.0, 200.0, 50.0, 1.06, 0.7),
     ("low", "moderate"): (50.0, 200.0, 50.0, 2.12, 1.4),
     ("medium", "light"): (600.0, 533.0, 533.0, 1.5, 1.5),
     ("medium", "moderate"): (600.0, 533.0, 533.0, 3.0, 3.0),
 }
-# Altitude [m] that separates the seed's 50 m and 600 m rows (their midpoint).
+# Altitude [m] that separates the figure's 50 m and 600 m rows (their midpoint).
 _SEED_ROW_SPLIT = 325.0
 
 # Output row of the cascade realisation: y = sigma sqrt(k a) (z1 + g a z2).
@@ -119,6 +119,7 @@ class TurbulenceScales:
 
 
 def check_turbulence_level(level: str, model: str) -> None:
+    """Raises ValueError naming ``model`` or ``level`` when the pair is unknown or unsupported."""
     if model not in TURBULENCE_MODELS:
         raise ValueError(f"model: unknown turbulence model {model!r}; use {TURBULENCE_MODELS}")
     if level not in TURBULENCE_LEVELS:

@@ -44,7 +44,9 @@ class AerodynamicIncrement(LeafSystem):
     ``increment(condition)`` returns ``(dCL, dCD, dCY, dCl, dCm, dCn)``; the
     condition (:meth:`FixedWingModel.aero_condition`) carries the air data,
     body rates, surfaces (saturated as in the plant) and the thrust coefficient of
-    the params' propulsion model.
+    the params' propulsion model. The wrench is ``qbar S`` times the increments
+    in body axes: ``(dC_X, dC_Z)`` from ``(dCL, dCD)`` at alpha, the moments
+    scaled by the span (roll, yaw) and the chord (pitch).
     """
 
     def __init__(self, params: FixedWingParams, increment: IncrementFunction):

@@ -8,10 +8,13 @@ Signals (plain functions of a time array and frozen dataclasses that call them):
   :func:`schroeder_phases` gives Schroeder's low-peak-factor phases;
   :func:`low_peak_factor_phases` refines them by iterative clipping (keeping the
   harmonic amplitudes) and shifts the signal so it starts at zero, as in
-  Morelli's multiple-input design.
+  Morelli's multiple-input design (Klein & Morelli 2006).
 * :func:`orthogonal_multisines`: several surfaces excited at once with disjoint
-  harmonic sets, mutually orthogonal over each period.
+  harmonic sets, mutually orthogonal over each period, so one manoeuvre
+  separates the effect of each surface.
 
+Times are in seconds, frequencies in Hz; amplitudes are in the unit of their
+surface (rad for elevator, aileron and rudder, a 0..1 fraction for throttle).
 :class:`ExcitationSource` adds the signals to the trim controls and holds the
 result at a fixed sample period (the autopilot's output rate).
 """

@@ -1,6 +1,13 @@
 """The sensor suite as Drake systems: one sampled LeafSystem and its noise source.
 
-The sensor models and their parameters are in :mod:`drake_uav.vehicles.sensors`.
+:class:`SampledSensors` samples every fitted sensor that is due in one periodic
+update at the suite's base rate (each sensor's rate divides it) and holds the
+measurements in between: one update per tick instead of one per sensor keeps
+a 100 Hz flight cheap. Noise arrives on an input port, so the same system runs
+with a Drake ``RandomSource`` (:class:`SensorSuite`, seeded through the root
+context) or with given samples. Measurements are in SI units (m/s^2, rad/s, m,
+m/s, Pa, rad). The sensor models and their parameters are in
+:mod:`drake_uav.vehicles.sensors`.
 """
 
 from __future__ import annotations

@@ -1,4 +1,17 @@
-"""Dryden turbulence plus steady wind as Drake systems, over :mod:`drake_uav.model.dryden`."""
+"""Dryden turbulence plus steady wind as Drake systems, over :mod:`drake_uav.model.dryden`.
+
+:class:`DrydenFilter` is the LeafSystem (one compiled update per period, noise
+as an input); :class:`DrydenWind` is the diagram a flight uses: the filter, its
+own Drake ``RandomSource`` (seeded through the root context) and the hold.
+Output ``wind_ned`` [m/s] goes to the plant's ``wind_ned`` input.
+
+Hold: real wind is continuous. With ``hold="first_order"`` (default) the wind
+reaching the plant is the piecewise-linear interpolation of the filter samples,
+one update period late (a Drake ``Integrator`` of the held slope between two
+samples). No step of the wind then coincides with a sensor sample, and a
+fixed-step integrator at the sensor period needs no extra step boundary.
+``hold="zero_order"`` holds each sample for a period (steps at the updates).
+"""
 
 from __future__ import annotations
 
@@ -26,7 +39,8 @@ class DrydenParams:
 
     Attributes:
         level: "light", "moderate" or "severe".
-        model: "mil-f-8785c" (altitude-dependent) or "seed" (Vaiopoulos 2017, Figure 7 rows).
+        model: "mil-f-8785c" (altitude-dependent) or "seed" (the rows of Vaiopoulos 2017,
+            Figure 7).
         steady_wind_ned: steady wind (N, E, D) [m/s].
         airspeed: fixed airspeed [m/s] for the filters; None: from ``plant_state``.
         altitude: fixed altitude [m] for the scales; None: -pD from ``plant_state``.
@@ -84,8 +98,9 @@ class DrydenFilter(LeafSystem):
     Discrete system sampled every ``params.update_period``; outputs are held
     between samples and depend on the state only (no direct feedthrough). The
     update (airspeed, break frequencies, exact transition, gust, rotation to NED)
-    is one compiled call of the scalar-generic ``_filter_step``; the length scales
-    and intensities of the altitude are computed before it.
+    is one compiled call of the scalar-generic
+    :func:`drake_uav.model.dryden._filter_step`; the length scales and
+    intensities of the altitude are computed before it.
 
     | port (in)     | size | units                                               |
     |---------------|------|-----------------------------------------------------|

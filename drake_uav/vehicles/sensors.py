@@ -1,30 +1,29 @@
-"""Low-cost sensor suite: IMU, GPS, pitot, wind vanes, attitude (INS) and barometer.
+"""Sensor parameters of the low-cost suite: IMU, GPS, pitot, wind vanes, attitude (INS), barometer.
 
-Every channel follows the generic model of Vaiopoulos 2017, eq. (5.1):
+Every channel follows the generic model of Vaiopoulos 2017, eq. 5.1:
 
     y_k = (1 + s_f) x(t_k - latency) + b_0 + b_rw(t_k) + eta_k
 
 with x the true value, s_f a scale-factor error, b_0 a constant bias, b_rw a
-bias random walk (bias instability, density sigma_rw [unit/sqrt(s)], so the
-bias moves by sigma_rw sqrt(dt) per sample), and eta_k white noise
-N(0, sigma^2). The true values are the seed's: specific force for the
-accelerometer (5.4)-(5.6), body rates (5.7), NED position and velocity (5.8),
-Euler angles (5.9), dynamic pressure (5.10), alpha/beta (5.11). The pitot
-channel also reports airspeed sqrt(2 q_meas / rho).
+bias random walk (density sigma_rw [unit/sqrt(s)]: the bias moves by
+sigma_rw sqrt(dt) per sample) and eta_k white noise N(0, sigma^2). The true
+values are those of Vaiopoulos 2017: specific force for the accelerometer
+(eq. 5.4-5.6), body rates (5.7), NED position and velocity (5.8), Euler angles
+(5.9), dynamic pressure (5.10), alpha and beta (5.11); the pitot channel also
+reports the airspeed sqrt(2 q_meas / rho).
 
-:class:`SensorSuite` is one diagram: a Drake ``RandomSource`` (seeded through the
-root context) and one :class:`SampledSensors` LeafSystem whose single periodic
-update, at ``base_rate_hz``, samples every sensor that is due (each sensor's
-rate divides the base rate) and holds the measurements in between.
+Each sensor dataclass holds its error groups (:class:`ChannelErrors`, in the
+unit of its channels), ``rate_hz`` [Hz] and ``latency`` [s];
+:class:`SensorSuiteParams` says which sensors are fitted and the base rate.
 
-Default noise levels (:meth:`SensorSuiteParams.seed_table7`) come from Vaiopoulos 2017
-Table 7 (values printed as +-2 sigma, so sigma = value / 2); the biases are
-zero as in the seed's simplification (5.12). Where the seed is silent,
-typical low-cost autopilot figures are used: GPS position sigma 1.0 m
-horizontal / 2.0 m vertical with 0.1 s latency (u-blox class receiver), GPS
-velocity taken from Table 7 at 20 Hz, barometric altitude sigma 0.5 m at
-50 Hz (MS5611 class). The printed gyro noise, 0.7 rad/s (2 sigma), is
-implausible for a MEMS gyro; the unit is a parameter and deg/s is the default.
+Defaults: the white-noise levels of Vaiopoulos 2017, Table 7 (printed as
++-2 sigma, so sigma = value / 2) with zero biases, as in its eq. 5.12. The gyro
+level is read in deg/s: Table 7 prints 0.7 rad/s, implausible for a MEMS gyro
+(docs/references.md). GPS position and latency and the barometer, which the
+thesis does not give, take typical low-cost figures (u-blox class receiver,
+MS5611 class barometer); the table of defaults is in docs/flight_data.md.
+
+The Drake systems that sample these sensors are in :mod:`drake_uav.systems.sensors`.
 """
 
 from __future__ import annotations
