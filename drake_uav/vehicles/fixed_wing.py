@@ -1,8 +1,11 @@
 """Fixed-wing aircraft parameters and the catalog (Aerosonde, UnATRaP).
 
 Aerodynamic derivatives are named ``<coefficient>_<signal>``, e.g. ``CL_alpha``,
-``CD_alpha2`` or ``Cn_rudder``; :mod:`drake_uav.systems.aerodynamics` defines the
-coefficients, the signals and the regressor each name stands for.
+``CD_alpha2`` or ``Cn_rudder``; :mod:`drake_uav.model.coefficients` defines the
+coefficients, the signals and the regressor each name stands for. Units: SI
+(kg, m, m^2, kg m^2, kg/m^3), angles in rad; derivatives are non-dimensional,
+per rad or per unit of their normalised signal. Every dataclass validates its
+fields and raises ``ValueError`` naming the first invalid one.
 """
 
 from __future__ import annotations
@@ -369,12 +372,12 @@ def aerosonde_mavsim() -> FixedWingParams:
 def unatrap() -> FixedWingParams:
     """UnATRaP of Vaiopoulos 2017: Table 8 geometry, Table 10 force derivatives.
 
-    From the seed: operating mass 12.6 kg, chord 0.34 m, span 2.72 m, wing area
+    From the thesis: operating mass 12.6 kg, chord 0.34 m, span 2.72 m, wing area
     0.92 m^2, and the C_L, C_D, C_Y derivatives identified from flight 2 (Table 10,
     as printed, including the doubtful C_D0 = C_Dalpha = 0.1268 and the positive
     C_Ybeta; C_DTc multiplies the thrust coefficient T / (qbar S)).
 
-    Assumed (the seed does not give them):
+    Assumed (the thesis does not give them):
     * inertia: the Aerosonde's scaled by mass and by span^2 (roll, yaw) or chord
       and span (pitch): Jx = 0.68, Jy = 1.78, Jz = 1.45, Jxz = 0.10 kg m^2;
     * moment derivatives: the Aerosonde's values (static and damping

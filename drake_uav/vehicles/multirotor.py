@@ -17,8 +17,9 @@ about x maps its matrices onto these ones: the ``tau_y`` and ``tau_z`` rows chan
 sign, its arm azimuths ``psi_i`` (counter-clockwise from above) become
 ``a_i = -psi_i``, and its ``+k_m`` yaw entries are the clockwise rotors.
 
-The seed gives no mass, inertia, arm length, ``km`` or ``f_max``; the catalog
-values are assumptions for typical 450 mm (quad) and 550 mm (hexa) frames.
+Argyropoulos 2020 gives no mass, inertia, arm length, ``km`` or ``f_max``; the
+catalog values are assumptions for typical 450 mm (quad) and 550 mm (hexa)
+frames (docs/multirotor.md).
 """
 
 from __future__ import annotations
@@ -189,7 +190,8 @@ class MultirotorParams:
 
 
 def _from_seed_azimuths(name: str, seed_azimuths_deg, seed_yaw_signs, **values):
-    """Builds params from the seed's z-up arm azimuths (counter-clockwise from above)."""
+    """Builds params from the z-up arm azimuths [deg] (counter-clockwise seen from above) and
+    yaw-entry signs of Argyropoulos 2020, eq. 1.2-1.3."""
     return MultirotorParams(
         name=name,
         arm_angles=tuple(-math.radians(a) for a in seed_azimuths_deg),
