@@ -11,10 +11,10 @@ gyros are noisy. Here the same dynamics are integrated in their body-axis form
 with (C_X, C_Z) from the identified (C_L, C_D) and the stability triplet from
 :func:`air_data_from_velocity`. The body rates are integrated too, with the
 identified moment coefficients, so that moment effects show in output error
-(the seed drives the force equations with the measured rates instead).
+(Vaiopoulos 2017 drives the force equations with the measured rates instead).
 
 Every ``reset_interval`` seconds the state is reset to the measured air data
-and rates (the periodic correction; the seed does not give its law or period).
+and rates (the periodic correction, whose law and period Vaiopoulos 2017 does not give).
 Baseline terms are evaluated at the reconstructed state; columns of added
 effects on the logged signals; effects of kind ``"sensor"`` are left out (they
 describe the data, not the aircraft).
@@ -95,9 +95,18 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
         raise ValueError(f"reconstruct: reset_interval must be positive, got {reset_interval}")
     terms = {k: _split_terms(*models[k], exclude_prefixes) for k in COEFFICIENTS}
     c = samples.condition
-    n = len(samples)
-    t = samples.time
     measured = np.column_stack([c.airspeed, c.alpha, c.beta, c.p, c.q, c.r])
+    out, divergences = _integrate(_derivative(samples, params, terms), samples.time, measured,
+                                  reset_interval)
+    return Reconstruction(time=samples.time.copy(), measured=measured, reconstructed=out,
+                          reset_interval=reset_interval, divergences=divergences)
+
+
+def _derivative(samples: AeroSamples, params: FixedWingParams, terms):
+    """``f(i, y)``: d/dt of y = (u, v, w, p, q, r) [m/s, rad/s] at sample i, driven by the
+    logged attitude, surfaces and thrust (module docstring)."""
+    c = samples.condition
+    n = len(samples)
     controls = np.column_stack([c.elevator, c.aileron, c.rudder, c.flap])
     model = FixedWingModel(params)
     thrust = samples.thrust
@@ -128,9 +137,19 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
             *model.angular_acceleration((p, q, r), moment),
         ])
 
+    return derivative
+
+
+def _integrate(derivative, t: np.ndarray, measured: np.ndarray, reset_interval: float):
+    """Heun (RK2) integration of ``derivative`` over the sample times ``t``, reset to the
+    ``measured`` (N, 6) air data and rates every ``reset_interval`` [s] and after a blow-up
+    (non-finite, or airspeed beyond twice the largest measured). Returns the (N, 6)
+    reconstructed air data and rates (NaN where an integration blew up) and the number of
+    blow-ups."""
+    n = len(t)
     out = np.empty((n, 6))
     next_reset = t[0]
-    speed_limit = 2.0 * float(np.max(c.airspeed))
+    speed_limit = 2.0 * float(np.max(measured[:, 0]))
     divergences = 0
     y = None
     with np.errstate(all="ignore"):
@@ -148,5 +167,4 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
                     divergences += 1
                     out[i] = np.nan
                     y = None
-    return Reconstruction(time=t.copy(), measured=measured, reconstructed=out,
-                          reset_interval=reset_interval, divergences=divergences)
+    return out, divergences

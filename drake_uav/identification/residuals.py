@@ -257,67 +257,81 @@ class ResidualDiagnosis:
 
         ``include_series`` adds the probability-plot and PSD arrays (N and ~nperseg/2 values).
         """
-        out = {
+        return {
             "n": self.n,
             "sample_rate_hz": self.sample_rate,
             "alpha": self.alpha,
             "mean": self.mean,
             "std": self.std,
             "rms": self.rms,
-            "whiteness": {
-                "is_white": self.is_white,
-                "acf_lags": self.acf_lags.tolist(),
-                "acf": self.acf.tolist(),
-                "acf_bound": self.acf_bound,
-                "acf_fraction_outside": self.acf_fraction_outside,
-                "ljung_box_statistic": self.ljung_box_statistic,
-                "ljung_box_dof": self.ljung_box_dof,
-                "ljung_box_pvalue": self.ljung_box_pvalue,
-                "n_eff": self.n_eff,
-                "integrated_time_samples": self.integrated_time,
-                "n_eff_lag": self.n_eff_lag,
-            },
-            "normality": {
-                "is_normal": self.is_normal,
-                "probability_plot_r": self.probability_plot_r,
-                "skewness": self.skewness,
-                "excess_kurtosis": self.excess_kurtosis,
-                "jarque_bera_pvalue": self.jarque_bera_pvalue,
-                "dagostino_pvalue": self.normality_pvalue,
-            },
-            "spectrum": {
-                "psd_dof": self.psd_dof,
-                "peak_ratio_threshold": self.peak_ratio_threshold,
-                "peaks": [
-                    {"frequency_hz": p.frequency, "ratio": p.ratio, "psd": p.psd,
-                     "p_value": p.p_value}
-                    for p in self.spectral_peaks
-                ],
-            },
-            "stationarity": {
-                "is_stationary": self.is_stationary,
-                "drift_slope_per_s": self.drift_slope,
-                "drift_slope_sigma": self.drift_slope_sigma,
-                "drift_pvalue": self.drift_pvalue,
-                "drift_significant": self.drift_significant,
-                "segment_std": self.segment_std.tolist(),
-                "variance_statistic": self.variance_statistic,
-                "variance_pvalue": self.variance_pvalue,
-                "variance_change_significant": self.variance_change_significant,
-            },
+            "whiteness": self._whiteness_dict(),
+            "normality": self._normality_dict(include_series),
+            "spectrum": self._spectrum_dict(include_series),
+            "stationarity": self._stationarity_dict(),
             "candidates": [
                 {"name": c.name, "r": c.r, "p_value": c.p_value, "p_adjusted": c.p_adjusted,
                  "n_eff": c.n_eff, "significant": c.significant}
                 for c in self.candidates
             ],
         }
+
+    def _whiteness_dict(self) -> dict:
+        return {
+            "is_white": self.is_white,
+            "acf_lags": self.acf_lags.tolist(),
+            "acf": self.acf.tolist(),
+            "acf_bound": self.acf_bound,
+            "acf_fraction_outside": self.acf_fraction_outside,
+            "ljung_box_statistic": self.ljung_box_statistic,
+            "ljung_box_dof": self.ljung_box_dof,
+            "ljung_box_pvalue": self.ljung_box_pvalue,
+            "n_eff": self.n_eff,
+            "integrated_time_samples": self.integrated_time,
+            "n_eff_lag": self.n_eff_lag,
+        }
+
+    def _normality_dict(self, include_series: bool) -> dict:
+        out = {
+            "is_normal": self.is_normal,
+            "probability_plot_r": self.probability_plot_r,
+            "skewness": self.skewness,
+            "excess_kurtosis": self.excess_kurtosis,
+            "jarque_bera_pvalue": self.jarque_bera_pvalue,
+            "dagostino_pvalue": self.normality_pvalue,
+        }
         if include_series:
-            out["normality"]["normal_quantiles"] = self.normal_quantiles.tolist()
-            out["normality"]["ordered_residuals"] = self.ordered_residuals.tolist()
-            out["spectrum"]["frequencies_hz"] = self.psd_frequencies.tolist()
-            out["spectrum"]["psd"] = self.psd.tolist()
-            out["spectrum"]["background"] = self.psd_background.tolist()
+            out["normal_quantiles"] = self.normal_quantiles.tolist()
+            out["ordered_residuals"] = self.ordered_residuals.tolist()
         return out
+
+    def _spectrum_dict(self, include_series: bool) -> dict:
+        out = {
+            "psd_dof": self.psd_dof,
+            "peak_ratio_threshold": self.peak_ratio_threshold,
+            "peaks": [
+                {"frequency_hz": p.frequency, "ratio": p.ratio, "psd": p.psd,
+                 "p_value": p.p_value}
+                for p in self.spectral_peaks
+            ],
+        }
+        if include_series:
+            out["frequencies_hz"] = self.psd_frequencies.tolist()
+            out["psd"] = self.psd.tolist()
+            out["background"] = self.psd_background.tolist()
+        return out
+
+    def _stationarity_dict(self) -> dict:
+        return {
+            "is_stationary": self.is_stationary,
+            "drift_slope_per_s": self.drift_slope,
+            "drift_slope_sigma": self.drift_slope_sigma,
+            "drift_pvalue": self.drift_pvalue,
+            "drift_significant": self.drift_significant,
+            "segment_std": self.segment_std.tolist(),
+            "variance_statistic": self.variance_statistic,
+            "variance_pvalue": self.variance_pvalue,
+            "variance_change_significant": self.variance_change_significant,
+        }
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -597,45 +611,55 @@ def diagnose(
         max_lag = _default_max_lag(n)
     elif not (isinstance(max_lag, int | np.integer) and 1 <= max_lag <= n // 2):
         raise ValueError(f"max_lag must be an integer in [1, {n // 2}], got {max_lag!r}")
-    max_lag = int(max_lag)
-
-    mean = float(x.mean())
-    std = float(x.std())
-    rms = float(np.sqrt(np.mean(x**2)))
-
     rho = autocorrelation(x)
-    lags = np.arange(1, max_lag + 1)
-    acf = rho[1 : max_lag + 1]
-    z = float(stats.norm.ppf(1.0 - alpha / 2.0))
-    bound = z / np.sqrt(n)
-    q = float(n * (n + 2.0) * np.sum(acf**2 / (n - lags)))
-    lb_p = float(stats.chi2.sf(q, max_lag))
     tau, lag = _geyer_tau(rho)
-
-    ordered = np.sort(x)
-    quantiles = stats.norm.ppf((np.arange(1, n + 1) - 0.5) / n)
-    ppcc = float(np.corrcoef(quantiles, ordered)[0, 1])
-    normal_p, jb_p = _normality_pvalues(x, rho[1:lag])
-
-    f, psd, background, nu, threshold, peaks = _spectrum(x, fs, alpha)
-    slope, slope_sigma, drift_p, seg_std, var_stat, var_p = _drift(x, fs)
-
     return ResidualDiagnosis(
-        n=n, sample_rate=fs, alpha=float(alpha), mean=mean, std=std, rms=rms,
-        acf_lags=lags, acf=acf.copy(), acf_bound=float(bound),
-        acf_fraction_outside=float(np.mean(np.abs(acf) > bound)),
-        ljung_box_statistic=q, ljung_box_dof=max_lag, ljung_box_pvalue=lb_p,
-        is_white=lb_p >= alpha,
+        n=n, sample_rate=fs, alpha=float(alpha), mean=float(x.mean()), std=float(x.std()),
+        rms=float(np.sqrt(np.mean(x**2))),
+        **_whiteness(rho, n, int(max_lag), alpha),
         n_eff=n / tau, integrated_time=tau, n_eff_lag=lag,
-        normal_quantiles=quantiles, ordered_residuals=ordered, probability_plot_r=ppcc,
-        skewness=float(stats.skew(x)), excess_kurtosis=float(stats.kurtosis(x)),
-        jarque_bera_pvalue=jb_p, normality_pvalue=normal_p, is_normal=normal_p >= alpha,
-        psd_frequencies=f, psd=psd, psd_background=background, psd_dof=float(nu),
-        peak_ratio_threshold=threshold, spectral_peaks=peaks,
-        drift_slope=slope, drift_slope_sigma=slope_sigma, drift_pvalue=drift_p,
-        drift_significant=drift_p < alpha, segment_std=seg_std,
-        variance_statistic=var_stat, variance_pvalue=var_p,
-        variance_change_significant=var_p < alpha,
-        is_stationary=not (drift_p < alpha or var_p < alpha),
+        **_normality(x, rho[1:lag], alpha),
+        **_spectrum_fields(x, fs, alpha),
+        **_stationarity_fields(x, fs, alpha),
         candidates=_candidate_correlations(x, rho, lag, cols, alpha),
     )
+
+
+def _whiteness(rho: np.ndarray, n: int, max_lag: int, alpha: float) -> dict:
+    """Autocorrelation with its bound and the Ljung-Box test (module docstring)."""
+    lags = np.arange(1, max_lag + 1)
+    acf = rho[1 : max_lag + 1]
+    bound = float(stats.norm.ppf(1.0 - alpha / 2.0)) / np.sqrt(n)
+    q = float(n * (n + 2.0) * np.sum(acf**2 / (n - lags)))
+    lb_p = float(stats.chi2.sf(q, max_lag))
+    return dict(acf_lags=lags, acf=acf.copy(), acf_bound=float(bound),
+                acf_fraction_outside=float(np.mean(np.abs(acf) > bound)),
+                ljung_box_statistic=q, ljung_box_dof=max_lag, ljung_box_pvalue=lb_p,
+                is_white=lb_p >= alpha)
+
+
+def _normality(x: np.ndarray, rho: np.ndarray, alpha: float) -> dict:
+    """Normal probability plot and the autocorrelation-corrected normality tests."""
+    n = x.size
+    ordered = np.sort(x)
+    quantiles = stats.norm.ppf((np.arange(1, n + 1) - 0.5) / n)
+    normal_p, jb_p = _normality_pvalues(x, rho)
+    return dict(normal_quantiles=quantiles, ordered_residuals=ordered,
+                probability_plot_r=float(np.corrcoef(quantiles, ordered)[0, 1]),
+                skewness=float(stats.skew(x)), excess_kurtosis=float(stats.kurtosis(x)),
+                jarque_bera_pvalue=jb_p, normality_pvalue=normal_p, is_normal=normal_p >= alpha)
+
+
+def _spectrum_fields(x: np.ndarray, fs: float, alpha: float) -> dict:
+    f, psd, background, nu, threshold, peaks = _spectrum(x, fs, alpha)
+    return dict(psd_frequencies=f, psd=psd, psd_background=background, psd_dof=float(nu),
+                peak_ratio_threshold=threshold, spectral_peaks=peaks)
+
+
+def _stationarity_fields(x: np.ndarray, fs: float, alpha: float) -> dict:
+    slope, slope_sigma, drift_p, seg_std, var_stat, var_p = _drift(x, fs)
+    return dict(drift_slope=slope, drift_slope_sigma=slope_sigma, drift_pvalue=drift_p,
+                drift_significant=drift_p < alpha, segment_std=seg_std,
+                variance_statistic=var_stat, variance_pvalue=var_p,
+                variance_change_significant=var_p < alpha,
+                is_stationary=not (drift_p < alpha or var_p < alpha))
