@@ -15,8 +15,10 @@ __all__ = ["air_data_from_velocity", "velocity_from_air_data", "air_data_rates",
 def air_data_from_velocity(u_r, v_r, w_r) -> tuple:
     """Stability triplet ``(Va, alpha, beta)`` from air-relative body velocity [m/s].
 
-    Vaiopoulos 2017, eq. 2.12-2.14 (corrected): alpha = atan2(w_r, u_r),
-    beta = asin(v_r / Va) computed as atan2(v_r, sqrt(u_r^2 + w_r^2)).
+    Vaiopoulos 2017, eq. 2.12-2.14 (corrected: docs/references.md): alpha =
+    atan2(w_r, u_r), beta = asin(v_r / Va) computed as atan2(v_r, sqrt(u_r^2 + w_r^2)),
+    which keeps the quadrant and stays finite at Va = 0. Angles in rad; numpy
+    arrays of samples are handled elementwise.
     """
     if isinstance(u_r, np.ndarray):
         uw = np.hypot(u_r, w_r)

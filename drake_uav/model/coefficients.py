@@ -5,14 +5,16 @@ the identification regressors and the linearisation all evaluate the functions
 below. They work on scalars (float, AutoDiffXd, symbolic Expression) and,
 elementwise, on numpy arrays of samples (batch identification).
 
-Model (Vaiopoulos 2017, eq. 3.31, with Ortiz & Gutierrez 2009's alpha-dot and flap terms and
-Vaiopoulos 2017's
-thrust-coefficient drag term of eq. 6.2)::
+Model: Vaiopoulos 2017, eq. 3.31 (the structure of Beard & McLain), with the
+alpha-dot and flap terms of Ortiz & Gutierrez 2009, eq. 29-35 and the
+thrust-coefficient drag term of Vaiopoulos 2017, eq. 6.2::
 
     C_k = sum_j  theta_{k,j} * xi_j,        k in (CL, CD, CY, Cl, Cm, Cn)
 
 A derivative is named ``<coefficient>_<signal>``; the signal selects the
-regressor ``xi``:
+regressor ``xi``. Rates are normalised with the span for p and r and the chord
+for q and alpha-dot (Ortiz & Gutierrez 2009, sec. 5.1 prints b for q:
+docs/references.md), so every derivative is non-dimensional:
 
 ============  ======================================  =====
 signal        regressor                               unit

@@ -1,6 +1,7 @@
-"""Multirotor rigid-body plant with motor limits, motor faults and optional motor lag.
+"""Multirotor rigid-body equations with motor limits, motor faults and optional motor lag.
 
-Model of Argyropoulos 2020, eq. 1.1 written in NED / FRD (thrust along ``-z_b``)::
+Model of Argyropoulos 2020, eq. 1.1 written in NED / FRD (thrust along ``-z_b``;
+the z-up thesis rotated by pi about x, docs/multirotor.md)::
 
     p_dot     = v
     v_dot     = R(q) f_b / m + [0, 0, g] + f_ext / m,   f_b = [0, 0, -F] - D R(q)^T v
@@ -12,9 +13,10 @@ with ``[F, tau] = A diag(h) sat(f)`` (allocation from the frame geometry, health
 optional linear rotor drag. With a motor time constant ``T_m > 0`` the produced
 thrusts become states: ``f_dot = (sat(u) - f) / T_m``.
 
-The equations live in plain functions that accept float, ``AutoDiffXd`` and
-``symbolic.Expression`` entries; the plant, linearisation and the flatness
-module all call them.
+Units: m, m/s, rad/s, N, N m, kg m^2. The equations live in plain functions
+that accept float, ``AutoDiffXd`` and ``symbolic.Expression`` entries, so the
+plant (:class:`drake_uav.systems.MultirotorPlant`), linearisation, the flatness
+map and the tracking-error model all evaluate the same equations.
 """
 
 from __future__ import annotations

@@ -205,7 +205,11 @@ def quat_to_euler(q) -> np.ndarray:
 
 
 def euler_to_rotmat(rpy) -> np.ndarray:
-    """Body -> NED rotation matrix of 3-2-1 Euler angles (transpose of Vaiopoulos 2017, eq. 2.2)."""
+    """Body -> NED rotation matrix of 3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad].
+
+    The transpose of Vaiopoulos 2017, eq. 2.2 (NED -> body), whose printed (3,1)
+    element is corrected (docs/references.md).
+    """
     cr, sr = cos(rpy[0]), sin(rpy[0])
     cp, sp = cos(rpy[1]), sin(rpy[1])
     cy, sy = cos(rpy[2]), sin(rpy[2])
@@ -226,7 +230,8 @@ def rotmat_to_euler(R) -> np.ndarray:
 
 
 def quat_derivative(q, omega_body, stabilization: float = 0.0) -> np.ndarray:
-    """Time derivative ``0.5 q (x) [0, omega]`` of a body -> NED quaternion.
+    """Time derivative ``0.5 q (x) [0, omega]`` of a body -> NED quaternion (Argyropoulos
+    2020, eq. B.15).
 
     ``omega_body`` is the body angular rate (p, q, r) [rad/s]. A positive
     ``stabilization`` gain [1/s] adds ``k (1 - |q|^2) q``, which drives the norm
@@ -247,8 +252,12 @@ def quat_derivative(q, omega_body, stabilization: float = 0.0) -> np.ndarray:
 
 
 def euler_rates(rpy, omega_body) -> np.ndarray:
-    """Euler angle rates (Vaiopoulos 2017, eq. 3.3) from body rates;
-    singular at pitch = +-90 deg."""
+    """Euler angle rates ``(roll, pitch, yaw)`` rates [rad/s] from body rates (p, q, r) [rad/s].
+
+    Vaiopoulos 2017, eq. 3.3 (Ortiz & Gutierrez 2009, eq. 25-26, whose pitch-rate
+    row is corrected: docs/references.md); singular at pitch = +-90 deg, which is
+    why the attitude state is a quaternion.
+    """
     cr, sr = cos(rpy[0]), sin(rpy[0])
     cp, tp = cos(rpy[1]), sin(rpy[1]) / cos(rpy[1])
     p, q, r = omega_body[0], omega_body[1], omega_body[2]
