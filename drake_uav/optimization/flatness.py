@@ -9,14 +9,17 @@ FRD, thrust along ``-z_b``)::
     x_b = (y_c x z_b) / |y_c x z_b|,   y_c = [-sin psi, cos psi, 0],  y_b = z_b x x_b
     omega = [-y_b . dz_b, x_b . dz_b, y_b . dx_b],  d omega/dt from the second derivatives
 
-so ``psi`` is exactly the 3-2-1 Euler yaw of the reference. The thrust and
+(the thrust points along ``a - g``, where eq. 2.6-2.8 print ``a + g``, and the
+torques use ``J domega/dt``, where eq. 2.11 prints ``J omega``:
+docs/references.md), so ``psi`` is exactly the 3-2-1 Euler yaw of the
+reference. Units: m, s, rad, N, N m. The thrust and
 torques are then the wrench for which the plant's own dynamics function
-(:func:`drake_uav.systems.multirotor.multirotor_dynamics`) reproduces the
+(:func:`drake_uav.model.multirotor.multirotor_dynamics`) reproduces the
 reference accelerations; the motor thrusts come from the allocation.
 
-:func:`velocity_heading` builds the seed's yaw reference (eq. 2.8-2.9): the body
+:func:`velocity_heading` builds the yaw reference of Argyropoulos 2020 (eq. 2.8-2.9): the body
 x axis follows the velocity projected on the rotor plane, with the yaw rate
-penalised, the angle kept continuous across +-pi (no wrap jumps, the seed's
+penalised, the angle kept continuous across +-pi (no wrap jumps, as in its
 fig. 2.3), median and Gaussian smoothing, and zero rate at both ends.
 """
 
@@ -269,7 +272,8 @@ def velocity_heading(trajectory, *, sample_time: float = 0.02, time_constant: fl
                      max_yaw_rate: float = 1.0, median_window: float = 0.3,
                      smoothing: float = 0.3, min_speed: float = 0.2,
                      gravity: float = 9.80665, initial_yaw: float | None = None) -> YawProfile:
-    """Yaw that points the body x axis along the velocity (seed eq. 2.8-2.9, fig. 2.3).
+    """Yaw that points the body x axis along the velocity (Argyropoulos 2020, eq. 2.8-2.9,
+    fig. 2.3).
 
     On a grid of ``sample_time`` [s] the target heading is that of the velocity
     projected on the plane normal to the thrust axis; where that speed is below

@@ -1,6 +1,6 @@
 """Linear models about a trim and the classical modes of a fixed wing.
 
-The nonlinear model is :class:`~drake_uav.systems.fixed_wing.FixedWingModel`,
+The nonlinear model is :class:`~drake_uav.model.fixed_wing.FixedWingModel`,
 written with Euler angles instead of the quaternion (12 states), and
 differentiated exactly with AutoDiffXd. The decoupled models follow Beard &
 McLain ch. 5 and Ortiz & Gutierrez 2009, sec. 3:
@@ -10,6 +10,11 @@ McLain ch. 5 and Ortiz & Gutierrez 2009, sec. 3:
 
 Modes come from the 4x4 cores ``[u, w, q, theta]`` and ``[v, p, r, phi]`` (the
 heading and altitude integrators only add zero eigenvalues).
+
+Exact Jacobians rather than the printed small-perturbation models: Ortiz &
+Gutierrez 2009, eq. 31 and 33-35 carry sign errors (docs/references.md), and
+the Jacobians stay right for any aircraft the model describes. Units: SI and
+rad; eigenvalues in 1/s.
 """
 
 from __future__ import annotations

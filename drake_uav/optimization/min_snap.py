@@ -3,7 +3,7 @@ sec. 2.1).
 
 A trajectory through keyframes ``sigma_0 .. sigma_m`` at times ``t_0 < .. < t_m``
 is one polynomial of degree ``n`` per segment and axis. Its coefficients solve
-the QP of seed eq. 2.2-2.3::
+the QP of Argyropoulos 2020, eq. 2.2-2.3::
 
     minimise    integral ||d^k sigma / dt^k||^2 dt          (k = order, 4 = snap)
     subject to  sigma(t_i) = sigma_i,                        i = 0..m
@@ -18,7 +18,8 @@ once per segment count and options) is solved per axis with updated
 coefficients. Without bounds every constraint is an equality and the KKT system
 is solved directly (Drake's equality-constrained QP solver); with bounds the
 program goes to Clarabel. :func:`optimize_segment_times` distributes a fixed
-total time by the constrained gradient descent of seed eq. 2.4-2.5.
+total time by the constrained gradient descent of Argyropoulos 2020, eq. 2.4-2.5.
+Positions are in m and times in s (NED, so altitude is ``-sigma_z``).
 """
 
 from __future__ import annotations
@@ -407,7 +408,8 @@ def optimize_segment_times(waypoints, times, *, order: int = 4, degree: int | No
                            max_iterations: int = 100, tolerance: float = 1e-6,
                            difference_step: float | None = None, min_fraction: float = 0.05,
                            armijo: float = 1e-4) -> TimeAllocationResult:
-    """Segment durations of minimum cost for a fixed total time (seed eq. 2.4-2.5).
+    """Segment durations [s] of minimum cost for a fixed total time (Argyropoulos 2020, eq.
+    2.4-2.5).
 
     The cost ``f(T)`` is the optimal QP value for durations ``T``. Directional
     derivatives along ``g_i`` (1 at ``i``, ``-1/(m-1)`` elsewhere, so ``sum T``
