@@ -21,53 +21,51 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from drake_uav.identification.recursive import RecursiveOLS, RecursiveTLS, VariableForgetting
-from drake_uav.model.coefficients import (
+from drake_uav.identification import RecursiveOLS, RecursiveTLS, VariableForgetting
+from drake_uav.model import (
     COEFFICIENTS,
     AeroCondition,
     CoefficientModel,
+    CompiledFunction,
+    FixedWingModel,
     body_to_lift_drag,
     regressor_matrix,
 )
-from drake_uav.model.compiled import CompiledFunction
-from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams", "AeroRegressors"]
+__all__ = ["RecursiveIdentifier", "RecursiveIdentifierParams", "AeroRegressors", "METHODS"]
+
+METHODS = ("tls", "ols")
+"""Recursive estimators: PCA-GTLS (:class:`RecursiveTLS`), least squares (:class:`RecursiveOLS`)."""
 
 
 @dataclass(frozen=True)
 class RecursiveIdentifierParams:
-    """Settings of :class:`RecursiveIdentifier`.
-
-    Attributes:
-        names: parameter names (n), in the order of the regressor row.
-        error_std: (n+1) noise standard deviations of the regressors and of the observation
-            (units of each column; Vaiopoulos 2017, eq. 4.40). Positive: give a small value such as
-            1e-6 for an
-            exact column like the constant 1. RLS uses the regressor part for its excitation
-            monitor only.
-        method: "tls" (recursive PCA-GTLS) or "ols" (recursive least squares).
-        forgetting: constant forgetting factor in (0, 1] (weight per sample of past squared
-            residuals), used when ``variable_forgetting`` is None.
-        variable_forgetting: VFF settings (Vaiopoulos 2017, eq. 4.107-4.115) or None for a constant
-        factor.
-        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
-        period: update period [s].
-        theta0: initial estimate (n), zeros if None.
-        covariance0: prior covariance (n x n, row-major tuples) of theta0 for a hybrid start
-            (Vaiopoulos 2017, eq. 4.4); None starts without prior information.
-    """
+    """Settings of :class:`RecursiveIdentifier` (validated by :meth:`validate`)."""
 
     names: tuple[str, ...]
+    """Parameter names (n), in the order of the regressor row."""
     error_std: tuple[float, ...]
+    """(n+1) noise standard deviations of the regressors and of the observation (units of
+    each column; Vaiopoulos 2017, eq. 4.40). Positive: give a small value such as 1e-6 for
+    an exact column like the constant 1. RLS uses the regressor part for its excitation
+    monitor only."""
     method: str = "tls"
+    """"tls" (recursive PCA-GTLS) or "ols" (recursive least squares)."""
     forgetting: float = 1.0
+    """Constant forgetting factor in (0, 1] (weight per sample of past squared residuals),
+    used when ``variable_forgetting`` is None."""
     variable_forgetting: VariableForgetting | None = None
+    """VFF settings (Vaiopoulos 2017, eq. 4.107-4.115) or None for a constant factor."""
     snr_min: float = 1.0
+    """S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10)."""
     period: float = 0.01
+    """Update period [s]."""
     theta0: tuple[float, ...] | None = None
+    """Initial estimate (n), zeros if None."""
     covariance0: tuple[tuple[float, ...], ...] | None = None
+    """Prior covariance (n x n, row-major tuples) of theta0 for a hybrid start (Vaiopoulos
+    2017, eq. 4.4); None starts without prior information."""
 
     def validate(self) -> None:
         """Raise ValueError naming the first invalid field."""
@@ -78,8 +76,8 @@ class RecursiveIdentifierParams:
             raise ValueError(f"error_std: need {n + 1} entries (n regressors + observation)")
         if not all(math.isfinite(c) and c > 0 for c in self.error_std):
             raise ValueError(f"error_std: entries must be finite and > 0, got {self.error_std}")
-        if self.method not in ("tls", "ols"):
-            raise ValueError(f"method: must be 'tls' or 'ols', got {self.method!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method: must be one of {METHODS}, got {self.method!r}")
         if not 0.0 < self.forgetting <= 1.0:
             raise ValueError(f"forgetting: must be in (0, 1], got {self.forgetting}")
         if self.variable_forgetting is not None:
