@@ -96,7 +96,9 @@ def FixedWingPlant_(T):
             """(state, controls, wind, wrench) of the context as Python lists; zeros for an
             unconnected wind or wrench, and for the wrench when ``with_wrench`` is False."""
             controls_port, wind_port, wrench_port = self._ports
-            return (self._state(context), controls_port.Eval(context).tolist(),
+            vector = context.get_continuous_state_vector()  # as in _state, one call less
+            return ((vector.value() if T is float else vector.CopyToVector()).tolist(),
+                    controls_port.Eval(context).tolist(),
                     wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3,
                     wrench_port.Eval(context).tolist()
                     if with_wrench and wrench_port.HasValue(context) else _ZERO_WRENCH)
