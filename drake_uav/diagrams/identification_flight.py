@@ -21,22 +21,24 @@ the truth at t_k just before the events at t_k (so truth coefficients, forces
 and controls belong together: the controls and wind in effect over the step
 that ends at t_k).
 
-The safety pilot is a weak attitude/altitude/heading/airspeed hold added on top
-of trim + excitation so that long flights stay near the trim condition; its rate
-dampers use the IMU's gyro (the sample of the previous period). It can be
-switched off (``stabilize=False``) for open-loop excitation.
+The safety pilot (:class:`~drake_uav.systems.safety_pilot.SafetyPilot`) is a weak
+attitude/altitude/heading/airspeed hold added on top of trim + excitation so that long
+flights stay near the trim condition; its rate dampers use the IMU's gyro (the sample
+of the previous period). It can be switched off (``stabilize=False``) for open-loop
+excitation.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import (
     Adder,
     ConstantVectorSource,
@@ -56,6 +58,7 @@ from drake_uav.systems.excitation import (
     orthogonal_multisines,
 )
 from drake_uav.systems.fixed_wing import FixedWingPlant
+from drake_uav.systems.safety_pilot import SafetyPilot, SafetyPilotGains
 from drake_uav.systems.sensors import SensorSuite
 from drake_uav.systems.wind import DrydenParams, DrydenWind
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -63,13 +66,13 @@ from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = [
-    "SafetyPilotGains",
-    "SafetyPilot",
     "IdentificationFlight",
     "default_excitation",
     "build_identification_flight",
     "fly",
 ]
+
+_DEFAULT_PILOT_GAINS = SafetyPilotGains()
 
 # Truth channels: group -> (channel names, units).
 _TRUTH = {
@@ -84,97 +87,6 @@ _TRUTH = {
     "specific_force": (("ax", "ay", "az"), ("m/s^2",) * 3),
     "controls": (SURFACES, ("rad", "rad", "rad", "1")),
 }
-
-
-@dataclasses.dataclass(frozen=True)
-class SafetyPilotGains:
-    """Gains of the weak hold loops (Aerosonde-sized defaults).
-
-    Attributes:
-        pitch: elevator per pitch error [rad/rad] (positive elevator: nose down).
-        pitch_rate: elevator per pitch rate [rad/(rad/s)].
-        altitude: pitch reference per altitude error [rad/m], limited to +-max_pitch.
-        roll: aileron per roll error [rad/rad].
-        roll_rate: aileron per roll rate [rad/(rad/s)].
-        heading: roll reference per heading error [rad/rad], limited to +-max_roll.
-        yaw_rate: rudder per yaw rate [rad/(rad/s)] (yaw damper).
-        airspeed: throttle per airspeed error [1/(m/s)].
-        max_pitch: limit of the pitch reference offset [rad].
-        max_roll: limit of the roll reference [rad].
-    """
-
-    pitch: float = 0.8
-    pitch_rate: float = 0.1
-    altitude: float = 0.005
-    roll: float = 0.5
-    roll_rate: float = 0.05
-    heading: float = 0.5
-    yaw_rate: float = 0.2
-    airspeed: float = 0.05
-    max_pitch: float = 0.15
-    max_roll: float = 0.3
-
-    def validate(self) -> SafetyPilotGains:
-        """Raises ValueError naming the first negative or non-finite gain; returns self."""
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if not (value >= 0 and math.isfinite(value)):
-                raise ValueError(f"{f.name}: gain must be finite and >= 0, got {value}")
-        return self
-
-
-class SafetyPilot(LeafSystem):
-    """Weak attitude, altitude, heading and airspeed hold around a trim condition.
-
-    Discrete (sample-and-hold at ``period``), so the output depends on its state
-    only and closes no algebraic loop.
-
-    | port (in)  | size | units                                              |
-    |------------|------|----------------------------------------------------|
-    | state      | 13   | plant ``state`` (attitude: its quaternion's Euler) |
-    | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
-    | imu        | 6    | sensor suite ``imu``: the rate dampers use its     |
-    |            |      | gyro p, q, r [rad/s] (unconnected: the true rates) |
-
-    | port (out) | size | units                                              |
-    |------------|------|----------------------------------------------------|
-    | correction | 4    | added elevator, aileron, rudder [rad], throttle    |
-
-    The dampers feed back the gyro, as an autopilot does: with the true rates the
-    commands would carry noise-free information on the state that no estimator
-    working from the logged sensors has, and on-line estimators (the parameter
-    EKF) would see a control input correlated with their own state error.
-    """
-
-    def __init__(self, gains: SafetyPilotGains, pitch_ref: float, altitude_ref: float,
-                 heading_ref: float, airspeed_ref: float, period: float):
-        super().__init__()
-        self.gains = gains.validate()
-        self._refs = (pitch_ref, altitude_ref, heading_ref, airspeed_ref)
-        self._state = self.DeclareVectorInputPort("state", 13)
-        self._air = self.DeclareVectorInputPort("air_data", 3)
-        self._imu = self.DeclareVectorInputPort("imu", 6)
-        xd = self.DeclareDiscreteState(4)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.DeclareStateOutputPort("correction", xd)
-
-    def _update(self, context, discrete_state) -> None:
-        g = self.gains
-        pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
-        x = self._state.Eval(context).tolist()
-        roll, pitch, yaw = quat_to_euler(x[3:7]).tolist()
-        p, q, r = (self._imu.Eval(context)[3:6].tolist() if self._imu.HasValue(context)
-                   else x[10:13])
-        climb_to = max(-g.max_pitch, min(g.max_pitch, g.altitude * (altitude_ref + x[2])))
-        heading_error = (heading_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
-        roll_ref = max(-g.max_roll, min(g.max_roll, g.heading * heading_error))
-        airspeed = self._air.Eval(context)[0]
-        discrete_state.set_value([
-            g.pitch * (pitch - pitch_ref - climb_to) + g.pitch_rate * q,
-            -g.roll * (roll - roll_ref) - g.roll_rate * p,
-            g.yaw_rate * r,
-            g.airspeed * (airspeed_ref - airspeed),
-        ])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -346,6 +258,186 @@ def _connect_disturbance(builder, plant, params, disturbance, commands):
     return wrench
 
 
+@dataclasses.dataclass(frozen=True)
+class _Setup:
+    """The checked settings of a flight and its trim start."""
+
+    params: FixedWingParams
+    sensors: SensorSuiteParams
+    dt: float
+    """Sensor base period [s]: the step of everything in the flight."""
+    wind: DrydenParams | None
+    steady: np.ndarray
+    """Steady wind NED [m/s]."""
+    signals: tuple
+    trim: TrimResult
+    x0: np.ndarray
+    airspeed: float
+    altitude: float
+
+
+def _setup(params: FixedWingParams, turbulence, steady_wind, excitation, sensors, duration,
+           airspeed: float, altitude: float) -> _Setup:
+    """Checks the settings, trims the aircraft and places it in the steady wind."""
+    sensors = (SensorSuiteParams.seed_table7(air_density=params.rho) if sensors is None
+               else sensors.validate())
+    dt = 1.0 / sensors.base_rate_hz
+    wind_params = _turbulence_params(turbulence, steady_wind, dt)
+    steady = np.asarray(wind_params.steady_wind_ned if wind_params else
+                        (steady_wind if steady_wind is not None else (0.0, 0.0, 0.0)), float)
+    if steady.shape != (3,) or not np.all(np.isfinite(steady)):
+        raise ValueError(f"steady_wind: need 3 finite values, got {steady_wind}")
+    signals = (default_excitation(excitation, duration) if isinstance(excitation, str)
+               else tuple(excitation))
+    trimmed = trim(params, airspeed, altitude=altitude)
+    x0 = trimmed.state.copy()
+    # Trim is in still air: keep the air-relative velocity, add the wind to the ground speed.
+    x0[7:10] += quat_to_rotmat(x0[3:7]).T @ steady
+    return _Setup(params, sensors, dt, wind_params, steady, signals, trimmed, x0, airspeed,
+                  altitude)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Wiring:
+    """The systems of a flight and the ports the loggers and ``extend`` see."""
+
+    plant: FixedWingPlant
+    excitation: ExcitationSource
+    pilot: SafetyPilot | None
+    commands: OutputPort
+    """Logged commands: excitation plus the safety pilot's correction."""
+    surfaces: OutputPort
+    """The plant's controls (the commands, delayed by the actuator)."""
+    wrench: OutputPort | None
+    wind: DrydenWind | None
+    wind_port: OutputPort
+    sensors: SensorSuite
+
+    def logged_ports(self) -> dict[str, OutputPort]:
+        """The ports the flight log is made from (see ``IdentificationFlight.loggers``)."""
+        logged = {"measurements": self.sensors.GetOutputPort("measurements"),
+                  "commands": self.commands, "surfaces": self.surfaces,
+                  "state": self.plant.GetOutputPort("state"), "wind_ned": self.wind_port}
+        if self.wrench is not None:
+            logged["wrench"] = self.wrench
+        return logged
+
+    def extension_ports(self) -> dict[str, OutputPort]:
+        """The ports ``extend`` is given: plant and sensor outputs by name, commands,
+        surfaces and wind."""
+        ports = {}
+        for system in (self.plant, self.sensors):
+            ports.update({system.get_output_port(i).get_name(): system.get_output_port(i)
+                          for i in range(system.num_output_ports())})
+        ports.update(commands=self.commands, surfaces=self.surfaces, wind_ned=self.wind_port)
+        return ports
+
+
+def _add_safety_pilot(builder: DiagramBuilder, plant: FixedWingPlant, commands: OutputPort,
+                      setup: _Setup, gains: SafetyPilotGains) -> tuple[SafetyPilot, OutputPort]:
+    """Adds the safety pilot's correction to ``commands``; returns the pilot and the sum."""
+    roll, pitch, yaw = quat_to_euler(setup.x0[3:7])
+    pilot = builder.AddNamedSystem("safety_pilot", SafetyPilot(
+        gains, pitch, setup.altitude, yaw, setup.airspeed, setup.dt))
+    adder = builder.AddNamedSystem("command_sum", Adder(2, 4))
+    builder.Connect(commands, adder.get_input_port(0))
+    builder.Connect(pilot.GetOutputPort("correction"), adder.get_input_port(1))
+    for name in ("state", "air_data"):
+        builder.Connect(plant.GetOutputPort(name), pilot.GetInputPort(name))
+    return pilot, adder.get_output_port(0)
+
+
+def _add_actuator_delay(builder: DiagramBuilder, commands: OutputPort, delay: float,
+                        dt: float) -> OutputPort:
+    """The commands as the surfaces see them ``delay`` [s] later (whole periods ``dt``)."""
+    if not delay > 0.0:
+        return commands
+    steps = int(round(delay / dt))
+    if steps < 2:
+        raise ValueError(f"actuator_delay: {delay} s is shorter than two sample "
+                         f"periods ({2 * dt} s), the shortest delay the flight can model")
+    # The delay samples the held command one period late: steps - 1 buffer slots.
+    system = builder.AddNamedSystem("actuator_delay", DiscreteTimeDelay(dt, steps - 1, 4))
+    builder.Connect(commands, system.get_input_port())
+    return system.get_output_port()
+
+
+def _add_wind(builder: DiagramBuilder, plant: FixedWingPlant, params: DrydenParams | None,
+              steady: np.ndarray) -> tuple[DrydenWind | None, OutputPort]:
+    """Dryden turbulence (or the steady wind alone) into the plant's ``wind_ned``."""
+    wind = None
+    if params is not None:
+        wind = builder.AddNamedSystem("wind", DrydenWind(params))
+        builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
+        port = wind.GetOutputPort("wind_ned")
+    else:
+        port = builder.AddNamedSystem("steady_wind",
+                                      ConstantVectorSource(steady)).get_output_port(0)
+    builder.Connect(port, plant.GetInputPort("wind_ned"))
+    return wind, port
+
+
+def _add_sensors(builder: DiagramBuilder, plant: FixedWingPlant, params: SensorSuiteParams,
+                 pilot: SafetyPilot | None) -> SensorSuite:
+    """The sensor suite on the plant's outputs; its gyro feeds the pilot's dampers."""
+    suite = builder.AddNamedSystem("sensors", SensorSuite(params))
+    for name in ("state", "air_data", "specific_force"):
+        builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
+    if pilot is not None and params.imu is not None:
+        builder.Connect(suite.GetOutputPort("imu"), pilot.GetInputPort("imu"))
+    return suite
+
+
+def _wire(builder: DiagramBuilder, setup: _Setup, stabilize: bool, gains: SafetyPilotGains,
+          disturbance, actuator_delay: float) -> _Wiring:
+    """Adds plant, excitation, safety pilot, actuator delay, disturbance, wind and sensors
+    (in this order: the order of the systems in the diagram)."""
+    plant = builder.AddNamedSystem("plant", FixedWingPlant(setup.params))
+    source = builder.AddNamedSystem("excitation",
+                                    ExcitationSource(setup.trim.controls, setup.signals, setup.dt))
+    commands, pilot = source.GetOutputPort("controls"), None
+    if stabilize:
+        pilot, commands = _add_safety_pilot(builder, plant, commands, setup, gains)
+    surfaces = _add_actuator_delay(builder, commands, actuator_delay, setup.dt)
+    builder.Connect(surfaces, plant.GetInputPort("controls"))
+    wrench = None
+    if disturbance is not None:
+        wrench = _connect_disturbance(builder, plant, setup.params, disturbance, surfaces)
+    wind, wind_port = _add_wind(builder, plant, setup.wind, setup.steady)
+    suite = _add_sensors(builder, plant, setup.sensors, pilot)
+    return _Wiring(plant, source, pilot, commands, surfaces, wrench, wind, wind_port, suite)
+
+
+def _add_loggers(builder: DiagramBuilder, ports: Mapping[str, OutputPort],
+                 dt: float) -> dict[str, object]:
+    """One logger per port, sampled every ``dt`` [s] ("surfaces" is often "commands")."""
+    loggers, by_port = {}, {}
+    for name, port in ports.items():
+        key = (port.get_system().get_name(), port.get_name())
+        if key not in by_port:
+            by_port[key] = LogVectorOutput(port, builder, dt)
+        loggers[name] = by_port[key]
+    return loggers
+
+
+def _metadata(setup: _Setup, stabilize: bool, duration: float) -> dict[str, object]:
+    """The flight's settings as the log's metadata."""
+    wind = setup.wind
+    return {
+        "aircraft": setup.params.name,
+        "airspeed": setup.airspeed,
+        "altitude": setup.altitude,
+        "turbulence": wind.level if wind else "none",
+        "turbulence_model": wind.model if wind else "none",
+        "steady_wind_ned": setup.steady.tolist(),
+        "excitation": [f"{type(s).__name__}({s.surface})" for s in setup.signals],
+        "sample_rate_hz": setup.sensors.base_rate_hz,
+        "sensor_noise_std": setup.sensors.noise_std(setup.airspeed),
+        "stabilized": stabilize,
+        "duration": duration,
+    }
+
+
 def build_identification_flight(
     aircraft: str | FixedWingParams = "aerosonde",
     turbulence: str | DrydenParams | None = "light",
@@ -358,7 +450,7 @@ def build_identification_flight(
     airspeed: float = 25.0,
     altitude: float = 100.0,
     stabilize: bool = True,
-    pilot_gains: SafetyPilotGains = SafetyPilotGains(),
+    pilot_gains: SafetyPilotGains = _DEFAULT_PILOT_GAINS,
     integrator: str = "runge_kutta2",
     disturbance=None,
     actuator_delay: float = 0.0,
@@ -372,11 +464,13 @@ def build_identification_flight(
             sensor base rate), a :class:`DrydenParams`, or None (steady wind only).
         steady_wind: steady wind NED [m/s] (overrides the DrydenParams' value).
         excitation: a kind for :func:`default_excitation` or a sequence of signals.
-        sensors: sensor suite; default seed Table 7 with the aircraft's air density.
+        sensors: sensor suite; default Vaiopoulos 2017, Table 7 with the aircraft's air
+            density.
         seed: default random seed of :meth:`IdentificationFlight.simulate`.
         duration: flight time [s].
         airspeed: trim airspeed [m/s]; altitude: initial altitude [m].
-        stabilize: add the :class:`SafetyPilot` (weak hold loops).
+        stabilize: add the :class:`~drake_uav.systems.safety_pilot.SafetyPilot` (weak
+            hold loops) with ``pilot_gains``.
         integrator: Drake integration scheme; fixed step = sensor base period.
         disturbance: an effect the aircraft model lacks, put into the physics: a
             function ``f(AeroCondition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``
@@ -394,128 +488,34 @@ def build_identification_flight(
     if not (duration > 0 and math.isfinite(duration)):
         raise ValueError(f"duration: must be positive, got {duration}")
     seed = _check_seed(seed)
-    sensors = (SensorSuiteParams.seed_table7(air_density=params.rho) if sensors is None
-               else sensors.validate())
-    dt = 1.0 / sensors.base_rate_hz
-    wind_params = _turbulence_params(turbulence, steady_wind, dt)
-    steady = np.asarray(wind_params.steady_wind_ned if wind_params else
-                        (steady_wind if steady_wind is not None else (0.0, 0.0, 0.0)), float)
-    if steady.shape != (3,) or not np.all(np.isfinite(steady)):
-        raise ValueError(f"steady_wind: need 3 finite values, got {steady_wind}")
-    signals = (default_excitation(excitation, duration) if isinstance(excitation, str)
-               else tuple(excitation))
-
-    trimmed = trim(params, airspeed, altitude=altitude)
-    x0 = trimmed.state.copy()
-    # Trim is in still air: keep the air-relative velocity, add the wind to the ground speed.
-    x0[7:10] += quat_to_rotmat(x0[3:7]).T @ steady
-
+    setup = _setup(params, turbulence, steady_wind, excitation, sensors, duration, airspeed,
+                   altitude)
     builder = DiagramBuilder()
-    plant = builder.AddNamedSystem("plant", FixedWingPlant(params))
-    source = builder.AddNamedSystem("excitation",
-                                    ExcitationSource(trimmed.controls, signals, dt))
-    commands = source.GetOutputPort("controls")
-    pilot = None
-    if stabilize:
-        roll, pitch, yaw = quat_to_euler(x0[3:7])
-        pilot = builder.AddNamedSystem(
-            "safety_pilot", SafetyPilot(pilot_gains, pitch, altitude, yaw, airspeed, dt))
-        adder = builder.AddNamedSystem("command_sum", Adder(2, 4))
-        builder.Connect(commands, adder.get_input_port(0))
-        builder.Connect(pilot.GetOutputPort("correction"), adder.get_input_port(1))
-        for name in ("state", "air_data"):
-            builder.Connect(plant.GetOutputPort(name), pilot.GetInputPort(name))
-        commands = adder.get_output_port(0)
-    plant_commands = commands
-    if actuator_delay > 0.0:
-        steps = int(round(actuator_delay / dt))
-        if steps < 2:
-            raise ValueError(f"actuator_delay: {actuator_delay} s is shorter than two sample "
-                             f"periods ({2 * dt} s), the shortest delay the flight can model")
-        # The delay samples the held command one period late: steps - 1 buffer slots.
-        delay = builder.AddNamedSystem("actuator_delay",
-                                       DiscreteTimeDelay(dt, steps - 1, 4))
-        builder.Connect(commands, delay.get_input_port())
-        plant_commands = delay.get_output_port()
-    builder.Connect(plant_commands, plant.GetInputPort("controls"))
-    wrench = None
-    if disturbance is not None:
-        wrench = _connect_disturbance(builder, plant, params, disturbance, plant_commands)
-
-    wind = None
-    if wind_params is not None:
-        wind = builder.AddNamedSystem("wind", DrydenWind(wind_params))
-        builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
-        wind_port = wind.GetOutputPort("wind_ned")
-    else:
-        wind_port = builder.AddNamedSystem("steady_wind",
-                                           ConstantVectorSource(steady)).get_output_port(0)
-    builder.Connect(wind_port, plant.GetInputPort("wind_ned"))
-
-    suite = builder.AddNamedSystem("sensors", SensorSuite(sensors))
-    for name in ("state", "air_data", "specific_force"):
-        builder.Connect(plant.GetOutputPort(name), suite.GetInputPort(name))
-    if pilot is not None and sensors.imu is not None:
-        builder.Connect(suite.GetOutputPort("imu"), pilot.GetInputPort("imu"))
-
+    wiring = _wire(builder, setup, stabilize, pilot_gains, disturbance, actuator_delay)
     # The plant's state and inputs are logged; the other truth channels are
     # computed from them after the flight (IdentificationFlight._truth).
-    logged = {"measurements": suite.GetOutputPort("measurements"), "commands": commands,
-              "surfaces": plant_commands, "state": plant.GetOutputPort("state"),
-              "wind_ned": wind_port}
-    if wrench is not None:
-        logged["wrench"] = wrench
-    loggers, by_port = {}, {}
-    for name, port in logged.items():  # one logger per port ("surfaces" is often "commands")
-        key = (port.get_system().get_name(), port.get_name())
-        if key not in by_port:
-            by_port[key] = LogVectorOutput(port, builder, dt)
-        loggers[name] = by_port[key]
+    loggers = _add_loggers(builder, wiring.logged_ports(), setup.dt)
     if extend is not None:
-        ports = {plant.get_output_port(i).get_name(): plant.get_output_port(i)
-                 for i in range(plant.num_output_ports())}
-        ports.update({suite.get_output_port(i).get_name(): suite.get_output_port(i)
-                      for i in range(suite.num_output_ports())})
-        ports.update(commands=commands, surfaces=plant_commands, wind_ned=wind_port)
-        extend(builder, ports)
-    diagram = builder.Build()
-
-    metadata = {
-        "aircraft": params.name,
-        "airspeed": airspeed,
-        "altitude": altitude,
-        "turbulence": wind_params.level if wind_params else "none",
-        "turbulence_model": wind_params.model if wind_params else "none",
-        "steady_wind_ned": steady.tolist(),
-        "excitation": [f"{type(s).__name__}({s.surface})" for s in signals],
-        "sample_rate_hz": sensors.base_rate_hz,
-        "sensor_noise_std": sensors.noise_std(airspeed),
-        "stabilized": stabilize,
-        "duration": duration,
-    }
-    config = SimulatorConfig(integration_scheme=integrator, max_step_size=dt,
+        extend(builder, wiring.extension_ports())
+    config = SimulatorConfig(integration_scheme=integrator, max_step_size=setup.dt,
                              use_error_control=False)
     return IdentificationFlight(
-        diagram=diagram, plant=plant, wind=wind, sensors=suite, excitation=source, pilot=pilot,
-        loggers=loggers, aircraft=params, trim=trimmed, initial_state=x0, seed=seed,
-        duration=duration, sample_period=dt, simulator_config=config, metadata=metadata,
+        diagram=builder.Build(), plant=wiring.plant, wind=wiring.wind, sensors=wiring.sensors,
+        excitation=wiring.excitation, pilot=wiring.pilot, loggers=loggers, aircraft=params,
+        trim=setup.trim, initial_state=setup.x0, seed=seed, duration=duration,
+        sample_period=setup.dt, simulator_config=config,
+        metadata=_metadata(setup, stabilize, duration),
     )
 
 
-def fly(
-    aircraft: str | FixedWingParams = "aerosonde",
-    turbulence: str | DrydenParams | None = "light",
-    steady_wind: Sequence[float] | None = None,
-    excitation: str | Sequence = "multisine",
-    sensors: SensorSuiteParams | None = None,
-    seed: int = 0,
-    duration: float = 60.0,
-    **options,
-) -> FlightLog:
+def fly(*args, **options) -> FlightLog:
     """Builds and flies an identification flight; returns measured + truth channels.
 
-    Same arguments as :func:`build_identification_flight` (``options`` are its
-    keyword-only ones).
+    Takes the arguments of :func:`build_identification_flight` (same names, order and
+    defaults).
     """
-    return build_identification_flight(aircraft, turbulence, steady_wind, excitation, sensors,
-                                       seed, duration, **options).simulate()
+    return build_identification_flight(*args, **options).simulate()
+
+
+fly.__signature__ = inspect.signature(build_identification_flight).replace(
+    return_annotation="FlightLog")

@@ -6,12 +6,7 @@ import numpy as np
 import pytest
 from pydrake.systems.primitives import LogVectorOutput
 
-from drake_uav.diagrams.identification_flight import (
-    SafetyPilot,
-    SafetyPilotGains,
-    build_identification_flight,
-    fly,
-)
+from drake_uav.diagrams.identification_flight import build_identification_flight, fly
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.rotations import quat_to_rotmat
 from drake_uav.systems.identifiers import (
@@ -19,6 +14,7 @@ from drake_uav.systems.identifiers import (
     RecursiveIdentifier,
     RecursiveIdentifierParams,
 )
+from drake_uav.systems.safety_pilot import SafetyPilot, SafetyPilotGains
 from drake_uav.vehicles.fixed_wing import aerosonde
 from drake_uav.vehicles.sensors import ChannelErrors, GpsParams, ImuParams, SensorSuiteParams
 
