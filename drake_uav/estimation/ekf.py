@@ -429,8 +429,8 @@ class ExtendedKalmanFilter:
                available: np.ndarray | None = None, diagnostics: bool = True) -> UpdateResult:
         """Measurement update (Joseph form) with the channels flagged in ``available``.
 
-        ``available`` (bool, default all) is the seed's D matrix; NaN samples are
-        never used. Batched inputs (leading axis) give batched results. Without
+        ``available`` (bool, default all) is the D matrix of Vaiopoulos 2017; NaN samples
+        are never used. Batched inputs (leading axis) give batched results. Without
         ``diagnostics`` (one filter) the result's ``innovation`` and
         ``innovation_var`` are None.
         """
@@ -511,7 +511,8 @@ class ExtendedKalmanFilter:
                             len(used), mask, rejected, innovation, innovation_var)
 
     def _update_batch(self, x, P, J, nu, mask) -> UpdateResult:
-        """Update of a batch of filters: unused channels get zero rows (seed's D matrix)."""
+        """Update of a batch of filters: unused channels get zero rows (the D matrix of
+        Vaiopoulos 2017)."""
         nx = self.n_states
         H = J[..., :nx]
         D = J[..., nx:] * self._h_input_std

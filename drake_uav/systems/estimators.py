@@ -8,7 +8,7 @@ read it. The sensor ports take the held outputs of
 :class:`~drake_uav.systems.sensors.SensorSuite` directly:
 
 * a channel is a new sample when its value changed since the last update
-  (sample-and-hold sensors at any rate: the seed's availability mask);
+  (sample-and-hold sensors at any rate: the availability mask of Vaiopoulos 2017);
 * an unconnected measurement port means that sensor is absent;
 * a NaN sample is skipped and counted once; a NaN input (IMU, attitude) is
   replaced by the previous value and counted;
@@ -364,30 +364,15 @@ class ModelBasedAirDataEkf(_AirDataSystem):
     :class:`ModelBasedAirDataModel`. Estimates alpha and beta without vanes from
     the aerodynamic model of ``params.aircraft`` and the accelerometer.
 
+    Ports: those of :class:`AirDataEkf`, with the specific force of ``imu`` used
+    as a measurement (the rates remain inputs), ``state`` holding Va [m/s], alpha,
+    beta [rad], W_N, W_E, W_D [m/s], and one more input:
+
     ==============  ====  ==========================================================
     Input port      size  content [unit]
     ==============  ====  ==========================================================
-    ``imu``         6     specific force ax, ay, az [m/s^2] (measurement), rates
-                          p, q, r [rad/s] (input)
-    ``attitude``    3     roll, pitch, yaw [rad]
-    ``gps``         6     position [m] (unused), velocity NED [m/s]; optional
-    ``pitot``       2     dynamic pressure [Pa], airspeed [m/s] (unused); optional
-    ``vanes``       2     alpha, beta [rad]; optional
     ``controls``    4     elevator, aileron, rudder [rad], throttle [0..1] (commands)
     ==============  ====  ==========================================================
-
-    ==============  ====  ==========================================================
-    Output port     size  content [unit]
-    ==============  ====  ==========================================================
-    ``air_data``    3     Va [m/s], alpha [rad], beta [rad]
-    ``wind_ned``    3     W_N, W_E, W_D [m/s]
-    ``covariance``  36    state covariance, row-major 6x6 [SI units squared]
-    ``state``       6     Va [m/s], alpha, beta [rad], W_N, W_E, W_D [m/s]
-    ``nis``         2     NIS of the last update [-], its degrees of freedom
-    ``counters``    2     gate rejections, skipped NaN samples (since start)
-    ==============  ====  ==========================================================
-
-    All outputs depend on the discrete state only.
     """
 
     def __init__(self, params: EkfSystemParams):
