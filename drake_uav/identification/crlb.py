@@ -1,21 +1,20 @@
-"""Cramer-Rao lower bounds of the linear-regression identification problems (Vaiopoulos 2017, ch.
-4).
+"""Cramer-Rao lower bounds of the linear-regression identification problems (Vaiopoulos 2017,
+ch. 4).
 
 Two problems, both ``z = X0 theta + e`` with Gaussian white errors:
 
-* exact regressors (the OLS assumptions, Vaiopoulos 2017, eq. 4.2): the bound is ``sigma_z^2 (X^T
-X)^-1``,
-  attained by OLS (:func:`crlb_ols`);
-* errors in variables (Vaiopoulos 2017, eq. 4.30-4.31): the measured ``[X | z] = [X0 | X0 theta] +
-[dX | e]``,
-  rows of the errors i.i.d. N(0, W_T), the true regressors ``X0`` unknown (one nuisance vector
-  per row: the functional model). Eliminating the nuisance parameters from the Fisher
-  information of row i, ``xi_i^T xi_i * (w^T W_T w)^-1`` with ``w = [theta; -1]`` spanning the
-  null space of ``[I, theta]``, gives the bound ``s^2 (X0^T X0)^-1``,
-  ``s^2 = [theta; -1]^T W_T [theta; -1]`` (:func:`crlb_errors_in_variables`). This is Vaiopoulos
-  2017, eq. 4.62.
-  GTLS approaches it when the regressor noise is small against the regressor signal; its
-  asymptotic covariance has an extra term of that relative order (see ``regression.py``).
+* exact regressors (the OLS assumptions, Vaiopoulos 2017, eq. 4.2): the bound is
+  ``sigma_z^2 (X^T X)^-1``, attained by OLS (:func:`crlb_ols`);
+* errors in variables (Vaiopoulos 2017, eq. 4.30-4.31): the measured
+  ``[X | z] = [X0 | X0 theta] + [dX | e]``, rows of the errors i.i.d. N(0, W_T), the true
+  regressors ``X0`` unknown (one nuisance vector per row: the functional model). Eliminating
+  the nuisance parameters from the Fisher information of row i,
+  ``xi_i^T xi_i * (w^T W_T w)^-1`` with ``w = [theta; -1]`` spanning the null space of
+  ``[I, theta]``, gives the bound ``s^2 (X0^T X0)^-1``, ``s^2 = [theta; -1]^T W_T [theta; -1]``
+  (:func:`crlb_errors_in_variables`). This is Vaiopoulos 2017, eq. 4.62. GTLS approaches it
+  when the regressor noise is small against the regressor signal; its asymptotic covariance
+  has an extra term of that relative order
+  (:func:`~drake_uav.identification.errors_in_variables.tls_covariance`).
 
 :func:`sample_errors_in_variables` draws Monte-Carlo data sets from the second model (the first
 is the special case of zero regressor noise), to compare estimators against the bounds.

@@ -3,7 +3,7 @@
 The loop (:func:`discover`):
 
 1. fit the baseline structure (the aircraft's derivative names) to each
-   measured coefficient by OLS on the training part of the flight;
+   measured coefficient on the training part of the flight;
 2. diagnose each residual (whiteness, spectrum, drift, correlation with the
    candidate columns: :mod:`drake_uav.identification.residuals`);
 3. score every named effect of :mod:`drake_uav.identification.effects` on every
@@ -12,21 +12,23 @@ The loop (:func:`discover`):
    F-test whose degrees of freedom use the residual's effective sample size
    (correlated residuals carry less information than their sample count), and
    the change in BIC;
-
-Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
-beta) are noisy and enter both the measured coefficients and the regressors;
-ordinary least squares then attenuates the derivatives (Vaiopoulos 2017, Table 5) and
-leaves a systematic residual that any column correlated with the air data
-would "explain". The noise variances estimated by the isolation are propagated
-to every column and to the observation by finite-difference Jacobians, and the
-normal equations are corrected by the expected noise moments (bias-compensated
-least squares, the moment form of the seed's GTLS).
 4. accept the best candidate that passes every test of :class:`EvidenceRule`,
    add its columns, and repeat until nothing passes (or the residuals are
    white); when no named effect passes, try the data-driven fallback (products
    of signals), which reports the signals involved;
 5. refit, and report the equation-error RMS before and after on the held-out
    tail of the flight.
+
+Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
+beta) are noisy and enter both the measured coefficients and the regressors;
+ordinary least squares then attenuates the derivatives (Vaiopoulos 2017, Table 5) and
+leaves a systematic residual that any column correlated with the air data
+would "explain". The noise variances estimated by the isolation are propagated
+to every column and to the observation by finite-difference Jacobians
+(:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`), and the
+normal equations are corrected by the expected noise moments: bias-compensated
+least squares (:func:`~drake_uav.identification.regression.bcls`), the moment form
+of GTLS (Vaiopoulos 2017, eq. 4.54-4.63) for noise that differs from sample to sample.
 
 The rule is strict on purpose: it must not invent effects. With no effect in
 the data it answers "no missing effect found".

@@ -1,38 +1,35 @@
 """Recursive (on-line) identification: RLS and recursive TLS with forgetting (Vaiopoulos 2017,
-4.2.3-4.4).
+sec. 4.2.3-4.4).
 
-* :class:`RecursiveOLS` -- recursive least squares (Vaiopoulos 2017, eq. 4.22-4.24) with a constant
-forgetting
-  factor (CFF) or the variable forgetting factor (VFF) of :class:`VariableForgetting`.
+* :class:`RecursiveOLS` -- recursive least squares (Vaiopoulos 2017, eq. 4.22-4.24) with a
+  constant forgetting factor (CFF) or the variable forgetting factor (VFF) of
+  :class:`VariableForgetting`.
 * :class:`RecursiveTLS` -- recursive PCA-GTLS (Vaiopoulos 2017, Algorithms 1-2): the normalised
-augmented
-  matrix is tracked through its singular values and right singular vectors, updated by one small
-  SVD per sample (Vaiopoulos 2017, eq. 4.81-4.87), and the estimate is the (PCA-)TLS solution of
-  ``regression``.
+  augmented matrix is tracked through its singular values and right singular vectors, updated
+  by one small SVD per sample (Vaiopoulos 2017, eq. 4.81-4.87); the estimate and its covariance
+  are those of the batch (PCA-)TLS, from the shared core
+  :mod:`~drake_uav.identification.errors_in_variables`.
 
 Conventions:
 
 * The forgetting factor ``lambda`` weighs past *squared* residuals by ``lambda`` per sample for
-  both estimators (Vaiopoulos 2017, eq. 4.20). The recursive SVD therefore scales the tracked rows
-  by
-  ``sqrt(lambda)``; Vaiopoulos 2017, eq. 4.86 scales rows by lambda, i.e. its TLS lambda equals our
-  lambda^0.5.
-  :func:`forgetting_time` is Vaiopoulos 2017, eq. 4.93 for this weight.
+  both estimators (Vaiopoulos 2017, eq. 4.20). The recursive SVD therefore scales the tracked
+  rows by ``sqrt(lambda)``; Vaiopoulos 2017, eq. 4.86 scales rows by lambda, i.e. its TLS
+  lambda equals our lambda^0.5. :func:`forgetting_time` is Vaiopoulos 2017, eq. 4.93 for this
+  weight.
 * VFF law: the robust VFF-RLS of Paleologu, Benesty and Ciochina (IEEE Signal Processing
-  Letters 15, 2008; Vaiopoulos 2017, ref. [73]) as restated by Vaiopoulos 2017, eq. 4.107-4.115; see
-  :func:`vff_forgetting`. For TLS the a-priori error uses the measured regressors (the
-  TLS-corrected ones of Vaiopoulos 2017, eq. 4.116-4.118 give the same error up to a constant
-  factor) and ``q`` is
-  the leverage of the new normalised row in the retained singular directions.
+  Letters 15, 2008; Vaiopoulos 2017, ref. [73]) as restated by Vaiopoulos 2017, eq.
+  4.107-4.115; see :func:`vff_forgetting`. For TLS the a-priori error uses the measured
+  regressors (the TLS-corrected ones of Vaiopoulos 2017, eq. 4.116-4.118 give the same error up
+  to a constant factor) and ``q`` is the leverage of the new normalised row in the retained
+  singular directions.
 * Initialisation (Vaiopoulos 2017, eq. 4.4): diffuse (theta0, P = p0 I); hybrid from a batch
-estimate and its
-  covariance (equivalent to prepending the rows of Vaiopoulos 2017, eq. 4.123-4.124, resp. 4.125
-  for TLS); or
-  :meth:`RecursiveOLS.from_batch` with a batch result (unidentifiable directions stay diffuse).
+  estimate and its covariance (equivalent to prepending the rows of Vaiopoulos 2017, eq.
+  4.123-4.124, resp. 4.125 for TLS); or :meth:`RecursiveOLS.from_batch` with a batch result
+  (unidentifiable directions stay diffuse).
 * Excitation monitor: ``excitation()`` returns the singular values of the information gathered
-  so far in normalised units, the threshold (1 + S/n) sqrt(N_eff - n) of Vaiopoulos 2017, eq. 4.68
-  with the
-  forgetting-weighted row count N_eff, and per-parameter identifiability flags.
+  so far in normalised units, the threshold (1 + S/n) sqrt(N_eff - n) of Vaiopoulos 2017, eq.
+  4.68 with the forgetting-weighted row count N_eff, and per-parameter identifiability flags.
 
 The whole estimator state lives in one flat float vector (``state``), so a Drake system can keep
 it in its discrete state and results are reproducible from it alone.
@@ -104,10 +101,10 @@ def vff_forgetting(
 
 @dataclass(frozen=True)
 class VariableForgetting:
-    """Settings of the VFF law (Vaiopoulos 2017, eq. 4.109-4.115); the seed gives only ranges.
+    """Settings of the VFF law (Vaiopoulos 2017, eq. 4.109-4.115).
 
-    Defaults were chosen on simulated parameter steps (SNR 10-40, 50 Hz): no false detection
-    in a minute of steady identification, detection of a step within about a second.
+    Vaiopoulos 2017 gives ranges only; how the defaults were chosen is in
+    ``docs/identification.md``.
 
     Attributes:
         k_e: short window, lambda_e = 1 - 1/(k_e n) for sigma_nu and sigma_q (k_e >= 2).
@@ -330,9 +327,8 @@ class RecursiveOLS(_Recursive):
         n_params: number of parameters n.
         forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
         theta0: initial estimate (n,), default zeros.
-        covariance0: prior covariance of theta0 (n, n) [hybrid start, Vaiopoulos 2017, eq.
-        4.122-4.124]; None
-            starts diffuse with P = p0 I.
+        covariance0: prior covariance of theta0 (n, n) (hybrid start, Vaiopoulos 2017, eq.
+            4.122-4.124); None starts diffuse with P = p0 I.
         noise_std0: observation-noise std [units of z] assumed until the data give one; with
             ``covariance0`` it converts it to P = covariance0 / noise_std0^2.
         p0: diffuse initial P (per unit regressor^2).
@@ -468,20 +464,18 @@ class RecursiveTLS(_Recursive):
 
     Args:
         n_params: number of parameters n.
-        error_std: (n+1,) positive error stds of the columns of [x | z] (Vaiopoulos 2017, eq. 4.40;
-        give a small
-            value such as 1e-6 for an exact column like the constant), or
+        error_std: (n+1,) positive error stds of the columns of [x | z] (Vaiopoulos 2017, eq.
+            4.40; give a small value such as 1e-6 for an exact column like the constant), or
         error_cov: (n+1, n+1) error covariance W_T instead.
         forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
         snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68).
-        weights: W of the minimum-norm choice under insufficient excitation (Vaiopoulos 2017, eq.
-        4.76).
+        weights: W of the minimum-norm choice under insufficient excitation (Vaiopoulos 2017,
+            eq. 4.76).
         scale_from_data: estimate the error-variance scale from the smallest singular value.
         theta0: initial estimate, kept until more than n rows arrived (unless a prior is given).
-        covariance0: prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq. 4.125,
-        scaled
-            sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1] so that the
-            prior alone carries exactly covariance0.
+        covariance0: prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq.
+            4.125, scaled sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1]
+            so that the prior alone carries exactly covariance0.
     """
 
     _RANK = 5  # number of excited directions, after the common scalars
@@ -624,7 +618,8 @@ class RecursiveTLS(_Recursive):
         return cov
 
     def covariance(self) -> np.ndarray:
-        """Asymptotic covariance of the current estimate (regression.tls_covariance), (n, n)."""
+        """Asymptotic covariance of the current estimate (errors_in_variables.tls_covariance),
+        (n, n)."""
         return self._covariance(self._directions())
 
     def sigma(self) -> np.ndarray:

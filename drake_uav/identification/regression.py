@@ -120,9 +120,8 @@ class RegressionResult:
         significant: |t| above the two-sided Student-t quantile with ``dof`` degrees of freedom.
         identifiable: False for parameters loading on an unidentifiable direction (n,).
         noise_std: estimated standard deviation of the equation error z - X theta (units of z).
-        r_squared: coefficient of determination 1 - SSE/SST (equals Vaiopoulos 2017, eq. 4.25 for
-        OLS with a
-            constant column); nan when z is constant.
+        r_squared: coefficient of determination 1 - SSE/SST (equals Vaiopoulos 2017, eq. 4.25
+            for OLS with a constant column); nan when z is constant.
         residual: z - X theta (N,), with the measured regressors.
         dof: degrees of freedom N - rank.
         rank: number of parameter directions the data support (n when fully identifiable).
@@ -471,7 +470,7 @@ def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
         (:func:`~drake_uav.identification.errors_in_variables.compensated_normal_equations`)
         with covariance ``A^-1 S A^-1``. The residual of smoothed flight data is correlated
         over several samples (the smoothing window, turbulence), so ``S`` is the long-run
-        covariance, not the white-residual one, which would understate sigma about twofold.
+        covariance, not the white-residual one, which would understate sigma.
     """
     X, z = _as_data(X, z)
     n, p = X.shape

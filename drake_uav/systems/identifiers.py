@@ -7,10 +7,9 @@ aircraft's coefficient model, so the identifier can run inside a flight diagram.
 The system samples a regressor row x (the terms of a coefficient model such as
 1, alpha, q_n, delta_e) and an observation z (the measured coefficient) every ``period`` seconds
 and updates a recursive estimator of ``identification.recursive``: recursive PCA-GTLS
-(``method="tls"``, Vaiopoulos 2017, Algorithms 1-2) or RLS (``method="ols"``), with a constant or
-variable
-forgetting factor. The estimator state lives entirely in the discrete state, so a simulation is
-reproducible from the context alone; outputs only read that state.
+(``method="tls"``, Vaiopoulos 2017, Algorithms 1-2) or RLS (``method="ols"``), with a constant
+or variable forgetting factor. The estimator state lives entirely in the discrete state, so a
+simulation is reproducible from the context alone; outputs only read that state.
 """
 
 from __future__ import annotations
@@ -126,8 +125,8 @@ class RecursiveIdentifier(LeafSystem):
     observation   1       input: observed z (e.g. a measured aerodynamic coefficient, -)
     estimate      n       output: parameters theta (units of z per unit of each regressor)
     sigma         n       output: one-sigma uncertainty of theta (inf: not identifiable)
-    excitation    n       output: 1 if the data excite the parameter enough, else 0 (Vaiopoulos
-    2017, eq. 4.68)
+    excitation    n       output: 1 if the data excite the parameter enough (Vaiopoulos 2017,
+                          eq. 4.68), else 0
     forgetting    1       output: forgetting factor used at the last update (-)
     ============  ======  ====================================================================
 
