@@ -1,5 +1,10 @@
 """Builders that wire systems into ready-to-simulate diagrams."""
 
-from drake_uav.diagrams.identification_flight import build_identification_flight, fly
+from drake_uav.diagrams.identification_flight import (
+    IdentificationFlight,
+    build_identification_flight,
+    default_excitation,
+    fly,
+)
 
-__all__ = ["build_identification_flight", "fly"]
+__all__ = ["IdentificationFlight", "build_identification_flight", "default_excitation", "fly"]

@@ -9,6 +9,8 @@
   :class:`Doublet`, :class:`ThreeTwoOneOne`, :class:`Multisine` and
   :func:`orthogonal_multisines`; :class:`AerodynamicIncrement` (an effect the
   model lacks, injected as an external wrench).
+* Control: :class:`SafetyPilot` (the identification flight's weak hold loops,
+  :class:`SafetyPilotGains`).
 * On-line estimation and identification: :class:`AirDataEkf`,
   :class:`ModelBasedAirDataEkf`, :class:`ParameterEkf`,
   :class:`RecursiveIdentifier` and :class:`AeroRegressors`.
@@ -43,6 +45,7 @@ from drake_uav.systems.identifiers import (
     RecursiveIdentifierParams,
 )
 from drake_uav.systems.multirotor import MultirotorPlant, MultirotorPlant_
+from drake_uav.systems.safety_pilot import SafetyPilot, SafetyPilotGains
 from drake_uav.systems.sensors import SampledSensors, SensorSuite
 from drake_uav.systems.wind import DrydenFilter, DrydenParams, DrydenWind
 
@@ -66,6 +69,8 @@ __all__ = [
     "ParameterEkf",
     "RecursiveIdentifier",
     "RecursiveIdentifierParams",
+    "SafetyPilot",
+    "SafetyPilotGains",
     "SampledSensors",
     "SensorSuite",
     "ThreeTwoOneOne",
