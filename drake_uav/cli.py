@@ -106,6 +106,28 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from drake_uav.io.readers import read_log
+    from drake_uav.reporting.replay import export_replay_html, replay
+
+    log = read_log(args.log, format=args.format)
+    if args.live:
+        from pydrake.geometry import StartMeshcat
+
+        meshcat = StartMeshcat()
+        replay(log, meshcat, speed=args.speed)
+        print(f"replaying {args.log} at {meshcat.web_url()} (Ctrl-C to stop)", flush=True)
+        try:
+            while True:
+                time.sleep(1.0)
+        except KeyboardInterrupt:
+            return 0
+    out = export_replay_html(log, args.html or Path(args.log).with_suffix(".html"),
+                             speed=args.speed)
+    print(f"replay: {out}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-uav",
@@ -141,6 +163,19 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.set_defaults(handler=_cmd_identify)
+
+    play = sub.add_parser(
+        "replay", help="3-D replay of a flight log in Meshcat (static HTML or live)",
+        description="Replay a fixed-wing or multirotor flight log in 3-D: vehicle, trail, "
+                    "reference, unsafe disc, failed motors in red. Writes one self-contained "
+                    "HTML page (no server, no network), or serves it live with --live.")
+    play.add_argument("log", help="flight log (.csv, .bin, .ulg, .parquet)")
+    play.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
+                      help="log format (default: from the file extension)")
+    play.add_argument("--html", help="output page (default: the log's name with .html)")
+    play.add_argument("--live", action="store_true", help="serve it in Meshcat instead")
+    play.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1)")
+    play.set_defaults(handler=_cmd_replay)
 
     from drake_uav.campaigns.command import add_campaign_parser
 
