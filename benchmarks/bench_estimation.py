@@ -9,7 +9,10 @@ median. Target: <= 100 us per filter step. Real-time factor: 60 s of the identif
 flight (plant, Dryden wind, sensors, safety pilot, multisine excitation, loggers),
 without and with the AirDataEkf at 100 Hz added through ``extend``. Target: >= 50x.
 
-Run: python benchmarks/bench_estimation.py
+Each headline figure is also printed as a FIGURE line (benchmarks/figures.py); ``--quick``
+skips the batch and AutoDiffXd reference costs.
+
+Run: python benchmarks/bench_estimation.py [--quick]
 """
 
 import time
@@ -122,7 +125,20 @@ def flight_rtf(with_ekf: bool, duration: float = 60.0, repeats: int = 3) -> floa
     return duration / best
 
 
+FIGURE_KEYS = {"AirDataEkf (model-free)": "airdata", "AirDataEkf": "airdata",
+               "ModelBasedAirDataEkf": "model_based_airdata",
+               "ParameterEkf longitudinal": "parameter_longitudinal",
+               "ParameterEkf lateral": "parameter_lateral",
+               "ParameterEkf (two filters)": "parameter"}
+"""Names of the FIGURE lines by label."""
+
+
 if __name__ == "__main__":
+    import sys
+
+    from figures import figure
+
+    quick = "--quick" in sys.argv[1:]
     params = aerosonde()
     log = fly(params, "light", steady_wind=STEADY_WIND, seed=2, duration=25.0)
     repeats = 7
@@ -139,6 +155,10 @@ if __name__ == "__main__":
         ekf = ExtendedKalmanFilter(model, noise)
         data = model.log_data(log)
         low, median = repeated(lambda ekf=ekf, data=data: step_cost_us(ekf, data), repeats)
+        figure(f"ekf_core_us_{FIGURE_KEYS[label]}", low, "us", "lower")
+        if quick:
+            print(f"  {label:26s} {low:6.1f} / {median:6.1f} us")
+            continue
         batch = step_cost_us(ekf, data, batch=20, steps=500)
         reference = ExtendedKalmanFilter(model, noise, backend="autodiff")
         autodiff = step_cost_us(reference, data, steps=100)
@@ -161,6 +181,7 @@ if __name__ == "__main__":
         low, median = repeated(lambda s=system, i=inputs: leaf_step_cost_us(s, i), repeats)
         print(f"  {label:26s} {low:6.1f} / {median:6.1f} us per step, {low / count:6.1f} us "
               f"per filter ({low / count / STEP_TARGET_US:4.2f} of the target)")
+        figure(f"ekf_leaf_us_{FIGURE_KEYS[label]}", low / count, "us", "lower")
     without, with_ekf = flight_rtf(False), flight_rtf(True)
     print(f"identification flight (plant, Dryden, sensors, pilot, excitation, loggers), 60 s: "
           f"{without:6.1f}x real time")
@@ -169,3 +190,6 @@ if __name__ == "__main__":
           f"({with_ekf / RTF_TARGET:4.2f} of the {RTF_TARGET:.0f}x target; EKF share "
           f"{1.0 - with_ekf / without:4.0%} of the run time, {added_us:5.1f} us added per "
           f"{SAMPLE_PERIOD * 1e3:.0f} ms tick)")
+    figure("flight_rtf", without, "x")
+    figure("flight_airdata_ekf_rtf", with_ekf, "x")
+    figure("airdata_ekf_tick_us", added_us, "us", "lower")

@@ -11,14 +11,20 @@ Prints
 * Vaiopoulos 2017, sec. 4.3.9: a C_m model whose parameters change at t = 300 s (100 Hz, 600 s):
   re-convergence time and steady-state variance of the VFF estimator and of CFF estimators,
   and the best CFF of equal (or lower) steady-state variance.
+
+Each speed figure is also printed as a FIGURE line (benchmarks/figures.py); ``--quick`` runs
+the recursive costs and the in-flight real-time factors only. Flight real-time factors are
+simulated time over CPU time of this process.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 import warnings
 
 import numpy as np
+from figures import figure
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
@@ -95,15 +101,16 @@ def bench_batch():
             f"  {name:32s} {median * 1e3:7.1f} ms / {fastest * 1e3:6.1f} ms"
             f"   ratio to target {median / BATCH_TARGET:.3f}"
         )
+        figure(f"batch_ms_{_key(name)}", fastest * 1e3, "ms", "lower")
     print(f"  PCA-TLS rank with the idle input: {pca_tls(Xu, zu, cu).rank} of 7")
 
 
 def per_sample(est, X, z):
     zl = [float(v) for v in z]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for i in range(len(zl)):
         est.update(X[i], zl[i])
-    return (time.perf_counter() - t0) / len(zl)
+    return (time.process_time() - t0) / len(zl)
 
 
 def bench_recursive():
@@ -127,6 +134,7 @@ def bench_recursive():
             f"  {name:32s} {cost * 1e6:6.1f} us   ratio to target "
             f"{cost / RECURSIVE_TARGET:.2f}{extra}"
         )
+        figure(f"recursive_us_{_key(name)}", cost * 1e6, "us", "lower")
 
 
 def bench_system():
@@ -155,14 +163,15 @@ def bench_system():
         builder.Connect(xs.get_output_port(), ident.GetInputPort("regressors"))
         builder.Connect(zs.get_output_port(), ident.GetInputPort("observation"))
         simulator = Simulator(builder.Build())
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         simulator.AdvanceTo((n - 0.5) * period)
-        wall = time.perf_counter() - t0
+        wall = time.process_time() - t0
         sim_time = (n - 0.5) * period
         print(
             f"  method {method}: {sim_time / wall:6.0f}x real time, "
             f"{wall / n * 1e6:5.1f} us per update including sources"
         )
+        figure(f"identifier_diagram_rtf_{method}", sim_time / wall, "x")
 
 
 def _identifiers(coefficients):
@@ -195,17 +204,22 @@ def bench_in_flight(duration=120.0, repeats=2):
         flight = build_identification_flight(
             "aerosonde", "light", duration=duration,
             extend=_identifiers(coefficients) if coefficients else None)
-        walls = []
+        cpu = []
         for _ in range(repeats):
-            start = time.perf_counter()
+            start = time.process_time()
             flight.simulate()
-            walls.append(time.perf_counter() - start)
-        rtf[label] = duration / min(walls)
+            cpu.append(time.process_time() - start)
+        rtf[label] = duration / min(cpu)
         print(f"  {label:24s} {rtf[label]:6.1f}x real time")
     one = rtf["with a C_m identifier"]
-    print(f"  one identifier costs {1e6 / 100 * (1 / one - 1 / rtf['flight alone']):.0f} us "
+    added_us = 1e6 / 100 * (1 / one - 1 / rtf["flight alone"])
+    print(f"  one identifier costs {added_us:.0f} us "
           f"per 10 ms tick; target >= {IN_FLIGHT_TARGET:.0f}x: "
           f"{'met' if one >= IN_FLIGHT_TARGET else 'missed'}")
+    figure("flight_light_rtf", rtf["flight alone"], "x")
+    figure("flight_identifier_rtf", one, "x")
+    figure("flight_six_identifiers_rtf", rtf["with six identifiers"], "x")
+    figure("identifier_tick_us", added_us, "us", "lower")
 
 
 def bench_forgetting():
@@ -260,13 +274,22 @@ def bench_forgetting():
         )
 
 
+def _key(label: str) -> str:
+    """FIGURE name part of a printed label: lower case, words joined by '_'."""
+    return "_".join("".join(c if c.isalnum() else " " for c in label.lower()).split())
+
+
 def main():
     warnings.simplefilter("ignore", InsufficientExcitationWarning)
-    bench_batch()
+    quick = "--quick" in sys.argv[1:]
+    if not quick:
+        bench_batch()
     bench_recursive()
-    bench_system()
+    if not quick:
+        bench_system()
     bench_in_flight()
-    bench_forgetting()
+    if not quick:
+        bench_forgetting()
 
 
 if __name__ == "__main__":

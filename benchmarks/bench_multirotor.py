@@ -12,12 +12,16 @@
   LeafSystem of the same size: the framework's own floor, measured in the same
   process.
 
+Real-time factors are simulated time over CPU time of this process; each figure is also
+printed as a FIGURE line (benchmarks/figures.py).
+
 Run: python benchmarks/bench_multirotor.py
 """
 
 import time
 
 import numpy as np
+from figures import figure
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.framework import ContinuousStateIndex, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
@@ -73,9 +77,9 @@ def real_time_factor(system, commands: PiecewisePolynomial, state0, t0: float,
     context.SetTime(t0)
     plant.GetMyMutableContextFromRoot(context).SetContinuousState(state0)
     simulator.Initialize()
-    start = time.perf_counter()
+    start = time.process_time()
     simulator.AdvanceTo(t0 + FLIGHT)
-    return FLIGHT / (time.perf_counter() - start), simulator.get_num_steps_taken()
+    return FLIGHT / (time.process_time() - start), simulator.get_num_steps_taken()
 
 
 if __name__ == "__main__":
@@ -86,6 +90,8 @@ if __name__ == "__main__":
     resolve = median_ms(lambda: program.solve(shifted[RNG.integers(50)], TIMES), 50)
     print(f"min-snap 10 segments 3-D: one-shot {one_shot:.2f} ms, re-solve {resolve:.2f} ms "
           f"(target 20 ms: {20.0 / one_shot:.0f}x / {20.0 / resolve:.0f}x margin)")
+    figure("min_snap_one_shot_ms", one_shot, "ms", "lower")
+    figure("min_snap_resolve_ms", resolve, "ms", "lower")
 
     start = time.perf_counter()
     result = optimize_segment_times(WAYPOINTS, TIMES)
@@ -93,6 +99,7 @@ if __name__ == "__main__":
     print(f"time allocation 10 segments: {seconds:.2f} s, {result.iterations} iterations, "
           f"{result.evaluations} QP solves, cost {result.initial_cost:.2f} -> {result.cost:.2f} "
           f"(target 2 s: {2.0 / seconds:.1f}x margin)")
+    figure("time_allocation_s", seconds, "s", "lower")
 
     params = hexacopter()
     trajectory = result.trajectory
@@ -114,10 +121,12 @@ if __name__ == "__main__":
         ("(info) fixed-step RK2 5 ms, cubic thrusts", reference.motor_thrust_trajectory(),
          reference.state[k0], rk2, None),
     ]
-    for name, commands, state0, config, log_period in cases:
+    keys = ("hover", "reference_log100hz", "reference_zoh40hz", "reference_rk2")
+    for key, (name, commands, state0, config, log_period) in zip(keys, cases, strict=True):
         rtf, steps = max(real_time_factor(MultirotorPlant(params), commands, state0, t0,
                                           config, log_period) for _ in range(3))
         floor, _ = max(real_time_factor(EmptyPlant(params.num_motors), commands, state0, t0,
                                         config, log_period) for _ in range(3))
         print(f"plant {name}: {rtf:.0f}x real time, {steps} steps in {FLIGHT:.0f} s "
               f"(target 200x: ratio {rtf / 200.0:.2f}; empty Python system {floor:.0f}x)")
+        figure(f"multirotor_rtf_{key}", rtf, "x")
