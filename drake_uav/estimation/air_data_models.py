@@ -42,7 +42,7 @@ from drake_uav.model.air_data import (
     dynamic_pressure,
     velocity_from_air_data,
 )
-from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.fixed_wing import FixedWingModel, body_gravity, body_velocity_rate
 from drake_uav.model.rotations import euler_to_quat, euler_to_rotmat, rotate, rotate_back
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.sensors import SensorSuiteParams
@@ -142,16 +142,9 @@ class AirDataModel(SmoothedAttitude, EkfModel):
 
     def dynamics(self, x, u, w):
         R = euler_to_rotmat(u[6:9])
-        g = self.gravity
-        ur, vr, wr = x[0], x[1], x[2]
-        p, q, r = u[3], u[4], u[5]
-        dw = rotate_back(R, w)
-        return np.array([
-            u[0] + g * R[2][0] + r * vr - q * wr - dw[0],
-            u[1] + g * R[2][1] + p * wr - r * ur - dw[1],
-            u[2] + g * R[2][2] + q * ur - p * vr - dw[2],
-            w[0], w[1], w[2],
-        ])
+        gravity, wind_change = body_gravity(R, self.gravity), rotate_back(R, w)
+        accel = [u[i] + gravity[i] - wind_change[i] for i in range(3)]
+        return np.array([*body_velocity_rate(x[0:3], u[3:6], accel), w[0], w[1], w[2]])
 
     def measurement(self, x, u):
         R = euler_to_rotmat(u[6:9])

@@ -143,13 +143,11 @@ class ParameterModel(EkfModel):
         return list(model.evaluate(cond, self.params.b, self.params.c))
 
     def _evaluate(self, x, u):
-        prm = self.params
         airspeed, alpha, beta, p, q, r, roll, pitch, yaw = self._full_condition(x, u)
         CL, CD, CY, Cl, Cm, Cn = self.coefficients(x, u)
         CX, CZ = lift_drag_to_body(CL, CD, alpha)
-        q_bar_s = self.aircraft.dynamic_pressure_area(airspeed)
-        wrench = [q_bar_s * CX, q_bar_s * CY, q_bar_s * CZ, q_bar_s * prm.b * Cl,
-                  q_bar_s * prm.c * Cm, q_bar_s * prm.b * Cn]
+        wrench = self.aircraft.aerodynamic_wrench(
+            [CX, CY, CZ, Cl, Cm, Cn], self.aircraft.dynamic_pressure_area(airspeed))
         v_r = velocity_from_air_data(airspeed, alpha, beta)
         zero = 0.0 * airspeed
         rpy = [roll, pitch, yaw]

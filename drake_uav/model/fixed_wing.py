@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # parameters are duck-typed: the model layer sits below vehic
     from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["STATE_NAMES", "CONTROL_NAMES", "FixedWingModel", "FixedWingEvaluation",
-           "CompiledFixedWingModel"]
+           "CompiledFixedWingModel", "body_gravity", "body_velocity_rate"]
 
 STATE_NAMES = ("pN", "pE", "pD", "qw", "qx", "qy", "qz", "u", "v", "w", "p", "q", "r")
 """Names of the 13 state entries, in order."""
@@ -45,6 +45,21 @@ CONTROL_NAMES = ("elevator", "aileron", "rudder", "throttle")
 
 QUATERNION_STABILIZATION = 1.0
 """Gain [1/s] of the term that keeps the integrated quaternion at unit norm."""
+
+
+def body_gravity(R, g) -> tuple:
+    """Gravity per unit mass in body axes, ``g R^T e_down`` [m/s^2]: ``g`` [m/s^2] times the
+    third row of the body -> NED rotation rows ``R`` (Vaiopoulos 2017, eq. 3.20)."""
+    return (g * R[2][0], g * R[2][1], g * R[2][2])
+
+
+def body_velocity_rate(v, omega, accel) -> list:
+    """Rate [m/s^2] of a body-axis velocity ``v`` [m/s] on a frame turning at the body rates
+    ``omega`` [rad/s]: ``accel - omega x v``, with ``accel`` the specific force plus
+    gravity in body axes [m/s^2] (the translational equations of Vaiopoulos 2017, ch. 3)."""
+    p, q, r = omega[0], omega[1], omega[2]
+    return [r * v[1] - q * v[2] + accel[0], p * v[2] - r * v[0] + accel[1],
+            q * v[0] - p * v[1] + accel[2]]
 
 
 class FixedWingEvaluation(NamedTuple):
@@ -173,10 +188,7 @@ class FixedWingModel:
         elevator, aileron, rudder, throttle = self.saturate(controls)
         force, moment, thrust = self._propulsion_and_wrench(air_data[0], throttle, wrench, 0.0 * u)
 
-        g = prm.gravity if self.gravity else 0.0
-        # Gravity per unit mass in body axes: g R^T e_down = g * (third row of R) (Vaiopoulos 2017,
-        # eq. 3.20).
-        gravity_body = (g * R[2][0], g * R[2][1], g * R[2][2])
+        gravity_body = body_gravity(R, prm.gravity if self.gravity else 0.0)
         coefficients = [0.0 * u] * 6
         if self.aerodynamics:
             coefficients, force, moment = self._aerodynamics(
@@ -186,8 +198,7 @@ class FixedWingModel:
         m = prm.mass
         specific_force = [force[0] / m, force[1] / m, force[2] / m]
         accel = [specific_force[i] + gravity_body[i] for i in range(3)]
-        p, q, r = omega
-        v_dot = [r * v - q * w + accel[0], p * w - r * u + accel[1], q * u - p * v + accel[2]]
+        v_dot = body_velocity_rate((u, v, w), omega, accel)
         omega_dot = self.angular_acceleration(omega, moment)
         p_dot = [R[i][0] * u + R[i][1] * v + R[i][2] * w for i in range(3)]
         q_dot = quat_derivative(x[3:7], omega, QUATERNION_STABILIZATION)
@@ -230,12 +241,19 @@ class FixedWingModel:
         if model.has_alphadot:
             coefficients = self._add_alphadot_terms(
                 coefficients, cond, force, gravity_body, omega, v_rel, q_bar_s)
-        force = [force[0] + q_bar_s * coefficients[0], force[1] + q_bar_s * coefficients[1],
-                 force[2] + q_bar_s * coefficients[2]]
-        moment = [moment[0] + q_bar_s * prm.b * coefficients[3],
-                  moment[1] + q_bar_s * prm.c * coefficients[4],
-                  moment[2] + q_bar_s * prm.b * coefficients[5]]
+        aero = self.aerodynamic_wrench(coefficients, q_bar_s)
+        force = [force[i] + aero[i] for i in range(3)]
+        moment = [moment[i] + aero[3 + i] for i in range(3)]
         return coefficients, force, moment
+
+    def aerodynamic_wrench(self, coefficients, q_bar_s) -> list:
+        """Body force [N] and moment [N m] of the body-axis coefficients
+        ``[C_X, C_Y, C_Z, C_l, C_m, C_n]`` at dynamic pressure times wing area ``q_bar_s``
+        [N] (moments scaled by the span, chord, span)."""
+        b, c = self.params.b, self.params.c
+        return [q_bar_s * coefficients[0], q_bar_s * coefficients[1], q_bar_s * coefficients[2],
+                q_bar_s * b * coefficients[3], q_bar_s * c * coefficients[4],
+                q_bar_s * b * coefficients[5]]
 
     def _add_alphadot_terms(self, coefficients, cond, force, gravity_body, omega, v_rel,
                             q_bar_s):
