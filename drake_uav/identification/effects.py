@@ -30,6 +30,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from drake_uav.identification.isolation import AeroSamples
+from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
+from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
 from drake_uav.model.isolation import differentiate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -44,8 +46,6 @@ __all__ = [
     "FORCES",
 ]
 
-LONGITUDINAL = ("CL", "CD", "Cm")
-LATERAL = ("CY", "Cl", "Cn")
 FORCES = ("CL", "CD", "CY")
 
 ColumnFunction = Callable[[AeroSamples, FixedWingParams], Mapping[str, np.ndarray]]

@@ -39,6 +39,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 from scipy.stats import norm
 
+from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition
 from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.model.isolation import (
@@ -389,7 +390,7 @@ def _control_view(model: FixedWingModel, raw_air, raw_controls, filt,
     else:
         slope, thrust = None, filt(raw_measured_thrust)
     torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
-    q_bar = 0.5 * model.params.rho * air[:, 0] ** 2
+    q_bar = dynamic_pressure(air[:, 0], model.params.rho)
     return _ControlView(air, u, q_bar, thrust, slope, torque)
 
 

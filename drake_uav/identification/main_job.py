@@ -24,6 +24,7 @@ from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -124,8 +125,8 @@ def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed:
 
     def coefficients(va, alpha, ax, ay, az):
         lift, drag, side = force_coefficients(np.stack([ax, ay, az], axis=-1), thrust,
-                                              0.5 * params.rho * va**2, alpha, params.mass,
-                                              params.S)
+                                              dynamic_pressure(va, params.rho), alpha,
+                                              params.mass, params.S)
         return {"CL": lift, "CD": drag, "CY": side}
 
     return {name: monte_carlo_sigma(lambda *x, n=name: coefficients(*x)[n], ranges, error_std,

@@ -115,12 +115,11 @@ def _derivative(samples: AeroSamples, params: FixedWingParams, terms):
     roll, pitch = samples.signals["roll"], samples.signals["pitch"]
     gravity = np.column_stack([-g * np.sin(pitch), g * np.cos(pitch) * np.sin(roll),
                                g * np.cos(pitch) * np.cos(roll)])
-    half_rho_s = 0.5 * params.rho * params.S
 
     def derivative(i: int, y) -> np.ndarray:
         u, v, w, p, q, r = y
         Va, alpha, beta = air_data_from_velocity(u, v, w)
-        q_bar_s = half_rho_s * Va * Va
+        q_bar_s = model.dynamic_pressure_area(Va)
         cond = AeroCondition(Va, alpha, beta, p, q, r, controls[i, 0], controls[i, 1],
                              controls[i, 2], controls[i, 3], c.alphadot[i], thrust[i] / q_bar_s)
         signals = signal_values(cond, params.b, params.c)
