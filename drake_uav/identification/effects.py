@@ -34,6 +34,7 @@ from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
 from drake_uav.model.isolation import differentiate
+from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
@@ -148,16 +149,12 @@ def _body_force(samples, params, coefficient):
 
 
 def _ned_force(samples, params, coefficient):
-    roll, pitch, yaw = (samples.signals[s] for s in ("roll", "pitch", "yaw"))
-    k = _per_unit_force(samples, params)
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))
-    # Rows of R^T (NED -> body) for the north, east and down unit vectors.
-    north = np.column_stack([cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy])
-    east = np.column_stack([cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy])
-    down = np.column_stack([-sp, sr * cp, cr * cp])
-    return _force_columns({"force_north": k[:, None] * north, "force_east": k[:, None] * east,
-                           "force_down": k[:, None] * down}, samples, coefficient)
+    rotation = euler_to_rotmat(np.array([samples.signals[s] for s in ("roll", "pitch", "yaw")]))
+    k = _per_unit_force(samples, params)[:, None]
+    # Row i of the body -> NED rotation is NED axis i in body components.
+    return _force_columns({f"force_{axis}": k * rotation[i].T
+                           for i, axis in enumerate(("north", "east", "down"))},
+                          samples, coefficient)
 
 
 def _lever_arm(samples, params, coefficient):

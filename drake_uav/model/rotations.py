@@ -208,11 +208,13 @@ def euler_to_rotmat(rpy) -> np.ndarray:
     """Body -> NED rotation matrix of 3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad].
 
     The transpose of Vaiopoulos 2017, eq. 2.2 (NED -> body), whose printed (3,1)
-    element is corrected (docs/references.md).
+    element is corrected (docs/references.md). A (3, N) float array of samples gives
+    (3, 3, N).
     """
-    cr, sr = cos(rpy[0]), sin(rpy[0])
-    cp, sp = cos(rpy[1]), sin(rpy[1])
-    cy, sy = cos(rpy[2]), sin(rpy[2])
+    cos_, sin_ = (np.cos, np.sin) if np.ndim(rpy) == 2 else (cos, sin)
+    cr, sr = cos_(rpy[0]), sin_(rpy[0])
+    cp, sp = cos_(rpy[1]), sin_(rpy[1])
+    cy, sy = cos_(rpy[2]), sin_(rpy[2])
     return _array(
         [
             [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
