@@ -37,6 +37,7 @@ from drake_uav.model.coefficients import (
     split_derivative_name,
 )
 from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["Reconstruction", "reconstruct"]
@@ -111,10 +112,9 @@ def _derivative(samples: AeroSamples, params: FixedWingParams, terms):
     model = FixedWingModel(params)
     thrust = samples.thrust
     torque = np.broadcast_to(model.thrust(c.airspeed, samples.throttle)[1], (n,))
-    g = params.gravity
     roll, pitch = samples.signals["roll"], samples.signals["pitch"]
-    gravity = np.column_stack([-g * np.sin(pitch), g * np.cos(pitch) * np.sin(roll),
-                               g * np.cos(pitch) * np.cos(roll)])
+    # Gravity in body axes: g times the NED down axis in body components (yaw-free).
+    gravity = params.gravity * euler_to_rotmat(np.array([roll, pitch, 0.0 * roll]))[2].T
 
     def derivative(i: int, y) -> np.ndarray:
         u, v, w, p, q, r = y
