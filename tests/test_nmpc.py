@@ -1,0 +1,81 @@
+"""Tracking NMPC (Argyropoulos 2020, ch. 3-4): the OCP, its modes and the controller."""
+
+import numpy as np
+import pytest
+
+from drake_uav.diagrams.tracking import build_terminal_set, fly_tracking, tracking_reference
+from drake_uav.model.compiled import CompiledFunction
+from drake_uav.model.multirotor import motor_wrench, multirotor_dynamics
+from drake_uav.optimization.nmpc import NmpcSettings, TrackingNmpc, _dynamics, _rk4_batch, rk4_step
+from drake_uav.systems.nmpc_controller import STATUS_FALLBACK_INFEASIBLE, STATUS_SOLVED
+from drake_uav.vehicles.multirotor import hexacopter
+
+SHORT = np.array([[0, 0, -1], [1.5, 0.5, -1.5], [2.5, 2.0, -2.0]], dtype=float)
+
+
+@pytest.fixture(scope="module")
+def params():
+    return hexacopter()
+
+
+@pytest.fixture(scope="module")
+def tset(params):
+    return build_terminal_set(params, tracking_reference(params, SHORT, 4.0), samples=64,
+                              refine=2)
+
+
+def test_rk4_jacobians_are_exact(params):
+    rng = np.random.default_rng(0)
+    X = np.tile([0, 0, -1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0.0], (3, 1)) + 0.1 * rng.normal(
+        size=(3, 13))
+    U = 3.0 + rng.normal(size=(3, 6))
+    Xn, Ax, Bu = _rk4_batch(_dynamics(params), X, U, 0.025)
+    ref = CompiledFunction(lambda x, u: rk4_step(x, u, 0.025, params), [13, 6],
+                           wrt={0: None, 1: None})
+    for b in range(3):
+        value, (Jx, Ju) = ref.autodiff_jacobians(X[b], U[b])
+        np.testing.assert_allclose(Xn[b], value, atol=1e-12)
+        np.testing.assert_allclose(Ax[b], Jx, atol=1e-10)
+        np.testing.assert_allclose(Bu[b], Ju, atol=1e-10)
+    f = multirotor_dynamics(X[0], motor_wrench(U[0], params), params)
+    np.testing.assert_allclose((Xn[0] - X[0]) / 0.025, f, atol=0.5)
+
+
+@pytest.mark.parametrize("mode", ["rti", "nlp"])
+def test_one_step_respects_bounds_and_the_terminal_set(params, tset, mode):
+    mpc = TrackingNmpc(params, tset, NmpcSettings(mode=mode))
+    x, _ = tset.reference.at(0.0)
+    x = x.copy()
+    x[0] += 0.05
+    result = mpc.solve(0.0, x)
+    assert result.status == "solved", result.solver_status
+    assert result.solve_time > 0
+    assert np.all(result.inputs >= -1e-6) and np.all(result.inputs <= params.f_max + 1e-6)
+    assert result.terminal_ratio <= 1.0 + 1e-4
+    np.testing.assert_allclose(result.states[0], x, atol=1e-6)
+
+
+def test_closed_loop_tracks_from_an_offset(params, tset):
+    run = fly_tracking(params, tset, 4.0, offset=(0.3, 0.4, 0.0),
+                       attitude_offset=np.radians(10.0))
+    assert run.rmse(2.0) < 0.05
+    assert np.all(run.status == STATUS_SOLVED)
+    assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
+
+
+def test_far_offset_falls_back_without_raising(params, tset):
+    run = fly_tracking(params, tset, 1.0, offset=(6.0, 8.0, 0.0))
+    assert np.any(run.status == STATUS_FALLBACK_INFEASIBLE)
+    assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
+    assert np.all(np.isfinite(run.state))
+
+
+@pytest.mark.parametrize("field, settings", [
+    ("horizon", NmpcSettings(horizon=1.01)),
+    ("state_weight", NmpcSettings(state_weight=(1.0,) * 11 + (-1.0,))),
+    ("input_weight", NmpcSettings(input_weight=0.0)),
+    ("mode", NmpcSettings(mode="fast")),
+])
+def test_bad_settings_name_the_field(params, tset, field, settings):
+    with pytest.raises(ValueError, match=field):
+        TrackingNmpc(params, tset, settings)
