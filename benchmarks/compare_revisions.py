@@ -6,9 +6,10 @@ tree as it is (or ``--after REV``, exported the same way). Each benchmark script
 both trees alternately (before/after, then after/before, ...), ``--repeats`` times, in a
 fresh process of this same interpreter with ``PYTHONPATH`` pointing at the tree, and the
 best value of each FIGURE line (benchmarks/figures.py) is kept: the highest real-time
-factor, the lowest cost. Alternating and best-of-N keep the comparison fair when other work
-shares the machine. The table gives each figure before and after, the ratio after/before
-and the speed-up (the ratio for real-time factors, its inverse for costs).
+factor, the lowest cost (the median for a ratio measured inside one run). Alternating and
+best-of-N keep the comparison fair when other work shares the machine. The table gives
+each figure before and after, the ratio after/before and the speed-up (the ratio for
+real-time factors, its inverse for costs).
 
 By default both trees run the benchmark scripts of the "after" tree, so a ratio measures a
 change of the code and not of the measurement. Names the scripts import from modules that
@@ -17,8 +18,8 @@ tree that defines them; every such substitution is listed under the table.
 ``--own-scripts`` runs each tree's own scripts instead (figures only from trees whose
 scripts print FIGURE lines).
 
-    python benchmarks/compare_revisions.py [--base 3edcacf] [--repeats 3] [--quick]
-        [--scripts bench_fixed_wing.py bench_estimation.py ...] [--log-dir DIR]
+    python benchmarks/compare_revisions.py [--base 3edcacf] [--after REV] [--repeats 3]
+        [--quick] [--scripts bench_fixed_wing.py ... | all] [--log-dir DIR]
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import io
 import os
 import pathlib
 import runpy
+import statistics
 import subprocess
 import sys
 import tarfile
@@ -43,6 +45,9 @@ sys.path.insert(0, str(HERE))
 from figures import parse_figures  # noqa: E402  (the helper next to this script)
 
 DEFAULT_BASE = "3edcacf"
+DEFAULT_SCRIPTS = ("bench_fixed_wing.py", "bench_identification_flight.py", "bench_estimation.py",
+                   "bench_identification.py", "bench_multirotor.py")
+"""The scripts of the speed figures (``--scripts all``: every benchmarks/bench_*.py)."""
 PACKAGE = "drake_uav"
 ALIAS = "ALIAS"
 
@@ -213,7 +218,11 @@ def run_script(tree: pathlib.Path, script: pathlib.Path, args: list[str], moved_
 
 
 def best(values: list[tuple[float, str, str]]) -> tuple[float, str, str]:
-    better = values[0][2]
+    """The best of the runs' values: highest or lowest; the median for a ratio (its two
+    terms were measured side by side in one run, the best of them would be biased)."""
+    _, unit, better = values[0]
+    if unit == "ratio":
+        return (statistics.median(v[0] for v in values), unit, better)
     pick = max if better == "higher" else min
     return pick(values, key=lambda v: v[0])
 
@@ -252,8 +261,9 @@ def compare(args) -> None:
         trees["after"] = repo if args.after is None else export(repo, args.after, scratch / "after")
         labels = (revision_label(repo, args.base),
                   "worktree" if args.after is None else revision_label(repo, args.after))
-        names = args.scripts or sorted(p.name for p in (trees["after"] / "benchmarks").glob(
-            "bench_*.py"))
+        names = args.scripts or list(DEFAULT_SCRIPTS)
+        if names == ["all"]:
+            names = sorted(p.name for p in (trees["after"] / "benchmarks").glob("bench_*.py"))
         log_dir = pathlib.Path(args.log_dir) if args.log_dir else None
         if log_dir:
             log_dir.mkdir(parents=True, exist_ok=True)
@@ -307,7 +317,8 @@ def main() -> None:
     parser.add_argument("--after", default=None,
                         help="revision after the change (default: the working tree)")
     parser.add_argument("--repeats", type=int, default=3, help="alternating runs per script")
-    parser.add_argument("--scripts", nargs="*", help="benchmark file names (default: all)")
+    parser.add_argument("--scripts", nargs="*",
+                        help="benchmark file names or 'all' (default: the speed figures)")
     parser.add_argument("--quick", action="store_true",
                         help="pass --quick to the scripts that have it (headline figures)")
     parser.add_argument("--own-scripts", action="store_true",
