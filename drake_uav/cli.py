@@ -128,6 +128,37 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_track(args: argparse.Namespace) -> int:
+    from drake_uav.diagrams.tracking import (
+        build_terminal_set,
+        fly_tracking,
+        solve_time_stats,
+        tracking_reference,
+        write_tracking_plots,
+    )
+    from drake_uav.optimization.nmpc import NmpcSettings
+    from drake_uav.vehicles.multirotor import hexacopter
+
+    params = hexacopter()
+    print("... terminal sets along the bundled 6-waypoint trajectory", flush=True)
+    terminal = build_terminal_set(params, tracking_reference(params))
+    duration = args.duration or terminal.end_time + 2.0
+    print(f"... flying {duration:g} s with the {args.mode} NMPC", flush=True)
+    run = fly_tracking(params, terminal, duration, settings=NmpcSettings(mode=args.mode),
+                       offset=(args.offset, 0.0, 0.0),
+                       attitude_offset=np.radians(args.roll_offset),
+                       gust_sigma=args.gust, seed=args.seed)
+    stats = solve_time_stats(run)
+    print(f"position RMSE after 2 s: {100 * run.rmse(2.0):.2f} cm "
+          f"(max error after 2 s {100 * run.position_error[run.time >= 2].max():.2f} cm)")
+    print(f"solve time: median {1e3 * stats['median']:.1f} ms, p95 {1e3 * stats['p95']:.1f} "
+          f"ms, max {1e3 * stats['max']:.1f} ms; fallback steps {int((run.status != 0).sum())}"
+          f" of {len(run.status)}")
+    for path in write_tracking_plots(run, Path(args.out)):
+        print(f"plot: {path}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-uav",
@@ -163,6 +194,22 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.set_defaults(handler=_cmd_identify)
+
+    track = sub.add_parser(
+        "track", help="fly the bundled trajectory with the tracking NMPC, print RMSE, plot",
+        description="Track a minimum-snap trajectory with the hexacopter and the tracking "
+                    "NMPC with time-varying terminal sets; print the position RMSE and the "
+                    "solve-time statistics and write plots.")
+    track.add_argument("--mode", choices=("rti", "nlp"), default="rti",
+                       help="real-time iteration (one SQP step) or the full NLP")
+    track.add_argument("--duration", type=float, help="simulated time [s] (default: "
+                                                      "trajectory + 2 s)")
+    track.add_argument("--offset", type=float, default=0.5, help="initial north offset [m]")
+    track.add_argument("--roll-offset", type=float, default=10.0, help="initial roll [deg]")
+    track.add_argument("--gust", type=float, default=0.0, help="gust force std [N]")
+    track.add_argument("--seed", type=int, default=0, help="seed of the gusts")
+    track.add_argument("--out", default="drake_uav_track", help="plot folder")
+    track.set_defaults(handler=_cmd_track)
 
     play = sub.add_parser(
         "replay", help="3-D replay of a flight log in Meshcat (static HTML or live)",

@@ -41,9 +41,13 @@ def test_rk4_jacobians_are_exact(params):
     np.testing.assert_allclose((Xn[0] - X[0]) / 0.025, f, atol=0.5)
 
 
-@pytest.mark.parametrize("mode", ["rti", "nlp"])
-def test_one_step_respects_bounds_and_the_terminal_set(params, tset, mode):
-    mpc = TrackingNmpc(params, tset, NmpcSettings(mode=mode))
+@pytest.mark.parametrize("mode, solver", [
+    ("rti", "sqp"), ("nlp", "sqp"),
+    pytest.param("nlp", "snopt", marks=pytest.mark.slow),
+    pytest.param("nlp", "ipopt", marks=pytest.mark.slow),
+])
+def test_one_step_respects_bounds_and_the_terminal_set(params, tset, mode, solver):
+    mpc = TrackingNmpc(params, tset, NmpcSettings(mode=mode, nlp_solver=solver))
     x, _ = tset.reference.at(0.0)
     x = x.copy()
     x[0] += 0.05
@@ -55,11 +59,13 @@ def test_one_step_respects_bounds_and_the_terminal_set(params, tset, mode):
     np.testing.assert_allclose(result.states[0], x, atol=1e-6)
 
 
-def test_closed_loop_tracks_from_an_offset(params, tset):
-    run = fly_tracking(params, tset, 4.0, offset=(0.3, 0.4, 0.0),
-                       attitude_offset=np.radians(10.0))
+@pytest.mark.parametrize("mode", ["rti", "nlp"])
+def test_closed_loop_tracks_from_an_offset(params, tset, mode):
+    run = fly_tracking(params, tset, 3.0, settings=NmpcSettings(mode=mode),
+                       offset=(0.3, 0.4, 0.0), attitude_offset=np.radians(10.0))
     assert run.rmse(2.0) < 0.05
     assert np.all(run.status == STATUS_SOLVED)
+    assert np.all(run.terminal_ratio <= 1.0 + 1e-3)
     assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
 
 
@@ -75,6 +81,7 @@ def test_far_offset_falls_back_without_raising(params, tset):
     ("state_weight", NmpcSettings(state_weight=(1.0,) * 11 + (-1.0,))),
     ("input_weight", NmpcSettings(input_weight=0.0)),
     ("mode", NmpcSettings(mode="fast")),
+    ("nlp_solver", NmpcSettings(nlp_solver="newton")),
 ])
 def test_bad_settings_name_the_field(params, tset, field, settings):
     with pytest.raises(ValueError, match=field):

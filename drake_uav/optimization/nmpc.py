@@ -17,8 +17,10 @@ eq. 4.29 depends on time only and is left out (Argyropoulos 2020, sec. 4.4).
 
 Two modes share one program built once (only coefficients change per step):
 
-* ``"nlp"``: the full nonlinear program, dynamics as nonlinear constraints with
-  compiled Jacobians, SNOPT (or IPOPT), warm-started from the shifted solution;
+* ``"nlp"``: the full nonlinear program, warm-started from the shifted solution:
+  by default the same SQP step iterated to convergence (Gauss-Newton Hessian,
+  which is exact for the cost; its fixed points are KKT points of the NLP), or the
+  dynamics as nonlinear constraints with compiled Jacobians for SNOPT or IPOPT;
 * ``"rti"``: one SQP step per period (real-time iteration): the dynamics are
   linearised about the shifted previous solution, and the sparse convex QP
   (quadratic cost, linear dynamics, bounds, cone) goes to Clarabel.
@@ -79,9 +81,13 @@ class NmpcSettings:
     """``R_F = input_weight I`` [1/N^2]."""
     mode: str = "rti"
     """``"rti"`` (one SQP step, Clarabel) or ``"nlp"`` (full NLP)."""
-    nlp_solver: str = "snopt"
-    """``"snopt"`` or ``"ipopt"``."""
-    max_iterations: int = 50
+    nlp_solver: str = "sqp"
+    """Full-NLP solver: ``"sqp"`` (Gauss-Newton SQP iterated to convergence, QPs with
+    Clarabel), ``"snopt"`` or ``"ipopt"`` (through ``MathematicalProgram``)."""
+    max_iterations: int = 20
+    """Iteration limit of the full NLP (SQP iterations, SNOPT major iterations)."""
+    tolerance: float = 1e-4
+    """SQP convergence: largest state / input step and dynamics defect [SI]."""
 
     def validate(self) -> None:
         """Raises ``ValueError`` naming the first invalid field."""
@@ -97,9 +103,11 @@ class NmpcSettings:
                              f"{self.input_weight}")
         if self.mode not in ("rti", "nlp"):
             raise ValueError(f"NmpcSettings.mode must be 'rti' or 'nlp', got {self.mode!r}")
-        if self.nlp_solver not in ("snopt", "ipopt"):
-            raise ValueError(f"NmpcSettings.nlp_solver must be 'snopt' or 'ipopt', got "
-                             f"{self.nlp_solver!r}")
+        if self.nlp_solver not in ("sqp", "snopt", "ipopt"):
+            raise ValueError(f"NmpcSettings.nlp_solver must be 'sqp', 'snopt' or 'ipopt', "
+                             f"got {self.nlp_solver!r}")
+        if not (self.max_iterations >= 1 and self.tolerance > 0):
+            raise ValueError("NmpcSettings.max_iterations must be >= 1 and tolerance > 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,7 +222,8 @@ class TrackingNmpc:
         self._input_costs = [prog.AddQuadraticCost(np.eye(n), np.zeros(n), self.U[j])
                              for j in range(N)]
         self._cone = prog.AddLorentzConeConstraint(np.zeros((13, 13)), np.ones(13), self.X[N])
-        if self.settings.mode == "rti":
+        self._qp = self.settings.mode == "rti" or self.settings.nlp_solver == "sqp"
+        if self._qp:
             self._dyn = [prog.AddLinearEqualityConstraint(
                 np.zeros((13, 26 + n)), np.zeros(13),
                 np.concatenate([self.X[j], self.U[j], self.X[j + 1]])) for j in range(N)]
@@ -226,10 +235,14 @@ class TrackingNmpc:
             self._solver = SnoptSolver() if self.settings.nlp_solver == "snopt" \
                 else IpoptSolver()
         self._options = SolverOptions()
-        if self.settings.mode == "nlp" and self.settings.nlp_solver == "snopt":
+        if self._qp:  # QP accuracy well below the tracking errors of interest
+            for name, value in (("tol_gap_abs", 1e-5), ("tol_gap_rel", 1e-5),
+                                ("tol_feas", 1e-6)):
+                self._options.SetOption(ClarabelSolver.id(), name, value)
+        elif self.settings.nlp_solver == "snopt":
             self._options.SetOption(SnoptSolver.id(), "Major iterations limit",
                                     self.settings.max_iterations)
-        elif self.settings.mode == "nlp":
+        else:
             self._options.SetOption(IpoptSolver.id(), "max_iter", self.settings.max_iterations)
             self._options.SetOption(IpoptSolver.id(), "print_level", 0)
 
@@ -290,20 +303,47 @@ class TrackingNmpc:
         try:
             self._update(t, x)
             Xg, Ug = self._initial_guess()
-            if self.settings.mode == "rti":
-                Xn, Ax, Bu = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
-                for j, binding in enumerate(self._dyn):
-                    c = Xn[j] - Ax[j] @ Xg[j] - Bu[j] @ Ug[j]
-                    binding.evaluator().UpdateCoefficients(
-                        np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c)
-            guess = np.zeros(self.prog.num_vars())
-            self.prog.SetDecisionVariableValueInVector(self.X, Xg, guess)
-            self.prog.SetDecisionVariableValueInVector(self.U, Ug, guess)
-            result = self._solver.Solve(self.prog, guess, self._options)
-            return self._result(result, start)
+            if not self._qp:
+                return self._result(self._solve_once(Xg, Ug), start)
+            sweeps = 1 if self.settings.mode == "rti" else self.settings.max_iterations
+            total, converged = 0, self.settings.mode == "rti"
+            for _ in range(sweeps):
+                result = self._sqp_step(Xg, Ug)
+                total += int(getattr(result.get_solver_details(), "iterations", 0))
+                if not result.is_success():
+                    break
+                X, U = result.GetSolution(self.X), result.GetSolution(self.U)
+                step = max(np.abs(X - Xg).max(), np.abs(U - Ug).max())
+                Xg, Ug = X, U
+                if step <= self.settings.tolerance and self._defect_max(X, U) <= \
+                        self.settings.tolerance:
+                    converged = True
+                    break
+            out = self._result(result, start, total)
+            if out.success and not converged:
+                return dataclasses.replace(out, solver_status="IterationLimit")
+            return out
         except (RuntimeError, ValueError, np.linalg.LinAlgError) as err:
             self._guess = None
             return self._failure("failed", str(err), start)
+
+    def _solve_once(self, Xg, Ug):
+        guess = np.zeros(self.prog.num_vars())
+        self.prog.SetDecisionVariableValueInVector(self.X, Xg, guess)
+        self.prog.SetDecisionVariableValueInVector(self.U, Ug, guess)
+        return self._solver.Solve(self.prog, guess, self._options)
+
+    def _sqp_step(self, Xg, Ug):
+        """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians)."""
+        Xn, Ax, Bu = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
+        for j, binding in enumerate(self._dyn):
+            c = Xn[j] - Ax[j] @ Xg[j] - Bu[j] @ Ug[j]
+            binding.evaluator().UpdateCoefficients(np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c)
+        return self._solve_once(Xg, Ug)
+
+    def _defect_max(self, X, U) -> float:
+        Xn, _, _ = _rk4_batch(self._fn, X[:-1], U, self.h)
+        return float(np.abs(Xn - X[1:]).max())
 
     def _failure(self, status, solver_status, start) -> NmpcResult:
         ur = self._ur[0] if hasattr(self, "_ur") else np.zeros(self.n)
@@ -312,10 +352,13 @@ class TrackingNmpc:
                           solve_time=time.perf_counter() - start, terminal_ratio=np.inf,
                           states=np.empty((0, 13)), inputs=np.empty((0, self.n)))
 
-    def _result(self, result, start) -> NmpcResult:
+    def _result(self, result, start, iterations: int | None = None) -> NmpcResult:
+        """``iterations``: QP solver iterations summed over the SQP steps (None: the
+        NLP solver's own count, or SNOPT's exit code when it reports none)."""
         name = result.get_solution_result().name
         details = result.get_solver_details()
-        iterations = int(getattr(details, "iterations", getattr(details, "info", 0)))
+        if iterations is None:
+            iterations = int(getattr(details, "iterations", getattr(details, "info", 0)))
         X, U = result.GetSolution(self.X), result.GetSolution(self.U)
         if not result.is_success() or not np.all(np.isfinite(U)):
             self._guess = None

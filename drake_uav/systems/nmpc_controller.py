@@ -58,9 +58,10 @@ class NmpcController(LeafSystem):
         self._f_max = params.f_max * (terminal.health > 0)
         _, u0 = terminal.reference.at(0.0)
         self._state = self.DeclareVectorInputPort("state", STATE_SIZE)
-        self._memory = self.DeclareDiscreteState(BasicVector(np.concatenate([u0, [0.0, 0.0]])))
+        self._memory = self.DeclareDiscreteState(BasicVector(np.concatenate([u0, [0.0, 0.0, 0.0]])))
         self.DeclarePeriodicDiscreteUpdateEvent(self.mpc.settings.period, 0.0, self._update)
-        self.DeclareStateOutputPort("all", self._memory)  # thrusts, status, solve time
+        # thrusts, status, solve time, terminal ratio e_N^T P~ e_N / pi~^2 (inf: no solution)
+        self.DeclareStateOutputPort("all", self._memory)
         self.DeclareVectorOutputPort("motor_thrusts", n, self._thrusts,
                                      prerequisites_of_calc={self.xd_ticket()})
         self.DeclareVectorOutputPort("status", 1, lambda c, o: o.SetAtIndex(
@@ -90,17 +91,18 @@ class NmpcController(LeafSystem):
         try:
             result = self.mpc.solve(t, x)
             if result.success:
-                values = np.concatenate([result.thrusts, [STATUS_SOLVED, result.solve_time]])
+                values = np.concatenate([result.thrusts, [STATUS_SOLVED, result.solve_time,
+                                                            result.terminal_ratio]])
             else:
                 code = STATUS_FALLBACK_INFEASIBLE if result.status == "infeasible" \
                     else STATUS_FALLBACK_FAILED
-                values = np.concatenate([self.fallback(t, x), [code, result.solve_time]])
+                values = np.concatenate([self.fallback(t, x), [code, result.solve_time, np.inf]])
         except Exception:  # noqa: BLE001 - a controller never raises inside a simulation
             try:
                 u = self.fallback(t, x)
             except Exception:  # noqa: BLE001
                 u = np.clip(self.terminal.reference.at(t)[1], 0.0, self._f_max)
-            values = np.concatenate([u, [STATUS_FALLBACK_FAILED, 0.0]])
+            values = np.concatenate([u, [STATUS_FALLBACK_FAILED, 0.0, np.inf]])
         if not np.all(np.isfinite(values[:self.n])):
             values[:self.n] = np.clip(self.terminal.reference.at(t)[1], 0.0, self._f_max)
             values[self.n] = STATUS_FALLBACK_FAILED
