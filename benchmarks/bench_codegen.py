@@ -9,12 +9,15 @@
 2. The fixed-wing model: compile time of ``CompiledFixedWingModel(FixedWingModel(
    aerosonde()))`` with its state-derivative and batch code, the CPU time per call of
    ``.field("state_derivative")`` on Python lists (what the plant calls once per integrator
-   stage) and of ``.evaluate_batch`` per sample over a log; both generators' code timed
-   interleaved, best of ``--repeats``.
+   stage) and of ``.evaluate_batch`` per sample over a log, and of the value and Jacobian
+   of the ``ModelBasedAirDataModel`` dynamics (the larger part of an EKF step); both
+   generators' code timed interleaved, best of ``--repeats``.
 3. With ``--candidates``: the same state derivative through CasADi (``Function``, one
    call and ``map`` over the log), JAX (``jit``, ``vmap``) and numba (``njit``), each when
    installed. They run the generated straight-line code on their own symbolic or typed
-   values, so the equations are the same; build time and CPU time per call are printed.
+   values, so the equations are the same. Printed: build time, CPU time per call with the
+   arguments as Python lists (as the plant reads its ports) and as numpy arrays, and per
+   sample of a log.
 
 CPU time (``time.process_time``) so other load on a shared machine inflates it less than
 wall time. Headline figures as FIGURE lines (benchmarks/figures.py).
@@ -38,6 +41,7 @@ from figures import figure
 from pydrake.math import cos, sin
 
 import drake_uav.model.fixed_wing as fixed_wing
+from drake_uav.estimation import ModelBasedAirDataModel
 from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.fixed_wing import CompiledFixedWingModel, FixedWingModel
 from drake_uav.vehicles.fixed_wing import aerosonde
@@ -47,12 +51,15 @@ DEPTHS = (8, 12, 14, 16, 50, 200)
 LOG_SAMPLES = 10_000
 CALLS = 2000  # per timed repetition of a single-sample call
 HERE = pathlib.Path(__file__).resolve().parent
-# A cruise state (pNED, quaternion, uvw, pqr), controls (aileron, elevator, rudder,
+# A cruise state (pNED, quaternion, uvw, pqr), controls (elevator, aileron, rudder,
 # throttle), wind NED: the point of the per-call figures.
 STATE = [10.0, -5.0, -100.0, 0.999, 0.01, 0.04, 0.02, 24.5, 0.3, 1.2, 0.02, -0.01, 0.03]
-CONTROLS = [0.01, -0.05, 0.002, 0.55]
+CONTROLS = [-0.05, 0.01, 0.002, 0.55]
 WIND = [1.0, -0.5, 0.1]
 NO_WRENCH = [0.0] * 6
+# ModelBasedAirDataModel: Va, alpha, beta, wind NED; p, q, r, roll, pitch, yaw, controls.
+EKF_STATE = [25.0, 0.06, 0.02, 3.0, -2.0, 0.2]
+EKF_INPUTS = [0.05, 0.1, -0.05, 0.1, 0.05, 1.0, *CONTROLS]
 
 
 def load_base(revision: str):
@@ -178,20 +185,37 @@ def per_call_cases(cls) -> dict:
             derivative(STATE, CONTROLS, WIND, NO_WRENCH)
         return (time.process_time() - start) / calls
 
-    def batch() -> float:
-        return cpu(lambda: built["model"].evaluate_batch(x, controls, wind)) / LOG_SAMPLES
+    def batch() -> float:  # best of three: one call takes only milliseconds
+        return min(cpu(lambda: built["model"].evaluate_batch(x, controls, wind))
+                   for _ in range(3)) / LOG_SAMPLES
 
-    return {"compile": compile_model, "state_derivative": one_call, "evaluate_batch": batch}
+    ekf_model = ModelBasedAirDataModel(aerosonde())
+    sizes = [len(ekf_model.state_names), len(ekf_model.input_names), len(ekf_model.noise_names)]
+    ekf_point = [np.array(EKF_STATE), np.array(EKF_INPUTS), np.zeros(sizes[2])]
+
+    def ekf_step() -> float:
+        if "dynamics" not in built:
+            built["dynamics"] = cls(ekf_model.dynamics, sizes, dict.fromkeys(range(3)))
+        run, calls = built["dynamics"].value_and_jacobian, 5000
+        start = time.process_time()
+        for _ in range(calls):
+            run(*ekf_point)
+        return (time.process_time() - start) / calls
+
+    return {"compile": compile_model, "state_derivative": one_call, "evaluate_batch": batch,
+            "ekf_dynamics": ekf_step}
 
 
 def fixed_wing_figures(generators: dict, repeats: int) -> dict[str, dict[str, float]]:
-    """Best CPU seconds of each case and generator, the generators interleaved (a warm-up
-    round first: the first model built pays for imports and caches of either)."""
+    """Best CPU seconds of each case and generator, the generators interleaved in
+    alternating order (a warm-up round first: the first model built pays for imports and
+    caches of either)."""
     cases = {label: per_call_cases(cls) for label, cls in generators.items()}
     best = {label: dict.fromkeys(cases[label], math.inf) for label in generators}
     for round_ in range(repeats + 1):
-        for label, label_cases in cases.items():
-            for name, case in label_cases.items():
+        order = list(cases) if round_ % 2 else list(cases)[::-1]  # alternate who goes first
+        for label in order:
+            for name, case in cases[label].items():
                 seconds = case()
                 if round_ > 0:
                     best[label][name] = min(best[label][name], seconds)
@@ -202,8 +226,9 @@ def print_fixed_wing(best: dict[str, dict[str, float]]) -> None:
     labels = list(best)
     rows = (("compile", "model, state-derivative and batch code [s]", 1.0),
             ("state_derivative", "field('state_derivative'), per call [us]", 1e6),
-            ("evaluate_batch", f"evaluate_batch, {LOG_SAMPLES} samples, per sample [us]", 1e6))
-    print("\n2. Fixed-wing model (Aerosonde), CPU time")
+            ("evaluate_batch", f"evaluate_batch, {LOG_SAMPLES} samples, per sample [us]", 1e6),
+            ("ekf_dynamics", "EKF dynamics value + Jacobian, per call [us]", 1e6))
+    print("\n2. Fixed-wing model (Aerosonde) and the model-based air-data EKF, CPU time")
     print(f"   {'':<52}" + "".join(f"{label:>12}" for label in labels)
           + ("  ratio" if len(labels) == 2 else ""))
     for key, text, scale in rows:
@@ -231,7 +256,9 @@ def _functions(module, names: dict[str, str]) -> dict:
 def python_cases(function: CompiledFunction) -> dict:
     """This generator: the float and batch code written again from the traced graph."""
     again = function.restricted(range(function.output_size))
-    return {"call": again.program, "batch": again.batch_value}
+    run = again.program
+    return {"lists": run, "arrays": lambda *args: run(*[a.tolist() for a in args]),
+            "batch": again.batch_value}
 
 
 def casadi_cases(function: CompiledFunction) -> dict:
@@ -247,8 +274,9 @@ def casadi_cases(function: CompiledFunction) -> dict:
     symbols = [ca.SX.sym(f"a{i}", n) for i, n in enumerate(function.arg_sizes)]
     one = ca.Function("f", symbols, [scope["compiled"](*[ca.vertsplit(s) for s in symbols])])
     batch = one.map(LOG_SAMPLES, "serial")
-    return {"call": lambda x, u, w, r: one(x, u, w, r).full().ravel(),
-            "batch": lambda x, u, w, r: batch(x.T, u.T, w.T, r.T).full().T}
+    run = lambda *args: one(*args).full().ravel()  # noqa: E731
+    return {"lists": run, "arrays": run,
+            "batch": lambda *args: batch(*[a.T for a in args]).full().T}
 
 
 def jax_cases(function: CompiledFunction) -> dict:
@@ -265,7 +293,8 @@ def jax_cases(function: CompiledFunction) -> dict:
     scope["_array"] = jnp.stack
     exec(function.source(), scope)
     one, batch = jax.jit(scope["compiled"]), jax.jit(jax.vmap(scope["compiled"]))
-    return {"call": lambda *args: np.asarray(one(*[np.asarray(a) for a in args])),
+    return {"lists": lambda *args: np.asarray(one(*[np.asarray(a) for a in args])),
+            "arrays": lambda *args: np.asarray(one(*args)),
             "batch": lambda *args: np.asarray(batch(*args))}
 
 
@@ -285,52 +314,59 @@ def numba_cases(function: CompiledFunction) -> dict:
                                 "not": "logical_not"}), "_empty": np.empty}
     exec(function.source(vector=True), vector)
     one, batch = numba.njit(scope["compiled"]), numba.njit(vector["compiled"])
-    return {"call": lambda *args: one(*[np.array(a) for a in args]),
-            "batch": lambda *args: batch(*args)}
+    return {"lists": lambda *args: one(*[np.array(a) for a in args]), "arrays": one,
+            "batch": batch}
 
 
-def candidate_figures(repeats: int) -> dict[str, dict[str, float]]:
-    """Per tool: build seconds (from the traced graph to the first results of the single
-    and batch code), best CPU seconds per call (Python lists in, as the plant has them)
-    and per sample of the log."""
+CANDIDATES = {"generated Python": python_cases, "CasADi": casadi_cases, "JAX": jax_cases,
+              "numba": numba_cases}
+
+
+def candidate_figures(repeats: int) -> dict[str, dict[str, float] | None]:
+    """Per tool (None: not installed): build seconds (from the traced graph to the first
+    results of the single and batch code) and best CPU seconds per call, Python lists in
+    (as the plant reads its ports) or numpy arrays in, and per sample of the log; the
+    tools interleaved."""
     function = state_derivative_function()
     x, controls, wind = log_arguments(LOG_SAMPLES)
     log = (x, controls, wind, np.zeros((LOG_SAMPLES, 6)))
-    one = (STATE, CONTROLS, WIND, NO_WRENCH)
-    reference = function.value(*one)
-    builders = {"generated Python": python_cases, "CasADi": casadi_cases, "JAX": jax_cases,
-                "numba": numba_cases}
-    figures = {}
-    for name, build in builders.items():
+    lists = (STATE, CONTROLS, WIND, NO_WRENCH)
+    arrays = tuple(np.array(a) for a in lists)
+    arguments = {"lists": lists, "arrays": arrays, "batch": log}
+    reference, figures, built = function.value(*lists), {}, {}
+    for name, build in CANDIDATES.items():
         start = time.process_time()
         try:
-            cases = build(function)
-            np.testing.assert_allclose(cases["call"](*one), reference, rtol=1e-12)
-            np.testing.assert_allclose(cases["batch"](*log)[0], function.value(
-                *[a[0] for a in log]), rtol=1e-12)
+            built[name] = cases = build(function)
         except ImportError:
             figures[name] = None
             continue
-        figures[name] = {"build": time.process_time() - start, "call": math.inf,
-                         "batch": math.inf}
-        for _ in range(repeats):
-            seconds = cpu(lambda cases=cases: [cases["call"](*one) for _ in range(CALLS)])
-            figures[name]["call"] = min(figures[name]["call"], seconds / CALLS)
-            seconds = cpu(lambda cases=cases: cases["batch"](*log))
-            figures[name]["batch"] = min(figures[name]["batch"], seconds / LOG_SAMPLES)
+        for key in ("lists", "arrays"):
+            np.testing.assert_allclose(cases[key](*arguments[key]), reference, rtol=1e-12)
+        np.testing.assert_allclose(cases["batch"](*log)[-1], function.value(
+            *[a[-1] for a in log]), rtol=1e-12)
+        figures[name] = {"build": time.process_time() - start,
+                         **dict.fromkeys(arguments, math.inf)}
+    for _ in range(repeats):
+        for name, cases in built.items():
+            for key, args in arguments.items():
+                count = LOG_SAMPLES if key == "batch" else CALLS
+                seconds = (cpu(lambda run=cases[key], a=args: run(*a)) if key == "batch" else
+                           cpu(lambda run=cases[key], a=args: [run(*a) for _ in range(CALLS)]))
+                figures[name][key] = min(figures[name][key], seconds / count)
     return figures
 
 
 def print_candidates(figures: dict) -> None:
     print("\n3. State derivative through other tools (same generated code), CPU time")
-    print(f"   {'':<18}{'build [s]':>10}{'per call [us]':>15}"
-          f"{'per sample, ' + str(LOG_SAMPLES) + ' [us]':>26}")
+    print(f"   {'':<18}{'build [s]':>10}{'per call, lists [us]':>22}"
+          f"{'per call, arrays [us]':>23}{'per sample, ' + str(LOG_SAMPLES) + ' [us]':>26}")
     for name, values in figures.items():
         if values is None:
             print(f"   {name:<18}{'not installed':>10}")
             continue
-        print(f"   {name:<18}{values['build']:>10.2f}{values['call'] * 1e6:>15.2f}"
-              f"{values['batch'] * 1e6:>26.3f}")
+        print(f"   {name:<18}{values['build']:>10.2f}{values['lists'] * 1e6:>22.2f}"
+              f"{values['arrays'] * 1e6:>23.2f}{values['batch'] * 1e6:>26.3f}")
 
 
 def main() -> None:
