@@ -19,6 +19,7 @@ from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, RandomSource
 
+from drake_uav.model.air_data import airspeed_from_dynamic_pressure, dynamic_pressure
 from drake_uav.model.rotations import quat_to_euler, rotate, unit_quat_rotation
 from drake_uav.vehicles.sensors import CHANNEL_LAYOUT, TRUTH_LAYOUT, SensorSuiteParams
 
@@ -152,7 +153,7 @@ class SampledSensors(LeafSystem):
         force = self._force.Eval(context).tolist() if need["specific_force"] else zero
         euler = quat_to_euler(x[3:7]).tolist() if need["euler"] else zero
         truth = np.array((*force, *x[10:13], *x[0:3], *velocity,
-                          0.5 * self._density * air[0] * air[0], air[1], air[2], *euler, -x[2]))
+                          dynamic_pressure(air[0], self._density), air[1], air[2], *euler, -x[2]))
         return truth if self._all_truths else truth[self._truth_idx]
 
     def _update(self, context, discrete_state) -> None:
@@ -182,8 +183,8 @@ class SampledSensors(LeafSystem):
         if self._yaw is not None:
             out[self._yaw] = (out[self._yaw] + math.pi) % (2.0 * math.pi) - math.pi
         if self._density:
-            q = out[self._airspeed_index - 1]
-            out[self._airspeed_index] = math.sqrt(2.0 * max(q, 0.0) / self._density)
+            out[self._airspeed_index] = airspeed_from_dynamic_pressure(
+                out[self._airspeed_index - 1], self._density)
         walk += walk_step * noise[:n]
         x[0] = tick + 1
 
