@@ -36,7 +36,7 @@ from drake_uav.model.coefficients import (
     signal_values,
     split_derivative_name,
 )
-from drake_uav.model.fixed_wing import FixedWingModel
+from drake_uav.model.fixed_wing import FixedWingModel, body_gravity, body_velocity_rate
 from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -113,8 +113,9 @@ def _derivative(samples: AeroSamples, params: FixedWingParams, terms):
     thrust = samples.thrust
     torque = np.broadcast_to(model.thrust(c.airspeed, samples.throttle)[1], (n,))
     roll, pitch = samples.signals["roll"], samples.signals["pitch"]
-    # Gravity in body axes: g times the NED down axis in body components (yaw-free).
-    gravity = params.gravity * euler_to_rotmat(np.array([roll, pitch, 0.0 * roll]))[2].T
+    rotation = euler_to_rotmat(np.array([roll, pitch, 0.0 * roll]))  # gravity is yaw-free
+    gravity = np.column_stack(body_gravity(rotation, params.gravity))
+    m = params.mass
 
     def derivative(i: int, y) -> np.ndarray:
         u, v, w, p, q, r = y
@@ -126,15 +127,13 @@ def _derivative(samples: AeroSamples, params: FixedWingParams, terms):
         coef = {k: exogenous[i] + sum(theta * signals[s] for s, theta in baseline)
                 for k, (baseline, exogenous) in terms.items()}
         CX, CZ = lift_drag_to_body(coef["CL"], coef["CD"], alpha)
-        m = params.mass
-        moment = (q_bar_s * params.b * coef["Cl"] + torque[i], q_bar_s * params.c * coef["Cm"],
-                  q_bar_s * params.b * coef["Cn"])
-        return np.array([
-            (q_bar_s * CX + thrust[i]) / m + gravity[i, 0] - (q * w - r * v),
-            q_bar_s * coef["CY"] / m + gravity[i, 1] - (r * u - p * w),
-            q_bar_s * CZ / m + gravity[i, 2] - (p * v - q * u),
-            *model.angular_acceleration((p, q, r), moment),
-        ])
+        wrench = model.aerodynamic_wrench(
+            (CX, coef["CY"], CZ, coef["Cl"], coef["Cm"], coef["Cn"]), q_bar_s)
+        accel = ((wrench[0] + thrust[i]) / m + gravity[i, 0], wrench[1] / m + gravity[i, 1],
+                 wrench[2] / m + gravity[i, 2])
+        moment = (wrench[3] + torque[i], wrench[4], wrench[5])
+        return np.array([*body_velocity_rate((u, v, w), (p, q, r), accel),
+                         *model.angular_acceleration((p, q, r), moment)])
 
     return derivative
 
