@@ -72,6 +72,7 @@ def test_closed_loop_tracks_from_an_offset(params, tset, mode):
 def test_far_offset_falls_back_without_raising(params, tset):
     run = fly_tracking(params, tset, 1.0, offset=(6.0, 8.0, 0.0))
     assert np.any(run.status == STATUS_FALLBACK_INFEASIBLE)
+    assert run.position_error[-1] < 8.0  # closing in on the reference
     assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
     assert np.all(np.isfinite(run.state))
 
@@ -86,3 +87,30 @@ def test_far_offset_falls_back_without_raising(params, tset):
 def test_bad_settings_name_the_field(params, tset, field, settings):
     with pytest.raises(ValueError, match=field):
         TrackingNmpc(params, tset, settings)
+
+
+def test_local_law_fallback_when_relaxing_is_off(params, tset):
+    run = fly_tracking(params, tset, 0.2, settings=NmpcSettings(relax_terminal=False),
+                       offset=(6.0, 8.0, 0.0))
+    assert np.all(run.status[1:] == STATUS_FALLBACK_INFEASIBLE)
+    assert np.all(np.isinf(run.terminal_ratio[1:]))
+    assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
+
+
+def test_controller_never_raises_on_a_bad_state(params, tset):
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from drake_uav.systems.nmpc_controller import STATUS_FALLBACK_FAILED, NmpcController
+
+    builder = DiagramBuilder()
+    ctrl = builder.AddSystem(NmpcController(params, tset))
+    src = builder.AddSystem(ConstantVectorSource(np.full(13, np.nan)))
+    builder.Connect(src.get_output_port(), ctrl.GetInputPort("state"))
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.03)
+    sub = ctrl.GetMyContextFromRoot(simulator.get_context())
+    assert ctrl.GetOutputPort("status").Eval(sub)[0] == STATUS_FALLBACK_FAILED
+    u = ctrl.GetOutputPort("motor_thrusts").Eval(sub)
+    assert np.all(np.isfinite(u)) and u.min() >= 0.0 and u.max() <= params.f_max

@@ -6,6 +6,8 @@ of ``h = T_p / N``, states ``X_0..X_N`` (13 each) and motor thrusts
 
     minimise    sum_j h [e_j^T Q_F e_j + (U_j - u_r,j)^T R_F (U_j - u_r,j)],  j = 1..N / 0..N-1
     subject to  X_0 = x(t_k),  X_{j+1} = RK4_h(X_j, U_j),  0 <= U_j <= f_max (failed: 0)
+                |theta_e,j| <= bound, |v_j| <= v_max, |omega_j| <= omega_max  (the box of
+                the terminal set's ErrorBounds, eq. 4.4d)
                 e_N^T (P(t_k + T_p) + I) e_N <= pi~(t_k + T_p)^2                   (eq. 4.4e)
 
 with ``e_j = state_error(X_j, x_r(t_k + j h))`` (linear in ``X_j``: the attitude
@@ -88,6 +90,10 @@ class NmpcSettings:
     """Iteration limit of the full NLP (SQP iterations, SNOPT major iterations)."""
     tolerance: float = 1e-4
     """SQP convergence: largest state / input step and dynamics defect [SI]."""
+    relax_terminal: bool = True
+    """When the OCP is infeasible, solve it again without the terminal constraint
+    (status ``"relaxed"``): far from the reference the local law behind the fallback
+    is not stabilising."""
 
     def validate(self) -> None:
         """Raises ``ValueError`` naming the first invalid field."""
@@ -112,7 +118,8 @@ class NmpcSettings:
 
 @dataclasses.dataclass(frozen=True)
 class NmpcResult:
-    """Outcome of one solve; ``status`` is ``"solved"``, ``"infeasible"`` or ``"failed"``."""
+    """Outcome of one solve; ``status`` is ``"solved"``, ``"relaxed"`` (solved without the
+    terminal constraint, which was infeasible), ``"infeasible"`` or ``"failed"``."""
 
     thrusts: np.ndarray
     """First input [N] (n); the reference input when the solve failed."""
@@ -222,6 +229,12 @@ class TrackingNmpc:
         self._input_costs = [prog.AddQuadraticCost(np.eye(n), np.zeros(n), self.U[j])
                              for j in range(N)]
         self._cone = prog.AddLorentzConeConstraint(np.zeros((13, 13)), np.ones(13), self.X[N])
+        # state box of eq. 4.4d: attitude error (changes with q_r), velocity, rates
+        upper = self.terminal.upper
+        self._box_rows = [i for i in range(3, 12) if np.isfinite(upper[i])]
+        self._box = [prog.AddLinearConstraint(np.zeros((len(self._box_rows), 13)),
+                                              -upper[self._box_rows], upper[self._box_rows],
+                                              self.X[j]) for j in range(1, N + 1)]
         self._qp = self.settings.mode == "rti" or self.settings.nlp_solver == "sqp"
         if self._qp:
             self._dyn = [prog.AddLinearEqualityConstraint(
@@ -266,8 +279,13 @@ class TrackingNmpc:
             x = np.concatenate([x[:3], -x[3:7], x[7:]])
         self._x0.evaluator().UpdateLowerBound(x)
         self._x0.evaluator().UpdateUpperBound(x)
+        rows, upper = self._box_rows, self.terminal.upper[self._box_rows]
         for j in range(1, N + 1):
             L, l = _error_map(xr[j])
+            Lb = L[rows]
+            keep = np.array(rows) < 6  # attitude rows are errors; the others bound x itself
+            offset = np.where(keep, l[rows], 0.0)
+            self._box[j - 1].evaluator().UpdateCoefficients(Lb, -upper - offset, upper - offset)
             H = 2 * h * L.T @ self.Q @ L
             self._state_costs[j - 1].evaluator().UpdateCoefficients(
                 H + 1e-9 * np.eye(13), 2 * h * L.T @ self.Q @ l)
@@ -300,32 +318,48 @@ class TrackingNmpc:
         """One step at time ``t`` [s] from the measured state ``x`` (13)."""
         start = time.perf_counter()
         x = np.asarray(x, dtype=float)[:STATE_SIZE]
+        if not np.all(np.isfinite(x)) or not np.isfinite(t):
+            self._guess = None
+            return self._failure("failed", "non-finite state or time", start)
         try:
             self._update(t, x)
-            Xg, Ug = self._initial_guess()
-            if not self._qp:
-                return self._result(self._solve_once(Xg, Ug), start)
-            sweeps = 1 if self.settings.mode == "rti" else self.settings.max_iterations
-            total, converged = 0, self.settings.mode == "rti"
-            for _ in range(sweeps):
-                result = self._sqp_step(Xg, Ug)
-                total += int(getattr(result.get_solver_details(), "iterations", 0))
-                if not result.is_success():
-                    break
-                X, U = result.GetSolution(self.X), result.GetSolution(self.U)
-                step = max(np.abs(X - Xg).max(), np.abs(U - Ug).max())
-                Xg, Ug = X, U
-                if step <= self.settings.tolerance and self._defect_max(X, U) <= \
-                        self.settings.tolerance:
-                    converged = True
-                    break
-            out = self._result(result, start, total)
-            if out.success and not converged:
-                return dataclasses.replace(out, solver_status="IterationLimit")
+            out = self._solve_ocp(start)
+            if out.status == "infeasible" and self.settings.relax_terminal:
+                Pt, level, L, l = self._terminal
+                unbounded = np.zeros(13)
+                unbounded[0] = 1.0  # 1 >= |0|: the cone constraint always holds
+                self._cone.evaluator().UpdateCoefficients(np.zeros((13, 13)), unbounded)
+                relaxed = self._solve_ocp(start)
+                if relaxed.success:
+                    return dataclasses.replace(relaxed, status="relaxed")
             return out
         except (RuntimeError, ValueError, np.linalg.LinAlgError) as err:
             self._guess = None
             return self._failure("failed", str(err), start)
+
+    def _solve_ocp(self, start: float) -> NmpcResult:
+        """One RTI step, the SQP to convergence, or the NLP solver, from the warm start."""
+        Xg, Ug = self._initial_guess()
+        if not self._qp:
+            return self._result(self._solve_once(Xg, Ug), start)
+        sweeps = 1 if self.settings.mode == "rti" else self.settings.max_iterations
+        total, converged = 0, self.settings.mode == "rti"
+        for _ in range(sweeps):
+            result = self._sqp_step(Xg, Ug)
+            total += int(getattr(result.get_solver_details(), "iterations", 0))
+            if not result.is_success():
+                break
+            X, U = result.GetSolution(self.X), result.GetSolution(self.U)
+            step = max(np.abs(X - Xg).max(), np.abs(U - Ug).max())
+            Xg, Ug = X, U
+            if step <= self.settings.tolerance and self._defect_max(X, U) <= \
+                    self.settings.tolerance:
+                converged = True
+                break
+        out = self._result(result, start, total)
+        if out.success and not converged:
+            return dataclasses.replace(out, solver_status="IterationLimit")
+        return out
 
     def _solve_once(self, Xg, Ug):
         guess = np.zeros(self.prog.num_vars())
@@ -336,6 +370,8 @@ class TrackingNmpc:
     def _sqp_step(self, Xg, Ug):
         """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians)."""
         Xn, Ax, Bu = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
+        if not (np.all(np.isfinite(Xn)) and np.all(np.isfinite(Ax)) and np.all(np.isfinite(Bu))):
+            raise ValueError("non-finite linearisation (the prediction diverged)")
         for j, binding in enumerate(self._dyn):
             c = Xn[j] - Ax[j] @ Xg[j] - Bu[j] @ Ug[j]
             binding.evaluator().UpdateCoefficients(np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c)

@@ -69,7 +69,7 @@ def test_recursive_feasibility_over_30_s(params, tset):
 def test_10_m_offset_falls_back_and_recovers(params, tset):
     run = fly_tracking(params, tset, 30.0, offset=(6.0, 8.0, 0.0))
     _summary("rti, 10 m offset", run)
-    assert run.status[0] == STATUS_FALLBACK_INFEASIBLE
+    assert np.any(run.status[:40] == STATUS_FALLBACK_INFEASIBLE)
     assert np.all(np.isfinite(run.state))
     assert run.position_error[-1] < 0.05
     assert np.all(run.status[-40:] == STATUS_SOLVED)
