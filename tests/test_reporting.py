@@ -1,4 +1,6 @@
+import base64
 import json
+from html.parser import HTMLParser
 
 import numpy as np
 import pytest
@@ -6,8 +8,7 @@ from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 
 from drake_uav.identification.residuals import diagnose
-from drake_uav.reporting import figures
-from drake_uav.reporting.report import Report, format_value, json_ready, markdown_to_html
+from drake_uav.reporting import Report, figures, format_value, json_ready
 
 FS = 50.0  # Hz
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -29,6 +30,53 @@ class _FailingArtist(Artist):
 
     def draw(self, renderer):
         raise RuntimeError("figure failed to draw")
+
+
+class _Page(HTMLParser):
+    """The parts of report.html a reader sees: headings, table rows, images, links, text."""
+
+    def __init__(self, page: str):
+        super().__init__()
+        self.headings: list[tuple[str, str]] = []
+        self.tables: list[list[list[str]]] = []
+        self.images: list[dict[str, str]] = []
+        self.links: list[str] = []
+        self.tags: list[str] = []
+        self.text: list[str] = []
+        self._open: list[str] = []
+        self._cell: list[str] | None = None
+        self.feed(page)
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.append(tag)
+        if tag == "img":
+            self.images.append(attrs)
+        if tag in ("img", "meta", "br", "hr"):  # void elements: no end tag
+            return
+        self._open.append(tag)
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self.tables[-1].append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+        elif tag == "a":
+            self.links.append(attrs["href"])
+
+    def handle_endtag(self, tag):
+        assert self._open and self._open[-1] == tag, (self._open, tag)  # well-formed
+        self._open.pop()
+        if tag in ("td", "th"):
+            self.tables[-1][-1].append("".join(self._cell))
+            self._cell = None
+        elif tag in ("h1", "h2", "h3"):
+            self.headings.append((tag, self.text[-1]))
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
 
 
 def _failing_figure():
@@ -84,13 +132,25 @@ def test_report_with_every_section_kind(tmp_path, flight):
     assert "![Residual before and after](fig01_residual.png)" in md
     assert "- **effect found:** yes" in md and "- **missing:** -" in md
 
-    page = (out / "report.html").read_text()
-    for text in ("0.0312", "0.1235", "28.4", "0.04123", "Identified parameters", "a|b"):
-        assert text in page
-    assert "<script>" not in page and "&lt;script&gt;" in page
-    assert "<strong>lacks</strong>" in page and "<code>C_D_Tc</code>" in page
-    assert page.count("data:image/png;base64,") == 5
-    assert all(f'href="{n}"' in page for n in pngs)
+    page = _Page((out / "report.html").read_text())
+    assert page.headings == [("h1", "Identification of the sample flight"), ("h2", "Summary")]
+    parameters, small = page.tables
+    assert parameters == [["parameter", "estimate", "sigma", "t"],
+                          ["C_D_0", "0.0312", "0.0011", "28.4"],
+                          ["C_D_Tc", "0.1235", "0.01", "inf"]]
+    assert small == [["n", "name", "value"], ["1", "a|b", "2.5e-07"]]
+    assert "Identified parameters" in page.text  # the caption
+    assert "<script>alert(1)</script>" in "".join(page.text) and "script" not in page.tags
+    assert {"strong", "code", "ul", "li", "em"} <= set(page.tags)
+    assert [i["alt"] for i in page.images] == [
+        "Residual before and after", "Autocorrelation", "Normal probability plot",
+        "Spectral density", "Reconstruction"]
+    # Figures embedded (a self-contained page), each linked to its file in the folder.
+    assert all(i["src"].startswith("data:image/png;base64,") for i in page.images)
+    assert base64.b64decode(page.images[0]["src"].split(",", 1)[1]) == (
+        out / "fig01_residual.png").read_bytes()
+    assert page.links == pngs
+    assert "Figure 5: Reconstruction" in page.text
 
     data = json.loads((out / "summary.json").read_text())
     assert data["complete"] is True
@@ -105,8 +165,9 @@ def test_html_can_reference_png_files_instead_of_embedding(tmp_path, flight):
     rep = Report("linked", embed_images=False)
     rep.add_figure(figures.autocorrelation_plot(flight[3]), "acf")
     rep.write(tmp_path / "r", {})
-    page = (tmp_path / "r" / "report.html").read_text()
-    assert "base64" not in page and 'src="fig01_acf.png"' in page
+    page = _Page((tmp_path / "r" / "report.html").read_text())
+    assert [i["src"] for i in page.images] == ["fig01_acf.png"]
+    assert page.links == ["fig01_acf.png"]
 
 
 def test_interrupted_write_leaves_no_report(tmp_path, flight):
@@ -170,12 +231,28 @@ def test_table_validation_and_cell_formatting():
     assert json_ready({"k": (np.int32(2), -np.inf)}) == {"k": [2, "-inf"]}
 
 
-def test_markdown_subset_rendering():
-    page = markdown_to_html("# Head\ntext *it* and [doc](a.html)\n\n```\nx < 1\n```\n* one\n* two")
-    assert "<h1>Head</h1>" in page and "<em>it</em>" in page
-    assert '<a href="a.html">doc</a>' in page
-    assert "<pre><code>x &lt; 1</code></pre>" in page
-    assert "<ul><li>one</li><li>two</li></ul>" in page
+def test_markdown_text_is_rendered_by_python_markdown():
+    text = ("### Head\ntext *it* and [doc](a.html)\n\n```\nx < 1\n```\n\n* one\n* two\n\n"
+            "| a | b |\n|---|---|\n| 1 | <b>2</b> |")
+    page = _Page(Report("t").add_text(text).to_html())
+    assert page.headings == [("h1", "t"), ("h3", "Head")]
+    assert page.links == ["a.html"]
+    assert {"em", "pre", "code", "ul", "li"} <= set(page.tags) and "b" not in page.tags
+    assert "x < 1\n" in page.text
+    assert page.tables == [[["a", "b"], ["1", "<b>2</b>"]]]
+
+
+def test_table_cells_are_literal_and_number_columns_right_aligned():
+    rep = Report("t").add_table([{"name": "a*b*c", "value": 1.5, "note": "[x](y)"},
+                                 {"name": "_u_", "value": None, "note": "`z`"},
+                                 {"name": "Va [m/s]", "value": -2, "note": "C_D_0"}])
+    md = rep.to_markdown()
+    assert "|---|--:|---|" in md and "| Va [m/s] | -2 | C_D_0 |" in md
+    page = _Page(rep.to_html())
+    assert page.tables == [[["name", "value", "note"], ["a*b*c", "1.5", "[x](y)"],
+                            ["_u_", "-", "`z`"], ["Va [m/s]", "-2", "C_D_0"]]]
+    assert not {"em", "a", "code"} & set(page.tags)
+    assert rep.to_html().count('style="text-align: right;"') == 4  # header and 3 cells
 
 
 def test_figures_draw_the_data_they_are_given(flight):
@@ -197,6 +274,10 @@ def test_figures_draw_the_data_they_are_given(flight):
     lines = fig.axes[0].get_lines()
     np.testing.assert_allclose(lines[0].get_ydata(), np.degrees(0.1))
     assert "MAE 1.15 deg" in fig.axes[0].get_legend().get_texts()[1].get_text()
+    fig = figures.reconstruction_plot(t, {"airspeed": np.full(t.size, 25.0),
+                                          "alpha": np.zeros(t.size), "q": np.zeros(t.size)},
+                                      {}, degrees=("alpha", "q"))
+    assert [ax.get_ylabel() for ax in fig.axes] == ["airspeed [m/s]", "alpha [deg]", "q [deg/s]"]
 
     fig = figures.autocorrelation_plot({"before": d_before, "after": d_after})
     np.testing.assert_array_equal(fig.axes[0].get_lines()[0].get_ydata(), d_before.acf)

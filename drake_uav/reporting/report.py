@@ -5,9 +5,14 @@ summaries); :meth:`Report.write` renders them into a folder::
 
     out_dir/
         report.md        markdown, figures referenced by file name
-        report.html      self-contained page (figures embedded as base64 PNG), simple CSS
+        report.html      report.md rendered by Python-Markdown: one self-contained page
+                         (figures embedded as base64 PNG, each linked to its file), simple CSS
         fig01_<name>.png one PNG per figure, in order
         summary.json     the caller's summary + "complete": true, "report_title", "report_files"
+
+report.md is the one source of the text: report.html is its rendering with the "tables",
+"fenced_code" and "sane_lists" extensions. Raw HTML in markdown text is shown as text, never
+passed through. Numeric table columns are right-aligned.
 
 The folder appears atomically: everything is written into a hidden sibling
 ``.<name>.partial-<random>`` and renamed to ``out_dir`` only when complete; an existing report
@@ -15,10 +20,6 @@ folder is moved aside and deleted only after the new one is in place. An excepti
 (a figure that fails to draw, a full disk) removes the partial folder and leaves any older
 report untouched. A process killed mid-write can leave a ``.partial-`` folder behind, never a
 folder named ``out_dir``.
-
-HTML rendering of markdown text covers a small subset: paragraphs, ``#`` headings, ``-``/``*``
-bullet lists, fenced code blocks, ``**bold**``, ``*italic*``, ``inline code`` and
-``[text](url)`` links; everything else is shown as escaped text.
 """
 
 from __future__ import annotations
@@ -33,19 +34,25 @@ import re
 import shutil
 import tempfile
 import uuid
+import xml.etree.ElementTree as etree
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import markdown
 import numpy as np
+from markdown.treeprocessors import Treeprocessor
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["Report", "format_value", "json_ready", "markdown_to_html"]
+__all__ = ["Report", "format_value", "json_ready"]
 
 #: Keys :meth:`Report.write` adds to ``summary.json``; a caller's summary may not use them.
 RESERVED_SUMMARY_KEYS = ("complete", "report_title", "report_files")
+
+#: Python-Markdown extensions report.html is rendered with.
+MARKDOWN_EXTENSIONS = ("tables", "fenced_code", "sane_lists")
 
 #: Formatting of a table cell: a format spec (``".3f"``) or a function value -> text.
 CellFormat = str | Callable[[Any], str]
@@ -56,14 +63,10 @@ body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; color: #22
 h1 { border-bottom: 2px solid #446; padding-bottom: .3rem; }
 h2 { border-bottom: 1px solid #ccd; padding-bottom: .2rem; margin-top: 2rem; }
 table { border-collapse: collapse; margin: .8rem 0; font-size: .92rem; }
-th, td { border: 1px solid #ccd; padding: .25rem .6rem; text-align: left; }
+th, td { border: 1px solid #ccd; padding: .25rem .6rem; text-align: left;
+         font-variant-numeric: tabular-nums; }
 th { background: #eef; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-table.kv th { background: #f6f6fb; font-weight: 600; }
-caption { caption-side: top; text-align: left; font-style: italic; padding-bottom: .3rem; }
-figure { margin: 1.2rem 0; }
-figure img { max-width: 100%; border: 1px solid #dde; }
-figcaption { font-style: italic; font-size: .92rem; }
+img { max-width: 100%; border: 1px solid #dde; }
 code, pre { background: #f4f4f8; font-size: .9rem; }
 pre { padding: .6rem; overflow-x: auto; }
 """
@@ -125,83 +128,53 @@ def json_ready(obj: Any, path: str = "summary") -> Any:
     raise TypeError(f"{path}: {type(obj).__name__} value has no JSON form")
 
 
-_INLINE = [
-    (re.compile(r"\*\*(.+?)\*\*"), r"<strong>\1</strong>"),
-    (re.compile(r"(?<![\w*])\*(?!\s)(.+?)(?<!\s)\*(?![\w*])"), r"<em>\1</em>"),
-    (re.compile(r"\[([^\]]+)\]\(([^)\s]+)\)"), r'<a href="\2">\1</a>'),
-]
-
-
-def _inline_html(text: str) -> str:
-    parts = text.split("`")
-    if len(parts) % 2 == 0:  # unbalanced backtick: treat the last one literally
-        parts[-2:] = ["`".join(parts[-2:])]
-    out = []
-    for i, part in enumerate(parts):
-        escaped = html.escape(part, quote=True)
-        if i % 2:
-            out.append(f"<code>{escaped}</code>")
-            continue
-        for pattern, repl in _INLINE:
-            escaped = pattern.sub(repl, escaped)
-        out.append(escaped)
-    return "".join(out)
-
-
-def markdown_to_html(text: str) -> str:
-    """HTML of the markdown subset listed in the module docstring (input is escaped)."""
-    out: list[str] = []
-    para: list[str] = []
-    items: list[str] = []
-    code: list[str] | None = None
-
-    def flush() -> None:
-        if para:
-            out.append(f"<p>{_inline_html(' '.join(para))}</p>")
-            para.clear()
-        if items:
-            out.append("<ul>" + "".join(f"<li>{_inline_html(i)}</li>" for i in items) + "</ul>")
-            items.clear()
-
-    for line in text.splitlines():
-        stripped = line.strip()
-        if code is not None:
-            if stripped.startswith("```"):
-                out.append(f"<pre><code>{html.escape(chr(10).join(code))}</code></pre>")
-                code = None
-            else:
-                code.append(line)
-            continue
-        heading = re.match(r"(#{1,6})\s+(.*)", stripped)
-        bullet = re.match(r"[-*]\s+(.*)", stripped)
-        if stripped.startswith("```"):
-            flush()
-            code = []
-        elif not stripped:
-            flush()
-        elif heading:
-            flush()
-            level = len(heading.group(1))
-            out.append(f"<h{level}>{_inline_html(heading.group(2))}</h{level}>")
-        elif bullet:
-            if para:
-                flush()
-            items.append(bullet.group(1))
-        else:
-            if items:
-                flush()
-            para.append(stripped)
-    flush()
-    if code is not None:
-        out.append(f"<pre><code>{html.escape(chr(10).join(code))}</code></pre>")
-    return "\n".join(out)
-
-
-def _md_cell(text: str) -> str:
-    return text.replace("|", r"\|").replace("\n", " ")
-
+# ----------------------------------------------------------------------------- markdown
 
 _NUMBER = re.compile(r"^[-+]?(\d[\d,]*\.?\d*|\.\d+)([eE][-+]?\d+)?( ?%)?$|^[-+]?(inf|nan)$")
+# Characters that would start markup inside a cell or caption: "_" only at a word edge (inside
+# a word, as in C_D_0, it is literal in Python-Markdown and most readers), "]" only where it
+# would close a link ("[m/s]" stays as written).
+_MARKUP = re.compile(r"[\\`*|]|\](?=[(\[])|(?<!\w)_|_(?!\w)")
+# In the alt text of an image every bracket counts.
+_ALT_MARKUP = re.compile(r"[\\`*|\[\]]|(?<!\w)_|_(?!\w)")
+
+
+def _literal(text: str, markup: re.Pattern = _MARKUP) -> str:
+    """``text`` as literal markdown on one line (markup characters backslash-escaped)."""
+    return markup.sub(lambda m: "\\" + m.group(0), str(text)).replace("\n", " ")
+
+
+class _LinkFigures(Treeprocessor):
+    """Wraps each report figure's ``<img>`` in a link to its PNG file and, when the PNG bytes
+    are given, embeds them in ``src`` as a base64 data URI (a page that needs no other file)."""
+
+    def __init__(self, md: markdown.Markdown, files: set[str], pngs: Mapping[str, bytes]):
+        super().__init__(md)
+        self.files, self.pngs = files, pngs
+
+    def run(self, root: etree.Element) -> None:
+        figures = [(parent, img) for parent in root.iter() for img in parent
+                   if img.tag == "img" and img.get("src") in self.files]
+        for parent, img in figures:  # collected first: the tree changes below
+            src = img.get("src")
+            link = etree.Element("a", href=src)
+            link.tail, img.tail = img.tail, None
+            parent.insert(list(parent).index(img), link)
+            parent.remove(img)
+            link.append(img)
+            if src in self.pngs:
+                img.set("src", "data:image/png;base64,"
+                        + base64.b64encode(self.pngs[src]).decode("ascii"))
+
+
+def _render_markdown(text: str, figure_files: set[str], pngs: Mapping[str, bytes]) -> str:
+    """HTML body of report markdown: raw HTML escaped, figures linked (and embedded)."""
+    md = markdown.Markdown(extensions=list(MARKDOWN_EXTENSIONS), output_format="html")
+    md.preprocessors.deregister("html_block")
+    md.inlinePatterns.deregister("html")
+    # After "inline" (priority 20), which creates the <img> elements.
+    md.treeprocessors.register(_LinkFigures(md, figure_files, pngs), "link_figures", 15)
+    return md.convert(text)
 
 
 # ----------------------------------------------------------------------------- sections
@@ -212,10 +185,20 @@ class _Heading:
     text: str
     level: int
 
+    def markdown(self) -> list[str]:
+        return ["#" * self.level + " " + self.text]
+
 
 @dataclass(frozen=True)
 class _Text:
-    markdown: str
+    text: str
+
+    def markdown(self) -> list[str]:
+        return [self.text.strip()]
+
+
+def _caption(caption: str | None) -> list[str]:
+    return [f"*{_literal(caption)}*", ""] if caption else []
 
 
 @dataclass(frozen=True)
@@ -224,11 +207,25 @@ class _Table:
     rows: tuple[tuple[str, ...], ...]
     caption: str | None
 
+    def markdown(self) -> list[str]:
+        """A pipe table; a column whose cells are all numbers (or "-") is right-aligned."""
+        numeric = [any(_NUMBER.match(c) for c in col) and
+                   all(c == "-" or _NUMBER.match(c) for c in col)
+                   for col in zip(*self.rows, strict=True)] or [False] * len(self.header)
+        return [*_caption(self.caption),
+                "| " + " | ".join(_literal(h) for h in self.header) + " |",
+                "|" + "|".join("--:" if n else "---" for n in numeric) + "|",
+                *("| " + " | ".join(_literal(c) for c in r) + " |" for r in self.rows)]
+
 
 @dataclass(frozen=True)
 class _KeyValues:
     items: tuple[tuple[str, str], ...]
     caption: str | None
+
+    def markdown(self) -> list[str]:
+        return [*_caption(self.caption),
+                *(f"- **{_literal(k)}:** {_literal(v)}" for k, v in self.items)]
 
 
 @dataclass(frozen=True)
@@ -236,6 +233,21 @@ class _Figure:
     source: Figure | Callable[[], Figure]
     caption: str
     file_name: str
+    number: int
+
+    def markdown(self) -> list[str]:
+        return [f"![{_literal(self.caption, _ALT_MARKUP)}]({self.file_name})", "",
+                f"*Figure {self.number}: {_literal(self.caption)}*"]
+
+    def render(self, folder: Path, dpi: int) -> bytes:
+        """Draws the figure into ``folder/file_name``; returns the PNG bytes."""
+        fig = self.source if isinstance(self.source, Figure) else self.source()
+        if not isinstance(fig, Figure):
+            raise TypeError(f"figure {self.file_name!r}: builder returned {fig!r}")
+        FigureCanvasAgg(fig)
+        path = folder / self.file_name
+        fig.savefig(path, format="png", dpi=dpi)
+        return path.read_bytes()
 
 
 def _slug(text: str) -> str:
@@ -274,7 +286,7 @@ class Report:
         return self
 
     def add_text(self, markdown: str) -> Report:
-        """Markdown text: one or several paragraphs (subset rendered in HTML, module doc)."""
+        """Markdown text: paragraphs, lists, links, code (raw HTML is shown as text)."""
         self._sections.append(_Text(str(markdown)))
         return self
 
@@ -347,98 +359,31 @@ class Report:
             raise TypeError(f"figure must be a matplotlib Figure or a callable, got {figure!r}")
         self._figures += 1
         file_name = f"fig{self._figures:02d}_{_slug(name or caption)}.png"
-        self._sections.append(_Figure(figure, str(caption), file_name))
+        self._sections.append(_Figure(figure, str(caption), file_name, self._figures))
         return self
 
     # ------------------------------------------------------------------------- rendering
 
     def _render_figures(self, folder: Path) -> dict[str, bytes]:
-        pngs = {}
-        for section in self._sections:
-            if not isinstance(section, _Figure):
-                continue
-            fig = section.source if isinstance(section.source, Figure) else section.source()
-            if not isinstance(fig, Figure):
-                raise TypeError(f"figure {section.file_name!r}: builder returned {fig!r}")
-            FigureCanvasAgg(fig)
-            path = folder / section.file_name
-            fig.savefig(path, format="png", dpi=self.dpi)
-            pngs[section.file_name] = path.read_bytes()
-        return pngs
+        return {s.file_name: s.render(folder, self.dpi)
+                for s in self._sections if isinstance(s, _Figure)}
 
     def to_markdown(self) -> str:
         """The report as markdown (figures referenced by their PNG file names)."""
         out = [f"# {self.title}", ""]
-        figure_no = 0
-        for s in self._sections:
-            if isinstance(s, _Heading):
-                out += ["#" * s.level + " " + s.text, ""]
-            elif isinstance(s, _Text):
-                out += [s.markdown.strip(), ""]
-            elif isinstance(s, _Table):
-                if s.caption:
-                    out += [f"*{s.caption}*", ""]
-                out.append("| " + " | ".join(_md_cell(h) for h in s.header) + " |")
-                out.append("|" + "|".join("---" for _ in s.header) + "|")
-                out += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in s.rows]
-                out.append("")
-            elif isinstance(s, _KeyValues):
-                if s.caption:
-                    out += [f"*{s.caption}*", ""]
-                out += [f"- **{_md_cell(k)}:** {_md_cell(v)}" for k, v in s.items]
-                out.append("")
-            else:
-                figure_no += 1
-                out += [f"![{_md_cell(s.caption)}]({s.file_name})", "",
-                        f"*Figure {figure_no}: {s.caption}*", ""]
+        for section in self._sections:
+            out += [*section.markdown(), ""]
         return "\n".join(out)
 
     def to_html(self, pngs: Mapping[str, bytes] | None = None) -> str:
-        """The report as one HTML page; ``pngs`` (file name -> bytes) are embedded if given."""
-        esc = html.escape
-        body = [f"<h1>{esc(self.title)}</h1>"]
-        figure_no = 0
-        for s in self._sections:
-            if isinstance(s, _Heading):
-                body.append(f"<h{s.level}>{_inline_html(s.text)}</h{s.level}>")
-            elif isinstance(s, _Text):
-                body.append(markdown_to_html(s.markdown))
-            elif isinstance(s, _Table):
-                cap = f"<caption>{esc(s.caption)}</caption>" if s.caption else ""
-                head = "".join(f"<th>{esc(h)}</th>" for h in s.header)
-                rows = "".join(
-                    "<tr>" + "".join(
-                        f'<td class="num">{esc(c)}</td>' if _NUMBER.match(c) else
-                        f"<td>{esc(c)}</td>" for c in r
-                    ) + "</tr>"
-                    for r in s.rows
-                )
-                body.append(f"<table>{cap}<thead><tr>{head}</tr></thead>"
-                            f"<tbody>{rows}</tbody></table>")
-            elif isinstance(s, _KeyValues):
-                cap = f"<caption>{esc(s.caption)}</caption>" if s.caption else ""
-                rows = "".join(
-                    f'<tr><th>{esc(k)}</th><td class="num">{esc(v)}</td></tr>'
-                    if _NUMBER.match(v) else f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>"
-                    for k, v in s.items
-                )
-                body.append(f'<table class="kv">{cap}<tbody>{rows}</tbody></table>')
-            else:
-                figure_no += 1
-                src = s.file_name
-                if pngs is not None and s.file_name in pngs:
-                    src = "data:image/png;base64," + base64.b64encode(
-                        pngs[s.file_name]).decode("ascii")
-                body.append(
-                    f'<figure><a href="{esc(s.file_name)}"><img src="{src}" '
-                    f'alt="{esc(s.caption)}"></a><figcaption>Figure {figure_no}: '
-                    f"{esc(s.caption)}</figcaption></figure>"
-                )
+        """The report as one HTML page: :meth:`to_markdown` rendered by Python-Markdown;
+        ``pngs`` (file name -> bytes) are embedded if given."""
+        files = {s.file_name for s in self._sections if isinstance(s, _Figure)}
+        body = _render_markdown(self.to_markdown(), files, pngs or {})
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-            f"<title>{esc(self.title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
-            + "\n".join(body)
-            + "\n</body>\n</html>\n"
+            f"<title>{html.escape(self.title)}</title>\n<style>{_CSS}</style>\n</head>\n"
+            f"<body>\n{body}\n</body>\n</html>\n"
         )
 
     # ------------------------------------------------------------------------- writing
