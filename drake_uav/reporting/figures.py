@@ -3,7 +3,8 @@
 Each function returns a new :class:`matplotlib.figure.Figure` for :meth:`Report.add_figure`.
 Series come as ``label -> array`` mappings (``{"before": ..., "after": ...}`` or one entry per
 coefficient); a single array or :class:`ResidualDiagnosis` is accepted where one series makes
-sense. Angles named in ``degrees`` are given in radians and drawn in degrees.
+sense. Angles and angular rates named in ``degrees`` are given in radians (rad/s) and drawn in
+degrees (deg/s).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from drake_uav.identification.residuals import ResidualDiagnosis
@@ -26,6 +28,10 @@ __all__ = [
 #: Time series longer than this are drawn as their min/max envelope (:func:`_envelope`).
 DISPLAY_POINTS = 2000
 
+#: Display units of the channels drawn in degrees: angles in deg, body rates in deg/s.
+DEGREE_UNITS = {"alpha": "deg", "beta": "deg", "roll": "deg", "pitch": "deg", "yaw": "deg",
+                "p": "deg/s", "q": "deg/s", "r": "deg/s"}
+
 _BEFORE = dict(color="0.55", lw=0.8)
 _AFTER = dict(color="C0", lw=0.8)
 
@@ -40,6 +46,13 @@ def _diagnoses(diagnoses) -> dict[str, ResidualDiagnosis]:
         if not isinstance(d, ResidualDiagnosis):
             raise TypeError(f"{label!r}: expected a ResidualDiagnosis, got {type(d).__name__}")
     return out
+
+
+def _one_panel(diagnoses) -> tuple[Figure, Axes, list[tuple[str, str, ResidualDiagnosis]]]:
+    """A one-panel figure for several diagnoses: (figure, axes, [(colour, label, diagnosis)])."""
+    items = _diagnoses(diagnoses).items()
+    fig = Figure(figsize=(8.0, 3.6), layout="constrained")
+    return fig, fig.subplots(), [(f"C{i}", label, d) for i, (label, d) in enumerate(items)]
 
 
 def _envelope(t: np.ndarray, y: np.ndarray, max_points: int = DISPLAY_POINTS):
@@ -111,11 +124,8 @@ def autocorrelation_plot(
     diagnoses: ResidualDiagnosis | Mapping[str, ResidualDiagnosis],
 ) -> Figure:
     """Residual autocorrelation against lag [s] with each diagnosis' +-bound (dashed)."""
-    diagnoses = _diagnoses(diagnoses)
-    fig = Figure(figsize=(8.0, 3.6), layout="constrained")
-    ax = fig.subplots()
-    for i, (label, d) in enumerate(diagnoses.items()):
-        color = f"C{i}"
+    fig, ax, series = _one_panel(diagnoses)
+    for color, label, d in series:
         verdict = "white" if d.is_white else "not white"
         ax.plot(d.acf_lag_times, d.acf, "o-", ms=2.5, lw=0.8, color=color,
                 label=f"{label} (Ljung-Box p = {d.ljung_box_pvalue:.2g}, {verdict})")
@@ -124,7 +134,7 @@ def autocorrelation_plot(
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xlabel("lag [s]")
     ax.set_ylabel("autocorrelation [-]")
-    level = 100 * (1 - next(iter(diagnoses.values())).alpha)
+    level = 100 * (1 - series[0][2].alpha)
     ax.set_title(f"autocorrelation, dashed: {level:.0f} % bounds")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
@@ -169,11 +179,8 @@ def spectral_density_plot(
     unit: str = "-",
 ) -> Figure:
     """Welch PSD of the residual(s) [unit^2/Hz], log scale, significant peaks marked."""
-    diagnoses = _diagnoses(diagnoses)
-    fig = Figure(figsize=(8.0, 3.6), layout="constrained")
-    ax = fig.subplots()
-    for i, (label, d) in enumerate(diagnoses.items()):
-        color = f"C{i}"
+    fig, ax, series = _one_panel(diagnoses)
+    for color, label, d in series:
         f, p = d.psd_frequencies[1:], d.psd[1:]
         ax.semilogy(f, p, lw=0.8, color=color, label=label)
         ax.semilogy(d.psd_frequencies, d.psd_background, ":", lw=0.8, color=color)
@@ -205,9 +212,12 @@ def reconstruction_plot(
 
     Args:
         time: (N,) [s].
-        measured, before, after: channel -> (N,) values in SI units (radians for angles).
-        units: channel -> display unit (default "m/s" for channels not in ``degrees``).
-        degrees: channels given in radians and shown in degrees.
+        measured, before, after: channel -> (N,) values in SI units (rad, rad/s for angles
+            and rates).
+        units: channel -> display unit. Default: "m/s", and for channels in ``degrees``
+            :data:`DEGREE_UNITS` ("deg" for angles, "deg/s" for the rates p, q, r; "deg" for
+            a name it does not list).
+        degrees: channels given in radians (or rad/s) and shown in degrees (or deg/s).
     """
     t = np.asarray(time, dtype=float)
     if not measured:
@@ -222,7 +232,7 @@ def reconstruction_plot(
     axes = fig.subplots(len(measured), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (name, values) in zip(axes, measured.items(), strict=True):
         scale = np.degrees(1.0) if name in degrees else 1.0
-        unit = "deg" if name in degrees else units.get(name, "m/s")
+        unit = units.get(name, DEGREE_UNITS.get(name, "deg") if name in degrees else "m/s")
         y = _series(f"measured[{name!r}]", values, t.size) * scale
         ax.plot(*_envelope(t, y), color="k", lw=0.9, label="measured")
         for label, series, style in (("before", before, dict(color="0.5", ls="--", lw=0.9)),
