@@ -2,10 +2,11 @@
 model-free EKF (GPS, pitot, vanes) and the model-based EKF (no vanes) over the log, and plot
 airspeed, angle of attack and sideslip against the truth with 3-sigma bands.
 
-Run: python examples/air_data_ekf.py [output.png]
+Run: python examples/air_data_ekf.py [output.png]   (default out/air_data_ekf.png)
 """
 
 import sys
+from pathlib import Path
 
 import matplotlib
 
@@ -65,6 +66,7 @@ axes[-1].set_xlabel("time [s]")
 axes[-1].set_xlim(60.0, 80.0)
 fig.suptitle("Air data from IMU, GPS, pitot and vanes (3-sigma bands)")
 fig.tight_layout()
-out = sys.argv[1] if len(sys.argv) > 1 else "air_data_ekf.png"
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "air_data_ekf.png"
+out.parent.mkdir(parents=True, exist_ok=True)
 fig.savefig(out, dpi=120)
-print(f"wrote {out}")
+print(f"figure written to {out}")

@@ -1,15 +1,16 @@
 """Regenerate the sample flight bundled with drake_uav (drake_uav/data/sample_flight.parquet).
 
 An Aerosonde identification flight (orthogonal multisines, light Dryden turbulence,
-the seed's Table 7 sensor suite) with one effect its catalog model does not have:
-propeller slipstream drag, C_D += 0.1 T_c (Vaiopoulos 2017 found such a C_D_Tc term in its
-flight data). Only the measured channels are kept, at 50 Hz, as an autopilot log
-would have them; the metadata records how the flight was made.
+the sensor suite of Vaiopoulos 2017, Table 7) with one effect its catalog model does not
+have: propeller slipstream drag, C_D += 0.1 T_c (Vaiopoulos 2017 found such a C_D_Tc term in
+its flight data). Only the measured channels are kept, at 50 Hz, as an autopilot log would
+have them; the metadata records how the flight was made.
 
-Run: python examples/generate_sample_flight.py [output.parquet]
+Run: python examples/generate_sample_flight.py [out.parquet]   (default out/sample_flight.parquet)
+     python examples/generate_sample_flight.py --bundle   (replaces the bundled file)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import drake_uav
@@ -18,12 +19,21 @@ from drake_uav.diagrams import fly
 PROPWASH_DRAG = 0.1
 """C_D per unit thrust coefficient added by the slipstream."""
 
+BUNDLED = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
+
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("output", nargs="?", default="out/sample_flight.parquet",
+                    help="where to write the flight (default: %(default)s)")
+parser.add_argument("--bundle", action="store_true",
+                    help=f"write the package's bundled sample instead ({BUNDLED})")
+args = parser.parse_args()
+
 log = fly("aerosonde", turbulence="light", seed=2026, duration=150.0,
           disturbance=lambda c: (0.0, PROPWASH_DRAG * c.thrust_coefficient, 0, 0, 0, 0))
 sample = log.select(log.measured_names).resample(rate_hz=50.0)
 sample.metadata.update(
     injected_effect=f"C_D += {PROPWASH_DRAG} T_c (propwash drag)",
     generator=f"examples/generate_sample_flight.py, drake_uav {drake_uav.__version__}")
-default = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else default
+out = BUNDLED if args.bundle else Path(args.output)
+out.parent.mkdir(parents=True, exist_ok=True)
 print(f"sample flight written to {sample.save(out)} ({len(sample)} samples)")

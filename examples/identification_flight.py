@@ -1,10 +1,10 @@
 """Fly a 60 s identification flight in moderate turbulence and look at the log.
 
-Orthogonal multisines on elevator, aileron and rudder on top of the trim, the
-seed's low-cost sensor suite, Dryden gusts and a 4 m/s crosswind. The log holds
+Orthogonal multisines on elevator, aileron and rudder on top of the trim, the low-cost
+sensor suite of Vaiopoulos 2017, Dryden gusts and a 4 m/s crosswind. The log holds
 what the autopilot would record (measured) and the simulation truth.
 
-Run: python examples/identification_flight.py [output.png]
+Run: python examples/identification_flight.py [output.png]   (default out/identification_flight.png)
 """
 
 import sys
