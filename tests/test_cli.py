@@ -23,11 +23,6 @@ def short_log():
     return log.slice(0.0, 90.0)
 
 
-def _run(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "drake_uav.cli", *args], capture_output=True,
-                          text=True, timeout=300)
-
-
 def test_help_lists_the_commands(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])
@@ -41,7 +36,10 @@ def test_trim_command_prints_the_modes(capsys):
     assert "short period" in out and "dutch roll" in out
 
 
-@pytest.mark.parametrize("kind", ["csv", "bin", "ulg"])
+# The readers of each format have their own tests (test_log_readers.py); here the command
+# reads each end to end, the binary formats with --vanes, in the slow run.
+@pytest.mark.parametrize("kind", ["csv", pytest.param("bin", marks=pytest.mark.slow),
+                                  pytest.param("ulg", marks=pytest.mark.slow)])
 def test_identify_reads_each_log_format(kind, short_log, tmp_path, capsys):
     path = tmp_path / f"flight.{kind}"
     args = []
@@ -85,13 +83,21 @@ def _bad_logs(log: FlightLog, tmp_path: Path) -> dict[str, tuple[Path, str]]:
     return bad
 
 
-def test_bad_logs_fail_clearly_and_write_no_report(short_log, tmp_path):
+def test_bad_logs_fail_clearly_and_write_no_report(short_log, tmp_path, capsys):
+    """In-process: an exception other than the reported error would fail the test."""
     for name, (path, word) in _bad_logs(short_log, tmp_path).items():
         out = tmp_path / f"report_{name}"
-        done = _run("identify", str(path), "--out", str(out))
-        assert done.returncode != 0, name
-        assert "error:" in done.stderr and word in done.stderr.lower(), (name, done.stderr)
-        assert "Traceback" not in done.stderr, name
+        assert main(["identify", str(path), "--out", str(out)]) != 0, name
+        stderr = capsys.readouterr().err
+        assert "error:" in stderr and word in stderr.lower(), (name, stderr)
         assert not out.exists(), name
-    done = _run("identify", str(tmp_path / "absent.bin"))
-    assert done.returncode != 0 and "absent.bin" in done.stderr
+    assert main(["identify", str(tmp_path / "absent.bin")]) != 0
+    assert "absent.bin" in capsys.readouterr().err
+
+
+def test_the_console_script_exits_with_the_error_code(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "drake_uav.cli", "identify",
+                           str(tmp_path / "absent.bin")], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 2
+    assert "error:" in done.stderr and "Traceback" not in done.stderr
