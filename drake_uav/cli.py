@@ -134,9 +134,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
         fly_tracking,
         solve_time_stats,
         tracking_reference,
-        write_tracking_plots,
     )
     from drake_uav.optimization.nmpc import NmpcSettings
+    from drake_uav.reporting.tracking_figures import write_tracking_plots
     from drake_uav.vehicles.multirotor import hexacopter
 
     params = hexacopter()

@@ -16,9 +16,9 @@ from drake_uav.diagrams.tracking import (
     fly_tracking,
     solve_time_stats,
     tracking_reference,
-    write_tracking_plots,
 )
 from drake_uav.optimization.nmpc import NmpcSettings
+from drake_uav.reporting.tracking_figures import write_tracking_plots
 from drake_uav.vehicles.multirotor import hexacopter
 
 out = sys.argv[1] if len(sys.argv) > 1 else "out/nmpc_tracking"

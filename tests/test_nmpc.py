@@ -116,3 +116,13 @@ def test_controller_never_raises_on_a_bad_state(params, tset):
     assert ctrl.GetOutputPort("status").Eval(sub)[0] == STATUS_FALLBACK_FAILED
     u = ctrl.GetOutputPort("motor_thrusts").Eval(sub)
     assert np.all(np.isfinite(u)) and u.min() >= 0.0 and u.max() <= params.f_max
+
+
+def test_tracking_plots_are_written(params, tset, tmp_path):
+    from drake_uav.reporting.tracking_figures import write_tracking_plots
+
+    run = fly_tracking(params, tset, 0.5)
+    files = write_tracking_plots(run, tmp_path / "plots")
+    assert [f.name for f in files] == ["path_3d.png", "position_error.png", "thrusts.png",
+                                       "solve_times.png"]
+    assert all(f.stat().st_size > 5000 for f in files)

@@ -20,7 +20,7 @@ from drake_uav.systems.nmpc_controller import NmpcController
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = ["TrackingRun", "tracking_reference", "gust_force", "fly_tracking",
-           "build_terminal_set", "solve_time_stats", "write_tracking_plots"]
+           "build_terminal_set", "solve_time_stats"]
 
 
 def tracking_reference(params: MultirotorParams, waypoints=None, duration: float | None = None,
@@ -142,49 +142,3 @@ def solve_time_stats(run: TrackingRun) -> dict:
         return {"median": np.nan, "p95": np.nan, "max": np.nan}
     return {"median": float(np.median(s)), "p95": float(np.percentile(s, 95)),
             "max": float(s.max())}
-
-
-def write_tracking_plots(run: TrackingRun, out) -> list:
-    """3-D path, position error, thrusts with bounds and solve times as PNGs in ``out``."""
-    from pathlib import Path
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    fig = plt.figure(figsize=(7, 6))
-    ax = fig.add_subplot(projection="3d")
-    ref = run.reference
-    ax.plot(ref[:, 1], ref[:, 0], -ref[:, 2], "k", label="reference")
-    ax.plot(run.state[:, 1], run.state[:, 0], -run.state[:, 2], "r", label="flown")
-    ax.set(xlabel="east [m]", ylabel="north [m]", zlabel="up [m]", title="path")
-    ax.legend()
-    panels = [("path_3d.png", fig)]
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.semilogy(run.time, np.maximum(run.position_error, 1e-6))
-    ax.set(xlabel="t [s]", ylabel="|p - p_r| [m]", title="position error")
-    panels.append(("position_error.png", fig))
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.step(run.control_time, run.thrusts, where="post", lw=0.8)
-    for bound in (0.0, run.f_max):
-        ax.axhline(bound, color="k", ls="--", lw=0.8)
-    ax.set(xlabel="t [s]", ylabel="thrust [N]", title="motor thrusts and bounds")
-    panels.append(("thrusts.png", fig))
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(run.control_time, 1e3 * run.solve_time, ".", ms=2)
-    fallback = run.status != 0
-    ax.plot(run.control_time[fallback], 1e3 * run.solve_time[fallback], "rx", ms=4,
-            label="fallback")
-    ax.set(xlabel="t [s]", ylabel="solve time [ms]", title="NMPC solve time per step")
-    ax.legend()
-    panels.append(("solve_times.png", fig))
-    for name, fig in panels:
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
-        files.append(out / name)
-    return files
