@@ -13,6 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from drake_uav.campaigns import (
+    NONDETERMINISTIC,
     Campaign,
     CampaignRegression,
     assert_campaign_matches,
@@ -248,7 +249,7 @@ def test_main_job_scenario_bit_identical_on_one_and_two_workers(tmp_path):
 def test_built_in_scenarios_return_their_metrics():
     from drake_uav.campaigns import scenario, scenario_names
 
-    assert {"main_job", "air_data_ekf"} <= set(scenario_names())
+    assert {"main_job", "air_data_ekf", "tracking_nmpc"} <= set(scenario_names())
     ekf = scenario("air_data_ekf")(1, {"duration": 30.0})
     assert set(ekf) == {"nees", "nis_per_dof", "mae_airspeed", "mae_alpha_deg", "mae_beta_deg",
                         "mae_wind", "rejected"}
@@ -257,3 +258,19 @@ def test_built_in_scenarios_return_their_metrics():
         scenario("main_job")(1, {"effect": "gremlins"})
     with pytest.raises(ValueError, match="unknown"):
         scenario("no_such_scenario")
+
+
+@pytest.mark.slow
+def test_tracking_nmpc_scenario_reproducible_but_for_its_clock_metrics(tmp_path):
+    from drake_uav.campaigns.scenarios import TRACKING_TIMING_METRICS
+
+    campaign = Campaign("tracking_nmpc", seeds=[3, 4], fixed={"duration": 2.5})
+    first = run_campaign(campaign, tmp_path / "a.parquet", workers=0, progress=False)
+    again = run_campaign(campaign, tmp_path / "b.parquet", workers=0, progress=False)
+    assert first.errors == 0
+    clock = tuple(f"metric.{name}" for name in TRACKING_TIMING_METRICS)
+    assert results_equal(first.table, again.table, exclude=NONDETERMINISTIC + clock)
+    rows = first.table.to_pylist()
+    assert all(r["metric.bounds_respected"] and r["metric.fallback_steps"] == 0 for r in rows)
+    assert all(r["metric.terminal_ratio_max"] <= 1.0 + 1e-3 for r in rows)
+    assert all(r["metric.rmse_cm"] < 5.0 for r in rows)

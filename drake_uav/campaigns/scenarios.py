@@ -1,8 +1,8 @@
-"""Built-in scenarios: the identification flight + main job, and air-data EKF consistency.
+"""Built-in scenarios: identification flight + main job, air-data EKF consistency, tracking NMPC.
 
 Each is a function ``(seed, params) -> metrics`` registered by name
-(:func:`~drake_uav.campaigns.registry.register_scenario`); the tracking NMPC and
-the fault scenarios join the same way when they land.
+(:func:`~drake_uav.campaigns.registry.register_scenario`); the fault scenarios join
+the same way when they land.
 
 ``main_job``: an identification flight (:func:`drake_uav.diagrams.fly`) with an
 effect the aircraft's catalog model lacks put into the physics, then the main job
@@ -12,24 +12,36 @@ effect the aircraft's catalog model lacks put into the physics, then the main jo
 model-free (Vaiopoulos 2017, sec. 5.4.3) or model-based (sec. 5.4.5, without vanes)
 air-data filter over the log; consistency as NEES and NIS (Bar-Shalom et al. 2001,
 sec. 5.4).
+
+``tracking_nmpc``: the hexacopter's tracking NMPC (Argyropoulos 2020, ch. 4) on the
+bundled minimum-snap trajectory from a seeded initial offset, optionally in gusts.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
 import numpy as np
 
 from drake_uav.campaigns.registry import register_scenario
-from drake_uav.diagrams import fly
+from drake_uav.diagrams import (
+    build_terminal_set,
+    fly,
+    fly_tracking,
+    solve_time_stats,
+    tracking_reference,
+)
 from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter
 from drake_uav.identification.main_job import identify
 from drake_uav.model.air_data import air_data_from_velocity
+from drake_uav.optimization.nmpc import NmpcSettings
+from drake_uav.vehicles import hexacopter, quadrotor_x
 from drake_uav.vehicles.loading import load_fixed_wing
 
-__all__ = ["EFFECTS", "main_job", "air_data_ekf"]
+__all__ = ["EFFECTS", "TRACKING_TIMING_METRICS", "main_job", "air_data_ekf", "tracking_nmpc"]
 
 EFFECTS: dict[str, tuple[Callable[[float], Callable] | None, str | None, str, str]] = {
     "propwash_drag": (lambda k: lambda c: (0.0, 0.1 * k * c.thrust_coefficient, 0, 0, 0, 0),
@@ -136,4 +148,59 @@ def air_data_ekf(seed: int, params: dict) -> dict:
         "mae_beta_deg": math.degrees(mae[2]),
         "mae_wind": float(mae[3:].mean()),
         "rejected": int(np.sum(run.rejected)),
+    }
+
+
+@functools.lru_cache(maxsize=2)
+def _tracking_setup(aircraft: str):
+    """The multirotor and the terminal sets along the bundled trajectory (once per process)."""
+    params = {"hexacopter": hexacopter, "quadrotor_x": quadrotor_x}[aircraft]()
+    return params, build_terminal_set(params, tracking_reference(params))
+
+
+TRACKING_TIMING_METRICS = ("solve_ms_median", "solve_ms_p95", "solve_ms_max")
+"""Metrics of :func:`tracking_nmpc` measured on the clock: they differ between runs of the
+same campaign, so leave them out of a bit-for-bit comparison
+(``results_equal(a, b, exclude=NONDETERMINISTIC + TRACKING_TIMING_METRICS)``)."""
+
+
+@register_scenario("tracking_nmpc")
+def tracking_nmpc(seed: int, params: dict) -> dict:
+    """The tracking NMPC flying the bundled minimum-snap trajectory from a seeded offset.
+
+    Parameters (defaults): ``aircraft`` ("hexacopter" or "quadrotor_x"), ``mode`` ("rti"
+    or "nlp"), ``offset`` [m] (0.5, horizontal, direction drawn from the seed),
+    ``roll_offset_deg`` (10), ``gust_sigma`` [N] (0: none; a seeded gust force
+    otherwise), ``duration`` [s] (the trajectory plus 2 s).
+
+    Metrics: ``rmse_cm`` and ``max_error_cm`` (position error after 2 s), ``fallback_steps``
+    (steps of the local-law fallback), ``bounds_respected`` (every thrust in
+    [0, f_max]), ``terminal_ratio_max`` (largest V / level at the solves, <= 1 when the
+    terminal constraint holds) and the clock figures of :data:`TRACKING_TIMING_METRICS`.
+    """
+    aircraft = params.get("aircraft", "hexacopter")
+    if aircraft not in ("hexacopter", "quadrotor_x"):
+        raise ValueError(f"tracking_nmpc: aircraft {aircraft!r} unknown "
+                         "(hexacopter, quadrotor_x)")
+    vehicle, terminal = _tracking_setup(aircraft)
+    heading = np.random.default_rng([seed, 2000]).uniform(0.0, 2.0 * math.pi)
+    offset = float(params.get("offset", 0.5))
+    duration = float(params.get("duration", terminal.end_time + 2.0))
+    run = fly_tracking(vehicle, terminal, duration,
+                       settings=NmpcSettings(mode=params.get("mode", "rti")),
+                       offset=(offset * math.cos(heading), offset * math.sin(heading), 0.0),
+                       attitude_offset=math.radians(float(params.get("roll_offset_deg", 10.0))),
+                       gust_sigma=float(params.get("gust_sigma", 0.0)), seed=seed)
+    late = run.position_error[run.time >= 2.0]
+    solved = run.terminal_ratio[run.status == 0]
+    stats = solve_time_stats(run)
+    return {
+        "rmse_cm": 100.0 * run.rmse(2.0),
+        "max_error_cm": 100.0 * float(late.max()),
+        "fallback_steps": int(np.sum(run.status != 0)),
+        "bounds_respected": bool(run.thrusts.min() >= 0.0
+                                 and run.thrusts.max() <= vehicle.f_max),
+        "terminal_ratio_max": float(solved.max()) if len(solved) else math.nan,
+        **{name: 1e3 * stats[key] for name, key in zip(TRACKING_TIMING_METRICS,
+                                                         ("median", "p95", "max"), strict=True)},
     }
