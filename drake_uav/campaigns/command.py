@@ -90,8 +90,8 @@ def _run_parser(sub) -> None:
         description="Run SCENARIO once per seed and grid point on a Dask cluster (a local one "
                     "with one worker per core by default) and stream one row per run to OUT. "
                     "Run it again with the same arguments to resume an interrupted campaign.")
-    run.add_argument("scenario", help="built-in scenario (main_job, air_data_ekf) or "
-                                      "package.module:function")
+    run.add_argument("scenario", help="built-in scenario (main_job, air_data_ekf, "
+                                      "tracking_nmpc) or package.module:function")
     run.add_argument("--seeds", default="0:40", help="START:STOP or a comma list (default 0:40)")
     run.add_argument("--grid", action="append", metavar="NAME=V1,V2",
                      help="a grid parameter and its values (repeatable)")

@@ -5,7 +5,9 @@
 * Multirotor: :func:`minimum_snap` trajectories and segment-time allocation
   (:func:`optimize_segment_times`), and differential flatness from flat outputs
   to attitude, body rates, thrust and motor commands
-  (:mod:`~drake_uav.optimization.flatness`).
+  (:mod:`~drake_uav.optimization.flatness`); time-varying terminal sets along a
+  reference (:func:`terminal_set`) and the tracking NMPC (:class:`TrackingNmpc`),
+  Argyropoulos 2020, ch. 4.
 """
 
 from drake_uav.optimization.flatness import (
@@ -34,6 +36,8 @@ from drake_uav.optimization.min_snap import (
     minimum_snap,
     optimize_segment_times,
 )
+from drake_uav.optimization.nmpc import NmpcResult, NmpcSettings, TrackingNmpc
+from drake_uav.optimization.terminal_set import ReferenceTable, TerminalSet, terminal_set
 from drake_uav.optimization.trim import TrimError, TrimResult, trim
 
 __all__ = [
@@ -42,6 +46,11 @@ __all__ = [
     "FlatReference",
     "LinearModel",
     "MinimumSnap",
+    "NmpcResult",
+    "NmpcSettings",
+    "ReferenceTable",
+    "TerminalSet",
+    "TrackingNmpc",
     "Mode",
     "ModeAnalysis",
     "PolynomialTrajectory",
@@ -58,6 +67,7 @@ __all__ = [
     "mode_analysis",
     "optimize_segment_times",
     "reference_from_flat_outputs",
+    "terminal_set",
     "trim",
     "velocity_heading",
 ]

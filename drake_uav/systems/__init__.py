@@ -45,6 +45,7 @@ from drake_uav.systems.identifiers import (
     RecursiveIdentifierParams,
 )
 from drake_uav.systems.multirotor import MultirotorPlant, MultirotorPlant_
+from drake_uav.systems.nmpc_controller import NmpcController
 from drake_uav.systems.safety_pilot import SafetyPilot, SafetyPilotGains
 from drake_uav.systems.sensors import SampledSensors, SensorSuite
 from drake_uav.systems.wind import DrydenFilter, DrydenParams, DrydenWind
@@ -65,6 +66,7 @@ __all__ = [
     "ModelBasedAirDataEkf",
     "MultirotorPlant",
     "MultirotorPlant_",
+    "NmpcController",
     "Multisine",
     "ParameterEkf",
     "RecursiveIdentifier",
