@@ -159,6 +159,14 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_log_arguments(command: argparse.ArgumentParser, optional: bool) -> None:
+    """The flight-log argument and its ``--format`` option of a sub-command."""
+    command.add_argument("log", nargs="?" if optional else None,
+                         help="flight log (.csv, .bin, .ulg, .parquet)")
+    command.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
+                         help="log format (default: from the file extension)")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-uav",
@@ -180,9 +188,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Fit the aerodynamic model to a flight log, study the residual, trace it "
                     "to the physical effect the model lacks, add it, and write a report with "
                     "the errors before and after. Without LOG, runs on a bundled sample flight.")
-    ident.add_argument("log", nargs="?", help="flight log (.csv, .bin, .ulg, .parquet)")
-    ident.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
-                       help="log format (default: from the file extension)")
+    _add_log_arguments(ident, optional=True)
     ident.add_argument("--aircraft", default="aerosonde",
                        help="catalog name or a params .toml file (default: aerosonde)")
     ident.add_argument("--out", default="drake_uav_report", help="report folder")
@@ -216,9 +222,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Replay a fixed-wing or multirotor flight log in 3-D: vehicle, trail, "
                     "reference, unsafe disc, failed motors in red. Writes one self-contained "
                     "HTML page (no server, no network), or serves it live with --live.")
-    play.add_argument("log", help="flight log (.csv, .bin, .ulg, .parquet)")
-    play.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
-                      help="log format (default: from the file extension)")
+    _add_log_arguments(play, optional=False)
     play.add_argument("--html", help="output page (default: the log's name with .html)")
     play.add_argument("--live", action="store_true", help="serve it in Meshcat instead")
     play.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1)")
