@@ -26,6 +26,7 @@ import codecs
 import json
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -167,20 +168,13 @@ def _pyarrow_csv():
     return pa, csv
 
 
-def read_csv(path: str | Path) -> FlightLog:
-    """Reads a CSV flight log (see the module docstring) into a FlightLog in SI units.
+def _preamble(raw: bytes, source: str) -> tuple[dict[str, object], str, int, int]:
+    """(metadata, header line, byte offset after the header, lines read) of a CSV log.
 
-    The cells are parsed by pyarrow's multi-threaded CSV reader; only when that
-    fails is the file scanned line by line to name the first bad cell.
-
-    Raises:
-        FlightLogError: naming the file and the column/line of a bad header,
-            unknown or wrong unit, empty/NaN/non-numeric cell, truncated line,
-            or time not strictly increasing.
+    Skips a UTF-8 byte order mark; ``# key: value`` lines before the header are
+    metadata (JSON value when it parses, else text), other ``#`` and blank lines
+    are ignored.
     """
-    path = Path(path)
-    source = str(path)
-    raw = path.read_bytes()
     pos = len(codecs.BOM_UTF8) if raw.startswith(codecs.BOM_UTF8) else 0
     metadata: dict[str, object] = {}
     header, line_count = None, 0
@@ -200,31 +194,30 @@ def read_csv(path: str | Path) -> FlightLog:
             header = line
     if header is None:
         raise FlightLogError(f"{source}: no header line")
-    columns = _header(header, source)
-    names = [n for n, _ in columns]
+    return metadata, header, pos, line_count
+
+
+def _units(columns: list[tuple[str, str]], source: str) -> list[tuple[str, float]]:
+    """(unit stored, factor to it) per column, errors prefixed with the file name."""
     try:
-        units = [resolve_unit(name, unit) for name, unit in columns]
+        return [resolve_unit(name, unit) for name, unit in columns]
     except FlightLogError as err:
         raise FlightLogError(f"{source}: {err}") from None
-    body = memoryview(raw)[min(pos, len(raw)):]
-    first_line = line_count + 1  # 1-based line number of the body's first line
-    data = _numbers(body, len(names))
-    body_lines = None
 
-    def lines() -> list[str]:
-        nonlocal body_lines
-        if body_lines is None:
-            body_lines = bytes(body).decode("utf-8", errors="replace").splitlines()
-        return body_lines
 
-    if isinstance(data, str):
-        raise _locate_bad_row(lines(), first_line, names, source, raw.endswith(b"\n"), data)
-    if data[0].size == 0:
-        raise FlightLogError(f"{source}: no data rows after the header")
+def _body_lines(body: memoryview) -> list[str]:
+    """The data lines as text (slow path, only to name a line in an error)."""
+    return bytes(body).decode("utf-8", errors="replace").splitlines()
 
-    def line_number(row: int) -> int:
-        return [first_line + i for i, line in enumerate(lines()) if line][row]
 
+def _line_number(body: memoryview, first_line: int, row: int) -> int:
+    """1-based file line of data row ``row`` (blank lines hold no row)."""
+    return [first_line + i for i, line in enumerate(_body_lines(body)) if line][row]
+
+
+def _check_finite(data: list[np.ndarray], names: list[str], source: str,
+                  line_number: Callable[[int], int]) -> None:
+    """FlightLogError at the first NaN/inf cell (lowest row, then lowest column)."""
     first_bad = [(int(np.argmin(np.isfinite(column))), col) for col, column in enumerate(data)
                  if not np.isfinite(column).all()]
     if first_bad:
@@ -233,9 +226,10 @@ def read_csv(path: str | Path) -> FlightLog:
         raise FlightLogError(
             f"{source}: column '{names[col]}': {value} at line {line_number(row)}, "
             f"{int(np.count_nonzero(~np.isfinite(data[col])))} non-finite cells in this column")
-    data = [column if factor == 1.0 else column * factor
-            for column, (_, factor) in zip(data, units, strict=True)]
-    time = data[names.index("time")]
+
+
+def _check_time(time: np.ndarray, source: str, line_number: Callable[[int], int]) -> None:
+    """FlightLogError at the first sample whose time [s] does not strictly increase."""
     step = np.diff(time)
     wrong = np.flatnonzero(step <= 0)
     if wrong.size:
@@ -243,6 +237,13 @@ def read_csv(path: str | Path) -> FlightLog:
         what = "repeats" if step[row - 1] == 0 else "goes backwards"
         raise FlightLogError(f"{source}: time {what} at line {line_number(row)} "
                              f"(t = {time[row]:.9g} s after {time[row - 1]:.9g} s)")
+
+
+def _channels(columns: list[tuple[str, str]], units: list[tuple[str, float]],
+              data: list[np.ndarray]
+              ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, str]]:
+    """(measured, truth, unit per channel) of the non-time columns; ``truth/`` columns
+    go to truth under their name without the prefix."""
     measured, truth, unit_of = {}, {}, {}
     for (name, _), (unit, _), values in zip(columns, units, data, strict=True):
         if name == "time":
@@ -252,6 +253,45 @@ def read_csv(path: str | Path) -> FlightLog:
             name, target = name[len(_TRUTH):], truth
         target[name] = values
         unit_of[name] = unit
+    return measured, truth, unit_of
+
+
+def read_csv(path: str | Path) -> FlightLog:
+    """Reads a CSV flight log (see the module docstring) into a FlightLog in SI units.
+
+    The cells are parsed by pyarrow's multi-threaded CSV reader; only when that
+    fails is the file scanned line by line to name the first bad cell.
+
+    Raises:
+        FlightLogError: naming the file and the column/line of a bad header,
+            unknown or wrong unit, empty/NaN/non-numeric cell, truncated line,
+            or time not strictly increasing.
+    """
+    path = Path(path)
+    source = str(path)
+    raw = path.read_bytes()
+    metadata, header, pos, line_count = _preamble(raw, source)
+    columns = _header(header, source)
+    names = [n for n, _ in columns]
+    units = _units(columns, source)
+    body = memoryview(raw)[min(pos, len(raw)):]
+    first_line = line_count + 1  # 1-based line number of the body's first line
+    data = _numbers(body, len(names))
+    if isinstance(data, str):
+        raise _locate_bad_row(_body_lines(body), first_line, names, source,
+                              raw.endswith(b"\n"), data)
+    if data[0].size == 0:
+        raise FlightLogError(f"{source}: no data rows after the header")
+
+    def line_number(row: int) -> int:
+        return _line_number(body, first_line, row)
+
+    _check_finite(data, names, source, line_number)
+    data = [column if factor == 1.0 else column * factor
+            for column, (_, factor) in zip(data, units, strict=True)]
+    time = data[names.index("time")]
+    _check_time(time, source, line_number)
+    measured, truth, unit_of = _channels(columns, units, data)
     try:
         return FlightLog(time, measured, truth, unit_of, metadata)
     except FlightLogError as err:
