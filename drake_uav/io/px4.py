@@ -141,6 +141,64 @@ def _attitude(log: _ULog, instance: int) -> Stream:
                    dict.fromkeys(names, "q"), angles=("att_roll", "att_yaw"))
 
 
+_IMU = {"imu_ax": "accelerometer_m_s2[0]", "imu_ay": "accelerometer_m_s2[1]",
+        "imu_az": "accelerometer_m_s2[2]", "imu_p": "gyro_rad[0]", "imu_q": "gyro_rad[1]",
+        "imu_r": "gyro_rad[2]"}
+_POSITION = {"gps_pn": "x", "gps_pe": "y", "gps_pd": "z",
+             "gps_vn": "vx", "gps_ve": "vy", "gps_vd": "vz"}
+_QBAR_FIELDS = ("differential_pressure_pa", "differential_pressure_filtered_pa")
+
+
+def _pitot_qbar(log: _ULog, instance: int) -> Stream | None:
+    """``pitot_qbar`` [Pa] from the first differential-pressure field the log has."""
+    if not log.has("differential_pressure", instance):
+        return None
+    data = log.fields("differential_pressure", instance)
+    field = next((f for f in _QBAR_FIELDS if f in data), _QBAR_FIELDS[0])
+    return _simple(log, ["differential_pressure"], {"pitot_qbar": field}, instance)
+
+
+def _actuator_stream(log: _ULog, actuators: ActuatorMapping, instance: int) -> Stream | None:
+    """The ``cmd_*`` channels (held between messages), or None without the topic."""
+    if not log.has(actuators.message, instance):
+        return None
+    commands = actuators.channels()
+    time, f = log.get(actuators.message, [m.field for m in commands.values()], instance)
+    return _stream(actuators.message, time,
+                   {c: m.apply(f[m.field]) for c, m in commands.items()},
+                   {c: m.field for c, m in commands.items()}, hold=True)
+
+
+def _default_streams(log: _ULog, actuators: ActuatorMapping, airspeed: str,
+                     instance: int) -> list[Stream | None]:
+    """The streams of the default mapping (module docstring) but the IMU time base;
+    None for a topic the log does not have."""
+    return [
+        _attitude(log, instance) if log.has("vehicle_attitude", instance) else None,
+        _simple(log, ["vehicle_local_position"], _POSITION, instance),
+        _simple(log, ["airspeed", "airspeed_validated"],
+                {"pitot_airspeed": _AIRSPEED_FIELDS[airspeed]}, instance),
+        _pitot_qbar(log, instance),
+        _simple(log, ["vehicle_air_data"], {"baro_alt": "baro_alt_meter"}, instance),
+        _actuator_stream(log, actuators, instance),
+        _simple(log, ["wind", "wind_estimate"],
+                {"est_wind_n": "windspeed_north", "est_wind_e": "windspeed_east"}, instance),
+        _simple(log, ["rpm"], {"motor_speed": "indicated_frequency_rpm"}, instance,
+                scale=_RPM),
+    ]
+
+
+def _resolve_actuators(log: _ULog, actuators: ActuatorMapping | None,
+                       instance: int) -> ActuatorMapping:
+    """The given mapping, else PX4's controls mapping when the log has
+    ``actuator_controls_0``, else its outputs mapping; validated."""
+    if actuators is None:
+        actuators = (ActuatorMapping.px4_controls() if log.has("actuator_controls_0", instance)
+                     else ActuatorMapping.px4_outputs())
+    actuators.validate()
+    return actuators
+
+
 def read_px4(path: str | Path, *, actuators: ActuatorMapping | None = None,
              airspeed: str = "true", extra: Mapping[str, FieldSource] | None = None,
              instance: int = 0, max_gap: float = 0.5,
@@ -168,48 +226,17 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | None = None,
     extra = {name: source.validate() for name, source in (extra or {}).items()}
     topics = sorted({*_TOPICS, *(s.message for s in extra.values()),
                      *([actuators.message] if actuators else [])})
+    # Built here, not in a helper: its warnings' stacklevel points at read_px4's caller.
     log = _ULog(path, topics, allow_truncated)
-    source = log.source
     if not log.has("sensor_combined", instance):
-        raise FlightLogError(f"{source}: no sensor_combined messages (the time base)")
-    if actuators is None:
-        actuators = (ActuatorMapping.px4_controls() if log.has("actuator_controls_0", instance)
-                     else ActuatorMapping.px4_outputs())
-    actuators.validate()
-    imu = {"imu_ax": "accelerometer_m_s2[0]", "imu_ay": "accelerometer_m_s2[1]",
-           "imu_az": "accelerometer_m_s2[2]", "imu_p": "gyro_rad[0]", "imu_q": "gyro_rad[1]",
-           "imu_r": "gyro_rad[2]"}
-    base = _simple(log, ["sensor_combined"], imu, instance)
-    streams = []
-    if log.has("vehicle_attitude", instance):
-        streams.append(_attitude(log, instance))
-    position = {"gps_pn": "x", "gps_pe": "y", "gps_pd": "z",
-                "gps_vn": "vx", "gps_ve": "vy", "gps_vd": "vz"}
-    streams.append(_simple(log, ["vehicle_local_position"], position, instance))
-    streams.append(_simple(log, ["airspeed", "airspeed_validated"],
-                           {"pitot_airspeed": _AIRSPEED_FIELDS[airspeed]}, instance))
-    if log.has("differential_pressure", instance):
-        data = log.fields("differential_pressure", instance)
-        field = next((f for f in ("differential_pressure_pa",
-                                  "differential_pressure_filtered_pa") if f in data),
-                     "differential_pressure_pa")
-        streams.append(_simple(log, ["differential_pressure"], {"pitot_qbar": field}, instance))
-    streams.append(_simple(log, ["vehicle_air_data"], {"baro_alt": "baro_alt_meter"}, instance))
-    if log.has(actuators.message, instance):
-        commands = actuators.channels()
-        time, f = log.get(actuators.message, [m.field for m in commands.values()], instance)
-        streams.append(_stream(actuators.message, time,
-                               {c: m.apply(f[m.field]) for c, m in commands.items()},
-                               {c: m.field for c, m in commands.items()}, hold=True))
-    streams.append(_simple(log, ["wind", "wind_estimate"],
-                           {"est_wind_n": "windspeed_north", "est_wind_e": "windspeed_east"},
-                           instance))
-    streams.append(_simple(log, ["rpm"], {"motor_speed": "indicated_frequency_rpm"}, instance,
-                           scale=_RPM))
+        raise FlightLogError(f"{log.source}: no sensor_combined messages (the time base)")
+    actuators = _resolve_actuators(log, actuators, instance)
+    base = _simple(log, ["sensor_combined"], _IMU, instance)
+    streams = _default_streams(log, actuators, airspeed, instance)
     streams += _extra_streams(log, extra, instance)
     metadata = {"format": "PX4 ULog", "instance": instance, "airspeed": airspeed,
                 "actuators": actuators.describe()}
-    return align_streams(base, [s for s in streams if s is not None], source=source,
+    return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
 
 
