@@ -402,6 +402,110 @@ def _descent_direction(grad: np.ndarray, at_lower_bound: np.ndarray) -> np.ndarr
             return np.zeros(m)
 
 
+class _DurationCost:
+    """Optimal minimum-snap cost as a function of the segment durations ``T`` [s].
+
+    The first keyframe and the total time stay those of ``times``; the last
+    keyframe is pinned to ``times[-1]`` so that rounding in ``cumsum`` cannot
+    move it. Counts the QP solves in ``evaluations``.
+    """
+
+    def __init__(self, program: MinimumSnap, waypoints: np.ndarray, times: np.ndarray):
+        self.program, self.waypoints, self.times = program, waypoints, times
+        self.evaluations = 0
+
+    def keyframes(self, T: np.ndarray) -> np.ndarray:
+        """Keyframe times [s] of durations ``T``."""
+        k = self.times[0] + np.concatenate([[0.0], np.cumsum(T)])
+        k[-1] = self.times[-1]
+        return k
+
+    def __call__(self, T: np.ndarray):
+        """Cost and trajectory; infinite cost where the bounds cannot be met."""
+        self.evaluations += 1
+        try:
+            trajectory = self.program.solve(self.waypoints, self.keyframes(T))
+        except ValueError:
+            return np.inf, None
+        return trajectory.cost(self.program.order), trajectory
+
+
+def _initial_durations(times: np.ndarray, T_min: float) -> np.ndarray:
+    """Durations [s] of ``times``; raises if one is below the lower bound ``T_min``."""
+    T = np.diff(times)
+    if np.any(T < T_min):
+        raise ValueError(f"initial segment times must be >= min_fraction * total / m = "
+                         f"{T_min:.4g} s, got {T.min():.4g} s")
+    return T
+
+
+def _default_difference_step(program: MinimumSnap, difference_step: float | None) -> float:
+    """Relative finite-difference step: 1e-6 with the exact equality-QP solver, 1e-4 with an
+    iterative one, whose optimal cost is less precise."""
+    if difference_step is not None:
+        return difference_step
+    exact = program.solver.solver_id().name() == "EqConstrainedQP"
+    return 1e-6 if exact else 1e-4
+
+
+def _directional_derivatives(cost: _DurationCost, T: np.ndarray, f: float, h: float):
+    """Forward differences of the cost along the sum-preserving directions ``g_i`` of
+    Argyropoulos 2020, eq. 2.5 (rows of ``G``); infinite ones are set to zero."""
+    m = len(T)
+    G = (np.eye(m) * m - np.ones((m, m))) / (m - 1)
+    grad = np.array([(cost(T + h * g)[0] - f) / h for g in G])
+    grad[~np.isfinite(grad)] = 0.0
+    return grad
+
+
+def _backtrack(cost: _DurationCost, T: np.ndarray, d: np.ndarray, alpha: float, f: float,
+               slope: float, armijo: float):
+    """Armijo backtracking from step ``alpha`` along ``d``, halving up to 40 times.
+
+    Returns ``(alpha, cost, trajectory)`` of the accepted step, or None if none is accepted.
+    """
+    for _ in range(40):
+        f_new, trajectory_new = cost(T + alpha * d)
+        if f_new <= f + armijo * alpha * slope:
+            return alpha, f_new, trajectory_new
+        alpha *= 0.5
+    return None
+
+
+def _descend(cost: _DurationCost, T: np.ndarray, f: float, trajectory, *, h: float,
+             T_min: float, max_iterations: int, tolerance: float, armijo: float,
+             history: list[float]):
+    """Projected gradient descent on the durations at fixed total time.
+
+    Appends each accepted cost to ``history``; returns the final durations, cost,
+    trajectory and the number of iterations.
+    """
+    m = len(T)
+    alpha = None
+    iterations = 0
+    for _ in range(max_iterations):
+        iterations += 1
+        grad = _directional_derivatives(cost, T, f, h)
+        d = _descent_direction(grad, T <= T_min * (1.0 + 1e-9))
+        slope = (m - 1) / m * (grad @ d)
+        shrinking = d < 0
+        if not np.any(shrinking) or slope >= 0.0:
+            break
+        alpha_max = np.min((T[shrinking] - T_min) / -d[shrinking])
+        alpha = alpha_max if alpha is None else min(alpha_max, 2.0 * alpha)
+        step = _backtrack(cost, T, d, alpha, f, slope, armijo)
+        if step is None:
+            break
+        alpha, f_new, trajectory_new = step
+        T = T + alpha * d
+        improvement = (f - f_new) / f
+        f, trajectory = f_new, trajectory_new
+        history.append(f)
+        if improvement < tolerance:
+            break
+    return T, f, trajectory, iterations
+
+
 def optimize_segment_times(waypoints, times, *, order: int = 4, degree: int | None = None,
                            continuity: int | None = None, v_max=None, a_max=None,
                            samples_per_segment: int = 10, solver=None,
@@ -428,62 +532,17 @@ def optimize_segment_times(waypoints, times, *, order: int = 4, degree: int | No
     m = program.num_segments
     total = t[-1] - t[0]
     T_min = min_fraction * total / m
-    evaluations = 0
-
-    def keyframes(T):
-        k = t[0] + np.concatenate([[0.0], np.cumsum(T)])
-        k[-1] = t[-1]
-        return k
-
-    def evaluate(T):
-        """Cost and trajectory; infinite cost where the bounds cannot be met."""
-        nonlocal evaluations
-        evaluations += 1
-        try:
-            trajectory = program.solve(w, keyframes(T))
-        except ValueError:
-            return np.inf, None
-        return trajectory.cost(program.order), trajectory
-
-    T = np.diff(t)
-    if np.any(T < T_min):
-        raise ValueError(f"initial segment times must be >= min_fraction * total / m = "
-                         f"{T_min:.4g} s, got {T.min():.4g} s")
+    cost = _DurationCost(program, w, t)
+    T = _initial_durations(t, T_min)
     trajectory = program.solve(w, t)  # infeasible initial times raise here, with the reason
     f = trajectory.cost(program.order)
-    evaluations = 1
+    cost.evaluations = 1
     initial_cost, history, iterations = f, [f], 0
     if m >= 2:
-        G = (np.eye(m) * m - np.ones((m, m))) / (m - 1)
-        if difference_step is None:
-            exact = program.solver.solver_id().name() == "EqConstrainedQP"
-            difference_step = 1e-6 if exact else 1e-4
-        h = difference_step * total / m
-        alpha = None
-        for _ in range(max_iterations):
-            iterations += 1
-            grad = np.array([(evaluate(T + h * g)[0] - f) / h for g in G])
-            grad[~np.isfinite(grad)] = 0.0
-            d = _descent_direction(grad, T <= T_min * (1.0 + 1e-9))
-            slope = (m - 1) / m * (grad @ d)
-            shrinking = d < 0
-            if not np.any(shrinking) or slope >= 0.0:
-                break
-            alpha_max = np.min((T[shrinking] - T_min) / -d[shrinking])
-            alpha = alpha_max if alpha is None else min(alpha_max, 2.0 * alpha)
-            for _ in range(40):
-                f_new, trajectory_new = evaluate(T + alpha * d)
-                if f_new <= f + armijo * alpha * slope:
-                    break
-                alpha *= 0.5
-            else:
-                break
-            T = T + alpha * d
-            improvement = (f - f_new) / f
-            f, trajectory = f_new, trajectory_new
-            history.append(f)
-            if improvement < tolerance:
-                break
-    return TimeAllocationResult(times=keyframes(T), trajectory=trajectory, cost=f,
+        h = _default_difference_step(program, difference_step) * total / m
+        T, f, trajectory, iterations = _descend(
+            cost, T, f, trajectory, h=h, T_min=T_min, max_iterations=max_iterations,
+            tolerance=tolerance, armijo=armijo, history=history)
+    return TimeAllocationResult(times=cost.keyframes(T), trajectory=trajectory, cost=f,
                                 initial_cost=initial_cost, iterations=iterations,
-                                evaluations=evaluations, cost_history=tuple(history))
+                                evaluations=cost.evaluations, cost_history=tuple(history))
