@@ -167,12 +167,8 @@ def _add_log_arguments(command: argparse.ArgumentParser, optional: bool) -> None
                          help="log format (default: from the file extension)")
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="drake-uav",
-        description="Small unmanned aircraft on Drake: trim, simulate, estimate and identify.",
-    )
-    sub = parser.add_subparsers(dest="command", metavar="<command>")
+def _trim_parser(sub) -> None:
+    """The ``trim`` sub-command."""
     trim = sub.add_parser("trim", help="trim a fixed wing and print its modes",
                           description="Trim a fixed-wing aircraft and print the trim and the "
                                       "classical modes of its linearisation.")
@@ -183,6 +179,9 @@ def _parser() -> argparse.ArgumentParser:
     trim.add_argument("--turn-rate", type=float, default=0.0, help="turn rate [rad/s]")
     trim.set_defaults(handler=_cmd_trim)
 
+
+def _identify_parser(sub) -> None:
+    """The ``identify`` sub-command."""
     ident = sub.add_parser(
         "identify", help="fit the model to a flight log, find the missing effect, report",
         description="Fit the aerodynamic model to a flight log, study the residual, trace it "
@@ -201,6 +200,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.set_defaults(handler=_cmd_identify)
 
+
+def _track_parser(sub) -> None:
+    """The ``track`` sub-command."""
     track = sub.add_parser(
         "track", help="fly the bundled trajectory with the tracking NMPC, print RMSE, plot",
         description="Track a minimum-snap trajectory with the hexacopter and the tracking "
@@ -217,6 +219,9 @@ def _parser() -> argparse.ArgumentParser:
     track.add_argument("--out", default="drake_uav_track", help="plot folder")
     track.set_defaults(handler=_cmd_track)
 
+
+def _replay_parser(sub) -> None:
+    """The ``replay`` sub-command."""
     play = sub.add_parser(
         "replay", help="3-D replay of a flight log in Meshcat (static HTML or live)",
         description="Replay a fixed-wing or multirotor flight log in 3-D: vehicle, trail, "
@@ -227,6 +232,18 @@ def _parser() -> argparse.ArgumentParser:
     play.add_argument("--live", action="store_true", help="serve it in Meshcat instead")
     play.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1)")
     play.set_defaults(handler=_cmd_replay)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="drake-uav",
+        description="Small unmanned aircraft on Drake: trim, simulate, estimate and identify.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="<command>")
+    _trim_parser(sub)
+    _identify_parser(sub)
+    _track_parser(sub)
+    _replay_parser(sub)
 
     from drake_uav.campaigns.command import add_campaign_parser
 
