@@ -41,3 +41,21 @@ def test_bad_files_name_the_problem(tmp_path, text, message):
 def test_unknown_name_lists_the_catalog():
     with pytest.raises(ValueError, match="aerosonde"):
         load_fixed_wing("boeing")
+
+
+def test_the_light_catalog_names_are_the_catalog():
+    from drake_uav.vehicles import fixed_wing_catalog
+    from drake_uav.vehicles.catalog_names import FIXED_WING_NAMES
+
+    assert tuple(fixed_wing_catalog()) == FIXED_WING_NAMES
+
+
+def test_the_vehicles_package_loads_its_modules_on_first_use():
+    import subprocess
+    import sys
+
+    code = ("import sys, drake_uav.vehicles.catalog_names; "
+            "print('pydrake' in sys.modules, 'drake_uav.vehicles.fixed_wing' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["False", "False"]
