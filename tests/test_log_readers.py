@@ -3,6 +3,7 @@
 The .bin and .ulg files are written here by the minimal writers of tests/log_writers.py.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -21,7 +22,14 @@ from drake_uav.io.csv_log import read_csv
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.px4 import read_px4
 from drake_uav.io.readers import read_log
-from drake_uav.io.streams import CHANNELS, ActuatorChannel, ActuatorMapping, FieldSource
+from drake_uav.io.streams import (
+    CHANNELS,
+    ActuatorChannel,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+)
 from drake_uav.model.rotations import euler_to_quat
 
 DEG = math.pi / 180.0
@@ -325,8 +333,6 @@ def test_dataflash_vanes_missing_only_an_error_when_required(tmp_path):
 
 
 @pytest.mark.parametrize("flag, message", [
-    ("gap_in_arsp", r"stream 'ARSP' has a gap of 2\.200 s between messages 10 and 11 "
-                    r"\(t = 2\.000000 s to 4\.200000 s\), longer than max_gap = 0\.5 s"),
     ("att_backwards", r"stream 'ATT': time goes backwards at message 41 \(t = 2\.600000 s "
                       r"after 2\.640000 s\)"),
     ("arsp_nan", r"ARSP\.Airspeed is nan at message 30 of stream 'ARSP' \(t = 4\.000000 s\)"),
@@ -336,6 +342,15 @@ def test_dataflash_bad_streams_name_stream_and_time(tmp_path, flag, message):
     with pytest.raises(FlightLogError, match=message) as err:
         read_log(path)
     assert str(path) in str(err.value)
+
+
+def test_dataflash_gap_in_a_stream_cuts_segments(tmp_path):
+    path = _multirate_bin(tmp_path / "gap.bin", gap_in_arsp=True)
+    log = read_log(path)
+    np.testing.assert_allclose(log.metadata["segments"], [[1.4, 2.0], [4.2, 4.905]])
+    assert log.time[0] == 1.4 and log.time[-1] == 4.9
+    assert not np.any((log.time > 2.0) & (log.time < 4.2))
+    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (log.time - 1.0), atol=1e-12)
 
 
 def test_dataflash_gap_tolerance_is_configurable(tmp_path):
@@ -382,6 +397,50 @@ def test_dataflash_without_imu(tmp_path):
     w.add("BARO", TimeUS=_us(1.0, 10, 5), I=0, Alt=1.0)
     with pytest.raises(FlightLogError, match=r"noimu\.bin: no IMU messages"):
         read_log(w.save(tmp_path / "noimu.bin"))
+
+
+# ------------------------------------------------------------------- alignment
+def _stream(name, rate, t0, t1, **kwargs):
+    time = np.arange(round((t1 - t0) * rate) + 1) / rate + t0
+    return Stream(name, time, {f"{name}_x": 2.0 * time}, {f"{name}_x": "1"}, **kwargs)
+
+
+def test_align_streams_segments_holes_and_optional_streams():
+    base = _stream("imu", 100, 0.0, 10.0)
+    att = _stream("att", 50, 0.0, 10.0)
+    att = dataclasses.replace(att, time=np.delete(att.time, np.s_[100:160]),
+                              channels={"att_x": np.delete(att.channels["att_x"],
+                                                           np.s_[100:160])})
+    out = _stream("out", 20, 0.0, 10.0, hold=True)
+    valid = np.ones(out.time.size, bool)
+    valid[:10] = False  # PWM 0 before arming: the log starts at the first valid output
+    valid[150] = False  # one invalid sample: a hole
+    out = dataclasses.replace(out, valid=valid)
+    arsp = _stream("arsp", 1, 0.0, 10.0, optional=True)
+    baro = _stream("baro", 10, 0.0, 10.0, optional=True)
+    with pytest.warns(UserWarning, match=r"log\.bin: optional stream 'arsp' dropped: sparse: "
+                                         r"logged at 1 Hz"):
+        log = align_streams(base, [att, out, arsp, baro], source="log.bin")
+    np.testing.assert_allclose(log.metadata["segments"],
+                               [[0.5, 1.98], [3.2, 7.45], [7.55, 10.0]])
+    assert log.metadata["dropped_streams"] == ["arsp"] and "arsp_x" not in log
+    np.testing.assert_allclose(log["att_x"], 2 * log.time, atol=1e-12)
+    np.testing.assert_allclose(log["baro_x"], 2 * log.time, atol=1e-12)
+    assert log.metadata["streams"]["out"]["invalid"] == 11
+    k = np.arange(101)
+    gappy = _stream("baro", 10, 0.0, 10.0, optional=True, valid=(k < 50) | (k > 59))
+    with pytest.warns(UserWarning, match=r"optional stream 'baro' dropped: a gap of 1\.100 s "
+                                         r"\(t = 4\.900 s to 6\.000 s\), longer than max_gap"):
+        log = align_streams(base, [att, gappy], source="log.bin")
+    assert log.metadata["dropped_streams"] == ["baro"]
+    late = _stream("gps", 5, 4.0, 10.0, optional=True)  # late fix: the start stays
+    with pytest.warns(UserWarning, match=r"'gps' dropped: valid only from t = 4\.000 s"):
+        assert align_streams(base, [late], source="log.bin").time[0] == 0.0
+    never = dataclasses.replace(out, valid=np.zeros(out.time.size, bool))
+    with pytest.raises(FlightLogError, match=r"log\.bin: no segment of at least 2 samples where "
+                                             r"every required stream has data: stream 'out' "
+                                             r"has no valid samples \(201 invalid of 201\)"):
+        align_streams(base, [att, never], source="log.bin")
 
 
 # ------------------------------------------------------------------- PX4 .ulg

@@ -11,10 +11,14 @@ time base. :func:`align_streams` puts them on the IMU's time base:
 * angles that wrap (yaw) unwrapped first, interpolated, wrapped back to [-pi, pi);
 * commands (servo outputs, actuator controls) by previous-sample hold, because
   the autopilot holds an output until it writes the next one;
-* the log keeps the span where every stream has data; a stream with two
-  consecutive samples further apart than ``max_gap`` inside that span, a time
-  that does not increase, or a non-finite value raises :class:`FlightLogError`
-  naming the stream, the message index and the time.
+* invalid samples (``Stream.valid`` False) are removed first;
+* the IMU and the required streams cut the log into segments at every interval
+  longer than ``max_gap`` between valid samples and at every hole of invalid
+  samples; the log keeps the IMU samples inside the segments;
+* an optional stream (air data, GPS, RPM) that is sparse or has a gap is
+  dropped with a warning instead of cutting the log;
+* a time that does not increase or a non-finite valid value raises
+  :class:`FlightLogError` naming the stream, the message index and the time.
 
 See docs/flight_logs.md for the field-by-field mappings.
 """
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -276,6 +281,13 @@ class Stream:
         hold: previous-sample hold (commands) instead of linear interpolation.
         angles: channels that wrap at +-pi (interpolated unwrapped, then wrapped).
         fields: channel -> logged field it came from (``"ATT.Yaw"``), for messages.
+        valid: per sample, False for an invalid sample (servo PWM 0 or out of
+            range, PX4 ``xy_valid = 0``, negative airspeed, GPS without a 3-D
+            fix); None: every sample valid. Invalid samples are removed before
+            alignment and leave a hole.
+        optional: a stream the log can do without (air data, GPS, RPM): when it
+            is sparse or has gaps it is dropped with a warning instead of
+            cutting the log.
     """
 
     name: str
@@ -285,9 +297,12 @@ class Stream:
     hold: bool = False
     angles: tuple[str, ...] = ()
     fields: dict[str, str] = dataclasses.field(default_factory=dict)
+    valid: np.ndarray | None = None
+    optional: bool = False
 
     def check(self, source: str) -> None:
-        """Raises FlightLogError for an empty stream, time not increasing, non-finite values."""
+        """Raises FlightLogError for an empty stream, time not increasing, a ``valid``
+        mask of the wrong length or non-finite values in valid samples."""
         t = self.time
         if t.size == 0:
             raise FlightLogError(f"{source}: stream '{self.name}' has no messages")
@@ -302,13 +317,46 @@ class Stream:
             raise FlightLogError(
                 f"{source}: stream '{self.name}': time {what} at message {i} "
                 f"(t = {t[i]:.6f} s after {t[i - 1]:.6f} s)")
+        if self.valid is not None and np.shape(self.valid) != t.shape:
+            raise FlightLogError(f"{source}: stream '{self.name}': valid mask of shape "
+                                 f"{np.shape(self.valid)} for {t.size} messages")
+        valid = self.mask()
         for channel, values in self.channels.items():
-            bad = np.flatnonzero(~np.isfinite(values))
+            bad = np.flatnonzero(~np.isfinite(values) & valid)
             if bad.size:
                 i = int(bad[0])
                 raise FlightLogError(
                     f"{source}: {self.fields.get(channel, channel)} is {values[i]} at message "
                     f"{i} of stream '{self.name}' (t = {t[i]:.6f} s), {bad.size} bad in total")
+
+    def mask(self) -> np.ndarray:
+        """The per-sample validity (all True when ``valid`` is None)."""
+        if self.valid is None:
+            return np.ones(self.time.size, bool)
+        return np.asarray(self.valid, bool)
+
+    def valid_only(self) -> Stream:
+        """This stream without its invalid samples."""
+        if self.valid is None:
+            return self
+        keep = self.mask()
+        return dataclasses.replace(self, time=self.time[keep], valid=None,
+                                   channels={n: v[keep] for n, v in self.channels.items()})
+
+    def pieces(self, max_gap: float, split_holes: bool) -> np.ndarray:
+        """(k, 2) array of [start, end] [s] of the runs of valid samples: a run ends at
+        an interval longer than ``max_gap`` between valid samples and, with
+        ``split_holes``, at any invalid sample."""
+        valid = self.mask()
+        index = np.flatnonzero(valid)
+        if index.size == 0:
+            return np.empty((0, 2))
+        t = self.time[index]
+        cut = np.diff(t) > max_gap
+        if split_holes:
+            cut |= np.diff(index) > 1
+        ends = np.flatnonzero(cut)
+        return np.column_stack([t[np.r_[0, ends + 1]], t[np.r_[ends, t.size - 1]]])
 
     def on(self, time: np.ndarray) -> dict[str, np.ndarray]:
         """The channels at ``time`` (inside the stream's span) by the stream's method."""
@@ -329,66 +377,161 @@ def _wrap_angle(angle: np.ndarray) -> np.ndarray:
     return (np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _first_gap(stream: Stream, t0: float, t1: float, max_gap: float) -> tuple[int, float] | None:
-    """(index, length) of the first interval longer than ``max_gap`` touching [t0, t1]."""
-    t = stream.time
-    step = np.diff(t)
-    bad = np.flatnonzero((step > max_gap) & (t[1:] > t0) & (t[:-1] < t1))
-    return (int(bad[0]), float(step[bad[0]])) if bad.size else None
+_MIN_OPTIONAL_RATE_HZ = 2.0
+"""An optional stream logged slower than this (median) is dropped [Hz]."""
+
+
+def _intersect(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection of two sorted lists of disjoint closed intervals ((k, 2) arrays)."""
+    out, i, j = [], 0, 0
+    while i < len(a) and j < len(b):
+        lo, hi = max(a[i, 0], b[j, 0]), min(a[i, 1], b[j, 1])
+        if lo <= hi:
+            out.append((lo, hi))
+        if a[i, 1] < b[j, 1]:
+            i += 1
+        else:
+            j += 1
+    return np.asarray(out, float).reshape(-1, 2)
+
+
+def _segments(time: np.ndarray, intervals: np.ndarray) -> np.ndarray:
+    """The intervals ((k, 2) [s]) holding at least 2 samples of ``time``."""
+    lo = np.searchsorted(time, intervals[:, 0], side="left")
+    hi = np.searchsorted(time, intervals[:, 1], side="right")
+    return intervals[hi - lo >= 2].reshape(-1, 2)
+
+
+def _describe_pieces(stream: Stream, pieces: np.ndarray) -> str:
+    """What a required stream covers, for the error when no segment remains."""
+    n_bad = int(np.count_nonzero(~stream.mask()))
+    if pieces.size == 0:
+        return f"has no valid samples ({n_bad} invalid of {stream.time.size})"
+    longest = pieces[np.argmax(pieces[:, 1] - pieces[:, 0])]
+    return (f"has valid data in {len(pieces)} piece(s) ({n_bad} invalid samples), the "
+            f"longest t = {longest[0]:.3f} s to {longest[1]:.3f} s, none of them overlapping "
+            f"the other required streams for 2 samples")
+
+
+def _required_segments(base: Stream, required: Sequence[Stream], source: str,
+                       max_gap: float) -> np.ndarray:
+    """Segments [s] where the base and every required stream have valid data without a gap
+    longer than ``max_gap`` or a hole; FlightLogError naming the stream without any."""
+    intervals = np.array([[-math.inf, math.inf]])
+    for stream in (base, *required):
+        pieces = stream.pieces(max_gap, split_holes=True)
+        intervals = _intersect(intervals, pieces)
+        if len(_segments(base.time, intervals)) == 0:
+            raise FlightLogError(
+                f"{source}: no segment of at least 2 samples where every required stream "
+                f"has data: stream '{stream.name}' {_describe_pieces(stream, pieces)} "
+                f"(max_gap = {max_gap:g} s)")
+    return _segments(base.time, intervals)
+
+
+def _fit_optional(stream: Stream, segments: np.ndarray, max_gap: float
+                  ) -> tuple[np.ndarray | None, str]:
+    """(segments trimmed to the stream, "") when the optional stream covers every
+    segment, up to ``max_gap`` at a segment's ends; else (None, why it is dropped)."""
+    valid_time = stream.time[stream.mask()]
+    if valid_time.size < 2:
+        return None, f"{valid_time.size} valid sample(s)"
+    rate = 1.0 / float(np.median(np.diff(valid_time)))
+    if rate < _MIN_OPTIONAL_RATE_HZ:
+        return None, f"sparse: logged at {rate:.3g} Hz (< {_MIN_OPTIONAL_RATE_HZ:g} Hz)"
+    pieces = stream.pieces(max_gap, split_holes=False)
+    out = []
+    for t0, t1 in segments:
+        inside = pieces[(pieces[:, 1] >= t0 - max_gap) & (pieces[:, 0] <= t1 + max_gap)]
+        if len(inside) != 1:
+            if len(inside) == 0:
+                return None, f"no valid data in the segment t = {t0:.3f} s to {t1:.3f} s"
+            gap = inside[0, 1], inside[1, 0]
+            return None, (f"a gap of {gap[1] - gap[0]:.3f} s (t = {gap[0]:.3f} s to "
+                          f"{gap[1]:.3f} s), longer than max_gap = {max_gap:g} s")
+        p0, p1 = inside[0]
+        if p0 - t0 > max_gap or t1 - p1 > max_gap:
+            return None, (f"valid only from t = {p0:.3f} s to {p1:.3f} s of the segment "
+                          f"t = {t0:.3f} s to {t1:.3f} s")
+        out.append((max(t0, p0), min(t1, p1)))
+    return np.asarray(out, float).reshape(-1, 2), ""
+
+
+def _stream_info(stream: Stream, base: Stream) -> dict:
+    """Metadata of one aligned stream: valid messages, rate, method, channels."""
+    time = stream.time[stream.mask()]
+    rate = 1.0 / float(np.median(np.diff(time))) if time.size > 1 else 0.0
+    info = {"messages": int(time.size), "rate_hz": round(rate, 6),
+            "method": "time base" if stream is base
+            else "previous-sample hold" if stream.hold else "linear",
+            "channels": list(stream.channels)}
+    if stream.valid is not None:
+        info["invalid"] = int(stream.time.size - time.size)
+    return info
 
 
 def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_gap: float = 0.5,
                   metadata: Mapping[str, object] | None = None) -> FlightLog:
     """One FlightLog on the time base of ``base`` (the IMU) from several streams.
 
-    The log spans the interval covered by every stream. Raises
-    :class:`FlightLogError` (naming ``source``, the stream and the time) when a
-    stream is empty, its time does not increase, a value is not finite, the
-    streams do not overlap, or a stream has a gap longer than ``max_gap`` [s]
-    inside the span.
+    Invalid samples are removed first. The base and the required streams cut
+    the log into segments at every interval longer than ``max_gap`` [s]
+    between valid samples and at every hole of invalid samples; the log keeps
+    the base samples inside the segments (``metadata["segments"]``, [[t0, t1],
+    ...] [s]). An optional stream that is sparse (median rate below 2 Hz), has
+    a gap longer than ``max_gap`` inside a segment, or misses more than
+    ``max_gap`` at a segment's end is dropped with a warning naming ``source``
+    and the stream (``metadata["dropped_streams"]``); otherwise the segments
+    are trimmed to its data.
+
+    Raises:
+        FlightLogError (naming ``source`` and the stream): a stream is empty,
+        its time does not increase, a valid value is not finite, a channel is
+        mapped twice, or no segment of at least 2 samples remains.
     """
     if not max_gap > 0:
         raise ValueError(f"max_gap: must be positive, got {max_gap}")
-    everything = [base, *streams]
-    for stream in everything:
+    for stream in (base, *streams):
         stream.check(source)
-    first = max(everything, key=lambda s: s.time[0])
-    last = min(everything, key=lambda s: s.time[-1])
-    t0, t1 = first.time[0], last.time[-1]
-    keep = (base.time >= t0) & (base.time <= t1)
-    if np.count_nonzero(keep) < 2:
-        raise FlightLogError(
-            f"{source}: streams do not overlap: '{first.name}' starts at t = {t0:.6f} s, "
-            f"'{last.name}' ends at t = {t1:.6f} s")
-    for stream in everything:
-        gap = _first_gap(stream, t0, t1, max_gap)
-        if gap is not None:
-            i, length = gap
-            raise FlightLogError(
-                f"{source}: stream '{stream.name}' has a gap of {length:.3f} s between "
-                f"messages {i} and {i + 1} (t = {stream.time[i]:.6f} s to "
-                f"{stream.time[i + 1]:.6f} s), longer than max_gap = {max_gap:g} s")
-    time = base.time[keep]
-    measured, units = {}, {}
-    info = {}
-    for stream in everything:
-        values = {n: v[keep] for n, v in stream.channels.items()} if stream is base \
-            else stream.on(time)
+    segments = _required_segments(base, [s for s in streams if not s.optional], source,
+                                  max_gap)
+    kept, dropped = [base], []
+    for stream in streams:
+        if stream.optional:
+            fitted, why = _fit_optional(stream, segments, max_gap)
+            if fitted is None or len(_segments(base.time, fitted)) == 0:
+                warnings.warn(f"{source}: optional stream '{stream.name}' dropped: "
+                              f"{why or 'nothing left'}", stacklevel=3)
+                dropped.append(stream.name)
+                continue
+            segments = _segments(base.time, fitted)
+        kept.append(stream)
+    return _aligned_log(base, kept, segments, source, max_gap, dict(metadata or {}),
+                        dropped)
+
+
+def _aligned_log(base: Stream, kept: Sequence[Stream], segments: np.ndarray, source: str,
+                 max_gap: float, meta: dict, dropped: list[str]) -> FlightLog:
+    """The FlightLog of the base samples inside ``segments`` with every kept stream."""
+    lo = np.searchsorted(base.time, segments[:, 0], side="left")
+    hi = np.searchsorted(base.time, segments[:, 1], side="right")
+    index = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
+    time = base.time[index]
+    measured, units, info = {}, {}, {}
+    for stream in kept:
+        values = ({n: v[index] for n, v in stream.channels.items()} if stream is base
+                  else stream.valid_only().on(time))
         for name in values:
             if name in measured:
                 raise FlightLogError(f"{source}: channel '{name}' mapped twice "
                                      f"(again from stream '{stream.name}')")
         measured.update(values)
         units.update(stream.units)
-        rate = 1.0 / float(np.median(np.diff(stream.time))) if stream.time.size > 1 else 0.0
-        info[stream.name] = {
-            "messages": int(stream.time.size), "rate_hz": round(rate, 6),
-            "method": "time base" if stream is base
-            else "previous-sample hold" if stream.hold else "linear",
-            "channels": list(stream.channels)}
-    meta = dict(metadata or {})
+        info[stream.name] = _stream_info(stream, base)
     meta.update({"source": source, "time_base": base.name, "max_gap_s": max_gap,
-                 "trimmed_s": [float(t0 - base.time[0]), float(base.time[-1] - t1)],
+                 "trimmed_s": [float(segments[0, 0] - base.time[0]),
+                               float(base.time[-1] - segments[-1, 1])],
+                 "segments": segments.tolist(), "dropped_streams": dropped,
                  "streams": info})
     return FlightLog(time, measured, units=units, metadata=meta)
 
