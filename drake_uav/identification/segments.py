@@ -1,0 +1,67 @@
+"""Samples of several flight segments as one regression data set.
+
+Each continuous airborne segment of a log is isolated on its own (smoothing and
+differentiation never cross a logging gap or a take-off); the segments are then
+joined in time order. The joined samples keep their absolute times, so a gap
+between segments stays visible, and the held-out part of the discovery (the end
+of the flight) falls in the last segment(s).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.model.coefficients import AeroCondition
+
+__all__ = ["concatenate_samples"]
+
+
+def _joined(parts: Sequence, pick) -> np.ndarray:
+    return np.concatenate([np.broadcast_to(pick(p), p.time.shape) for p in parts])
+
+
+def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
+    """One :class:`AeroSamples` of the segments ``parts`` (in time order).
+
+    Noise variances are the sample-weighted means of the segments' estimates.
+    Raises ValueError when the parts overlap in time or differ in what they hold.
+    """
+    parts = sorted(parts, key=lambda p: p.time[0])
+    if len(parts) == 1:
+        return parts[0]
+    for before, after in zip(parts, parts[1:], strict=False):
+        if after.time[0] <= before.time[-1]:
+            raise ValueError(f"segments overlap: one ends at {before.time[-1]:.3f} s, the "
+                             f"next starts at {after.time[0]:.3f} s")
+    first = parts[0]
+    if any((p.moment_view is None) != (first.moment_view is None)
+           or (p.thrust_airspeed_slope is None) != (first.thrust_airspeed_slope is None)
+           or set(p.signals) != set(first.signals) for p in parts):
+        raise ValueError("segments differ in their signals, thrust model or moment view")
+    weights = np.array([len(p) for p in parts], float)
+    noise = {name: float(np.average([p.noise_variance[name] for p in parts], weights=weights))
+             for name in first.noise_variance}
+    slope = (None if first.thrust_airspeed_slope is None
+             else _joined(parts, lambda p: p.thrust_airspeed_slope))
+    view = (None if first.moment_view is None
+            else concatenate_samples([p.moment_view for p in parts]))
+    return AeroSamples(
+        time=_joined(parts, lambda p: p.time),
+        condition=AeroCondition(*(_joined(parts, lambda p, i=i: p.condition[i])
+                                  for i in range(len(first.condition)))),
+        coefficients={k: _joined(parts, lambda p, k=k: p.coefficients[k])
+                      for k in first.coefficients},
+        dynamic_pressure=_joined(parts, lambda p: p.dynamic_pressure),
+        throttle=_joined(parts, lambda p: p.throttle),
+        thrust=_joined(parts, lambda p: p.thrust),
+        rate_derivatives=np.concatenate([p.rate_derivatives for p in parts]),
+        specific_force=np.concatenate([p.specific_force for p in parts]),
+        signals={k: _joined(parts, lambda p, k=k: p.signals[k]) for k in first.signals},
+        noise_variance=noise,
+        thrust_airspeed_slope=slope,
+        reference_area=first.reference_area,
+        moment_view=view,
+    )
