@@ -1,172 +1,25 @@
-"""Minimal writers of ArduPilot DataFlash (``.bin``) and PX4 ULog (``.ulg``) files.
+"""Canonical FlightLogs as ArduPilot DataFlash (``.bin``) and PX4 ULog (``.ulg``) files.
 
-Written from the published file layouts, independently of the readers, so the
-reader tests check the readers against the format rather than against themselves.
-
-* DataFlash: every message is ``0xA3 0x95 <type>`` followed by its packed fields
-  (little-endian). Type 128 is ``FMT`` (Type B, Length B, Name 4s, Format 16s,
-  Columns 64s) and defines the other types. Scaled integer formats: ``c``/``C``
-  int16/uint16 x 0.01, ``e``/``E`` int32/uint32 x 0.01, ``L`` int32 x 1e-7.
-* ULog: a 16-byte header (``ULog`` magic, version, start time in us), then
-  messages ``uint16 size, uint8 type, payload``: ``B`` flag bits, ``F`` formats,
-  ``I`` info, then ``A`` subscriptions and ``D`` data (``uint16 msg_id`` + fields).
+The writers live in :mod:`drake_uav.io.writers` (re-exported here for the tests that
+import them from this module); the converters below write every canonical channel
+at one rate, vanes included, for reader tests. Realistic autopilot logs (ground
+segment, late GPS, servo parameters, ...) come from :mod:`drake_uav.io.realistic_logs`.
 """
 
 from __future__ import annotations
 
 import math
-import struct
 from pathlib import Path
 
 import numpy as np
 
-# DataFlash format character -> (numpy dtype, multiplier of the stored integer).
-_DF_TYPES = {
-    "b": ("i1", None), "B": ("u1", None), "h": ("<i2", None), "H": ("<u2", None),
-    "i": ("<i4", None), "I": ("<u4", None), "q": ("<i8", None), "Q": ("<u8", None),
-    "f": ("<f4", None), "d": ("<f8", None), "M": ("u1", None),
-    "n": ("S4", None), "N": ("S16", None), "Z": ("S64", None),
-    "c": ("<i2", 100.0), "C": ("<u2", 100.0), "e": ("<i4", 100.0), "E": ("<u4", 100.0),
-    "L": ("<i4", 1e7),
-}
+from drake_uav.io.writers import DataFlashWriter, ULogWriter
+from drake_uav.model.geodesy import geodetic_from_ned
 
-_FMT_TYPE = 0x80
-
-
-class DataFlashWriter:
-    """Collects DataFlash messages and writes them (definitions first, then by time)."""
-
-    def __init__(self):
-        self._formats: dict[str, tuple[int, str, tuple[str, ...], np.dtype]] = {}
-        self._definitions: list[bytes] = []
-        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (time_us, rows of bytes)
-
-    def define(self, name: str, fmt: str, columns: str) -> None:
-        """Declares message ``name`` with format characters ``fmt`` and comma-separated columns."""
-        cols = tuple(columns.split(","))
-        assert len(cols) == len(fmt) <= 16 and len(columns) <= 64, (name, fmt, cols)
-        type_id = _FMT_TYPE + 1 + len(self._formats)
-        dtype = np.dtype([("h1", "u1"), ("h2", "u1"), ("type", "u1")]
-                         + [(c, _DF_TYPES[f][0]) for c, f in zip(cols, fmt, strict=True)])
-        self._formats[name] = (type_id, fmt, cols, dtype)
-        self._definitions.append(
-            struct.pack("<BBBBB4s16s64s", 0xA3, 0x95, _FMT_TYPE, type_id, dtype.itemsize,
-                        name.encode(), fmt.encode(), columns.encode()))
-
-    def add(self, name: str, at=None, **columns) -> None:
-        """Adds messages of ``name``: each column is a scalar or an array (physical units).
-
-        The messages go into the file in the order of ``at`` [us] (default: TimeUS).
-        """
-        type_id, fmt, cols, dtype = self._formats[name]
-        n = max(np.size(v) for v in columns.values())
-        rows = np.zeros(n, dtype)
-        rows["h1"], rows["h2"], rows["type"] = 0xA3, 0x95, type_id
-        for col, f in zip(cols, fmt, strict=True):
-            if col not in columns:
-                continue
-            values = np.broadcast_to(columns[col], (n,))
-            mult = _DF_TYPES[f][1]
-            if mult is not None:
-                values = np.round(np.asarray(values, float) * mult)
-            rows[col] = values
-        order = columns.get("TimeUS", 0) if at is None else at
-        time_us = np.broadcast_to(np.asarray(order, np.uint64), (n,))
-        self._blocks.append((time_us, rows.view(np.uint8).reshape(n, dtype.itemsize)))
-
-    def to_bytes(self) -> bytes:
-        times = np.concatenate([t for t, _ in self._blocks])
-        rows = [r for _, block in self._blocks for r in block]
-        order = np.argsort(times, kind="stable")
-        return b"".join(self._definitions) + b"".join(rows[i].tobytes() for i in order)
-
-    def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_bytes(self.to_bytes())
-        return path
-
-
-# ULog field type -> numpy dtype.
-_ULOG_TYPES = {
-    "int8_t": "i1", "uint8_t": "u1", "int16_t": "<i2", "uint16_t": "<u2",
-    "int32_t": "<i4", "uint32_t": "<u4", "int64_t": "<i8", "uint64_t": "<u8",
-    "float": "<f4", "double": "<f8", "bool": "u1", "char": "Ortiz & Gutierrez 2009",
-}
-
-
-def _ulog_message(kind: str, payload: bytes) -> bytes:
-    return struct.pack("<HB", len(payload), ord(kind)) + payload
-
-
-class ULogWriter:
-    """Collects ULog formats, subscriptions and data; writes them in timestamp order."""
-
-    def __init__(self, start_us: int = 0):
-        self._start_us = start_us
-        self._definitions: list[bytes] = []
-        self._topics: dict[str, np.dtype] = {}
-        self._subscriptions: list[bytes] = []
-        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []
-        self._next_id = 0
-
-    def format(self, name: str, fields: str) -> None:
-        """Declares topic ``name`` with fields ``"uint64_t timestamp;float[3] x;..."``."""
-        parts = []
-        for item in filter(None, fields.split(";")):
-            type_str, field = item.split()
-            size = 0
-            if "[" in type_str:
-                type_str, size = type_str[:-1].split("[")
-                size = int(size)
-            parts.append((field, _ULOG_TYPES[type_str], (size,) if size else ()))
-        self._topics[name] = np.dtype([("msg_id", "<u2"), *parts])
-        self._definitions.append(_ulog_message("F", f"{name}:{fields}".encode()))
-
-    def info(self, key: str, value: str) -> None:
-        """Adds a string info message (``char[len] key``)."""
-        type_key = f"char[{len(value)}] {key}".encode()
-        self._definitions.append(
-            _ulog_message("I", bytes([len(type_key)]) + type_key + value.encode()))
-
-    def subscribe(self, name: str, multi_id: int = 0) -> int:
-        """Adds an ``A`` message for topic ``name``; returns its message id."""
-        msg_id = self._next_id
-        self._next_id += 1
-        self._subscriptions.append(
-            _ulog_message("A", struct.pack("<BH", multi_id, msg_id) + name.encode()))
-        return msg_id
-
-    def data(self, name: str, msg_id: int, **columns) -> None:
-        """Adds ``D`` messages of topic ``name``; ``timestamp`` [us] is required."""
-        dtype = self._topics[name]
-        n = len(columns["timestamp"])
-        rows = np.zeros(n, dtype)
-        rows["msg_id"] = msg_id
-        for key, value in columns.items():
-            rows[key] = value
-        header = np.zeros(n, [("size", "<u2"), ("type", "u1")])
-        header["size"], header["type"] = dtype.itemsize, ord("D")
-        packed = np.concatenate([header.view(np.uint8).reshape(n, 3),
-                                 rows.view(np.uint8).reshape(n, dtype.itemsize)], axis=1)
-        self._blocks.append((np.asarray(columns["timestamp"], np.uint64), packed))
-
-    def to_bytes(self) -> bytes:
-        header = b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", self._start_us)
-        flags = _ulog_message("B", bytes(16) + bytes(24))
-        times = np.concatenate([t for t, _ in self._blocks])
-        rows = [r for _, block in self._blocks for r in block]
-        order = np.argsort(times, kind="stable")
-        return (header + flags + b"".join(self._definitions) + b"".join(self._subscriptions)
-                + b"".join(rows[i].tobytes() for i in order))
-
-    def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_bytes(self.to_bytes())
-        return path
-
+__all__ = ["DataFlashWriter", "ULogWriter", "ORIGIN", "FULL_DEFLECTION", "dataflash_from_log",
+           "ulog_from_log"]
 
 # ------------------------------------------------- canonical FlightLog -> native logs
-_EARTH_A, _EARTH_E2 = 6378137.0, 6.69437999014e-3  # WGS-84
 ORIGIN = (47.0, 8.0, 500.0)
 """Latitude, longitude [deg], altitude [m] of the NED origin in the converted logs."""
 FULL_DEFLECTION = math.radians(25.0)
@@ -175,13 +28,7 @@ FULL_DEFLECTION = math.radians(25.0)
 
 def _lat_lon_alt(log):
     """Latitude, longitude [deg] and altitude [m] of ``gps_pn/pe/pd`` about :data:`ORIGIN`."""
-    lat0 = math.radians(ORIGIN[0])
-    s2 = 1.0 - _EARTH_E2 * math.sin(lat0) ** 2
-    r_north = _EARTH_A * (1.0 - _EARTH_E2) / s2 ** 1.5
-    r_east = _EARTH_A / math.sqrt(s2) * math.cos(lat0)
-    return (ORIGIN[0] + np.degrees(log["gps_pn"] / r_north),
-            ORIGIN[1] + np.degrees(log["gps_pe"] / r_east),
-            ORIGIN[2] - log["gps_pd"])
+    return geodetic_from_ned(log["gps_pn"], log["gps_pe"], log["gps_pd"], ORIGIN)
 
 
 def dataflash_from_log(log, path, max_deflection: float = FULL_DEFLECTION) -> Path:

@@ -158,11 +158,13 @@ def _value(x) -> float:
 
 
 def euler_to_quat(rpy) -> np.ndarray:
-    """Quaternion of 3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad]."""
+    """Quaternion of 3-2-1 Euler angles ``(roll, pitch, yaw)`` [rad]; a (3, N) float array
+    of samples gives (4, N)."""
+    cos_, sin_ = (np.cos, np.sin) if np.ndim(rpy) == 2 else (cos, sin)
     hr, hp, hy = rpy[0] * 0.5, rpy[1] * 0.5, rpy[2] * 0.5
-    cr, sr = cos(hr), sin(hr)
-    cp, sp = cos(hp), sin(hp)
-    cy, sy = cos(hy), sin(hy)
+    cr, sr = cos_(hr), sin_(hr)
+    cp, sp = cos_(hp), sin_(hp)
+    cy, sy = cos_(hy), sin_(hy)
     return _array(
         [
             cr * cp * cy + sr * sp * sy,
