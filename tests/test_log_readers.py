@@ -553,7 +553,8 @@ def test_ulog_outputs_older_topics_and_options(tmp_path):
         read_px4(path, airspeed="calibrated")
     log = read_px4(path, instance=1)
     np.testing.assert_array_equal(log["imu_r"], np.full(t.size, np.float32(1.3), float))
-    assert "att_roll" not in log  # vehicle_attitude has no instance 1
+    # instance picks the IMU only; vehicle_attitude stays multi-id 0.
+    np.testing.assert_array_equal(log["att_roll"], read_px4(path)["att_roll"])
     extra = {"gps_speed": FieldSource("vehicle_local_position", "vx", "m/s", scale=2.0)}
     np.testing.assert_array_equal(read_px4(path, extra=extra)["gps_speed"], np.full(301, 40.0))
 
@@ -565,14 +566,17 @@ def test_ulog_truncated_file(tmp_path):
     cut.write_bytes(whole[:-9])
     with pytest.raises(FlightLogError, match=r"cut\.ulg: truncated file: a message at byte \d+ "
                                              r"needs \d+ bytes, \d+ remain"):
-        read_log(cut)
-    with pytest.warns(UserWarning, match=r"truncated file"):
-        log = read_log(cut, allow_truncated=True)
+        read_log(cut, allow_truncated=False)
+    with pytest.warns(UserWarning, match=r"truncated file.*; dropped"):
+        log = read_log(cut)  # by default the cut message is dropped
     assert len(log) > 290
     for size in (20, 2000, len(whole) // 2 + 1):
         cut.write_bytes(whole[:size])
         with pytest.raises(FlightLogError, match=r"cut\.ulg: truncated file"):
-            read_log(cut)
+            read_log(cut, allow_truncated=False)
+    cut.write_bytes(whole[:20])  # cut before any data: an error even by default
+    with pytest.raises(FlightLogError, match=r"cut\.ulg: .*(truncated file|not a PX4 ULog)"):
+        read_log(cut)
 
 
 # ------------------------------------------------------------------ round trip

@@ -1,0 +1,123 @@
+"""A PX4 ULog (``.ulg``) file as numpy topics, parameters and info, through pyulog.
+
+pyulog reads only the topics asked for (its message filter) into numpy arrays.
+Time is ``timestamp_sample`` where a topic has it (the sensor sample time) and
+it increases strictly, else ``timestamp`` (publication time), in us since boot
+-> s: a controller that publishes twice for one gyro sample repeats its
+``timestamp_sample`` (``actuator_controls_1`` of PX4 1.11). A file cut inside a
+message (an SD-card log whose last write did not finish) keeps the messages
+before the cut, with a warning; a file cut before its first data message is an
+error.
+"""
+
+from __future__ import annotations
+
+import io
+import warnings
+from pathlib import Path
+
+import numpy as np
+from pyulog import ULog
+from pyulog.core import ULogException
+
+from drake_uav.io.flight_log import FlightLogError
+from drake_uav.io.streams import CHANNELS, Stream
+
+__all__ = ["ULogFile", "channel_stream"]
+
+
+class _ShortReads(io.BufferedReader):
+    """A file that remembers the first read returning fewer bytes than asked.
+
+    pyulog stops quietly where a file is cut; a clean end of file shows only as
+    an empty 3-byte header read, anything else short is a truncated message.
+    """
+
+    short: tuple[int, int, int] | None = None  # (position, asked, got)
+
+    def read(self, size=-1, _read=io.BufferedReader.read):
+        data = _read(self, size)
+        got = len(data)
+        if got < size and (got or size != 3) and self.short is None:
+            self.short = (self.tell() - got, size, got)
+        return data
+
+
+class ULogFile:
+    """The topics of a ULog file as (time [s], fields) per (topic, multi-id).
+
+    Attributes:
+        source: the file name, for messages.
+        data: (topic, multi-id) -> field name -> values.
+        parameters: the parameters at the start of the log (name -> value).
+        parameter_changes: (time [s], name, value) of the changes during the log.
+        info: the log's information messages (``ver_sw_release``, ``sys_name``, ...).
+    """
+
+    def __init__(self, path: Path, topics: list[str], allow_truncated: bool,
+                 stacklevel: int = 3):
+        self.source = str(path)
+        handle = _ShortReads(io.FileIO(path, "r"))
+        try:
+            ulog = ULog(handle, message_name_filter_list=topics)
+        except ULogException as err:
+            raise FlightLogError(f"{path}: not a PX4 ULog file ({err})") from None
+        finally:
+            handle.close()
+        self.data = {(d.name, d.multi_id): d.data for d in ulog.data_list}
+        if handle.short is not None:
+            position, asked, got = handle.short
+            message = (f"{path}: truncated file: a message at byte {position} needs {asked} "
+                       f"bytes, {got} remain")
+            if not allow_truncated or not self.data:
+                raise FlightLogError(message + (" (allow_truncated=True drops it)"
+                                                if self.data else " (no data before it)"))
+            warnings.warn(message + "; dropped", stacklevel=stacklevel + 1)
+        elif ulog.file_corruption:
+            warnings.warn(f"{path}: corrupt data skipped by the ULog parser",
+                          stacklevel=stacklevel + 1)
+        self.parameters = {k: _plain(v) for k, v in ulog.initial_parameters.items()}
+        self.parameter_changes = [(t / 1e6, name, _plain(v))
+                                  for t, name, v in ulog.changed_parameters]
+        self.info = dict(ulog.msg_info_dict)
+
+    def has(self, topic: str, instance: int = 0) -> bool:
+        return (topic, instance) in self.data
+
+    def instances(self, topic: str) -> list[int]:
+        """The multi-ids the log has of ``topic``."""
+        return sorted(i for name, i in self.data if name == topic)
+
+    def fields(self, topic: str, instance: int = 0) -> dict[str, np.ndarray]:
+        return self.data[(topic, instance)]
+
+    def get(self, topic: str, fields: list[str], instance: int = 0
+            ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """(time [s], field -> float values) of one topic instance."""
+        data = self.fields(topic, instance)
+        missing = [f for f in fields if f not in data]
+        if missing:
+            raise FlightLogError(f"{self.source}: topic {topic} has no field {missing[0]} "
+                                 f"(fields: {', '.join(data)})")
+        stamp = data.get("timestamp_sample")
+        if stamp is None or not np.all(stamp) or np.any(np.diff(stamp.astype(np.int64)) <= 0):
+            stamp = data["timestamp"]
+        return stamp.astype(float) / 1e6, {f: data[f].astype(float) for f in fields}
+
+    def parameter(self, name: str, default=None):
+        """The parameter's value at the start of the log, else ``default``."""
+        return self.parameters.get(name, default)
+
+
+def _plain(value):
+    """A parameter value as a JSON-ready int or float."""
+    return int(value) if isinstance(value, (int, np.integer)) else float(value)
+
+
+def channel_stream(name: str, time: np.ndarray, channels: dict[str, np.ndarray],
+                   fields: dict[str, str], **kwargs) -> Stream:
+    """A :class:`Stream` of canonical channels (units from :data:`CHANNELS`);
+    ``fields`` names each channel's logged field (``topic.field`` in messages)."""
+    topic = name.split(".")[0]
+    return Stream(name, time, channels, {n: CHANNELS[n][0] for n in channels},
+                  fields={c: f"{topic}.{f}" for c, f in fields.items()}, **kwargs)
