@@ -48,6 +48,7 @@ from drake_uav.model.attitude_error import ERROR_SIZE
 from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.multirotor import STATE_SIZE, motor_wrench, multirotor_dynamics
 from drake_uav.model.rotations import quat_conjugate
+from drake_uav.optimization.riccati_lq import solve_lq
 from drake_uav.optimization.terminal_set import TerminalSet, positive_definite
 from drake_uav.vehicles.multirotor import MultirotorParams
 
@@ -157,41 +158,60 @@ def _dynamics(params: MultirotorParams) -> CompiledFunction:
 
 
 def _rk4_batch(fn: CompiledFunction, X, U, h):
-    """RK4 steps of a batch (B, 13), (B, n) with Jacobians (B, 13, 13), (B, 13, n)."""
+    """RK4 steps of a batch (B, 13), (B, n) with Jacobians (B, 13, 13), (B, 13, n).
+
+    The chain rule runs through the four stages on the joint Jacobian with respect
+    to ``(X, U)``: stage ``s`` is evaluated at ``x_s = X + c_s h k_{s-1}``, so
+    ``dk_s = J_s [[I + c_s h dk_{s-1}/dX, c_s h dk_{s-1}/dU], [0, I]]``.
+    """
     B, n = len(X), U.shape[1]
-    eye = np.eye(STATE_SIZE)
-    ks, dkx, dku = [], [], []
-    for c, prev in ((0.0, None), (0.5, 0), (0.5, 1), (1.0, 2)):
-        if prev is None:
-            xs, dxs, dus = X, np.broadcast_to(eye, (B, 13, 13)), np.zeros((B, 13, n))
+    m = STATE_SIZE + n
+    eye = np.zeros((B, m, m))
+    eye[:, np.arange(m), np.arange(m)] = 1.0
+    Xn, total = X.copy(), eye[:, :STATE_SIZE].copy()
+    k = dk = None
+    for c, w in ((0.0, 1.0), (0.5, 2.0), (0.5, 2.0), (1.0, 1.0)):
+        if k is None:
+            k, dk = fn.batch_value_and_jacobian(X, U)
         else:
-            xs = X + c * h * ks[prev]
-            dxs, dus = eye + c * h * dkx[prev], c * h * dku[prev]
-        k, (Jx, Ju) = fn.batch_jacobians(xs, U)
-        ks.append(k)
-        dkx.append(Jx @ dxs)
-        dku.append(Jx @ dus + Ju)
-    w = (1.0, 2.0, 2.0, 1.0)
-    Xn = X + h / 6.0 * sum(wi * k for wi, k in zip(w, ks, strict=True))
-    Ax = eye + h / 6.0 * sum(wi * d for wi, d in zip(w, dkx, strict=True))
-    Bu = h / 6.0 * sum(wi * d for wi, d in zip(w, dku, strict=True))
-    return Xn, Ax, Bu
+            D = eye.copy()
+            D[:, :STATE_SIZE] += c * h * dk
+            k, J = fn.batch_value_and_jacobian(X + c * h * k, U)
+            dk = J @ D
+        Xn += h * w / 6.0 * k
+        total += h * w / 6.0 * dk
+    return Xn, total[:, :, :STATE_SIZE], total[:, :, STATE_SIZE:]
 
 
-def _error_map(x_ref) -> tuple[np.ndarray, np.ndarray]:
-    """``L`` (12, 13), ``l`` (12) with ``state_error(x, x_ref) = L x + l``."""
-    L = np.zeros((ERROR_SIZE, STATE_SIZE))
-    L[0:3, 0:3] = np.eye(3)
-    L[6:12, 7:13] = np.eye(6)
-    c = quat_conjugate(x_ref[3:7])
-    w, v = c[0], c[1:]
+def _error_maps(x_ref) -> tuple[np.ndarray, np.ndarray]:
+    """``L`` (M, 12, 13), ``l`` (M, 12) with ``state_error(x, x_ref[k]) = L[k] x + l[k]``
+    for reference states ``x_ref`` (M, 13)."""
+    M = len(x_ref)
+    L = np.zeros((M, ERROR_SIZE, STATE_SIZE))
+    L[:, 0:3, 0:3] = np.eye(3)
+    L[:, 6:12, 7:13] = np.eye(6)
+    c = quat_conjugate(x_ref[:, 3:7].T).T
+    w, v = c[:, 0], c[:, 1:]
     # vec(c (x) q) = w q_v + q_w v + v x q_v
-    L[3:6, 3] = 2 * v
-    L[3:6, 4:7] = 2 * (w * np.eye(3) + np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]],
-                                                  [-v[1], v[0], 0]]))
-    l = np.zeros(ERROR_SIZE)
-    l[0:3], l[6:12] = -x_ref[0:3], -x_ref[7:13]
+    L[:, 3:6, 3] = 2 * v
+    L[:, 3:6, 4:7] = 2 * w[:, None, None] * np.eye(3)
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # the cross-product matrix of v
+        L[:, 3 + i, 4 + j] -= 2 * v[:, k]
+        L[:, 3 + j, 4 + i] += 2 * v[:, k]
+    l = np.zeros((M, ERROR_SIZE))
+    l[:, 0:3], l[:, 6:12] = -x_ref[:, 0:3], -x_ref[:, 7:13]
     return L, l
+
+
+@dataclasses.dataclass(frozen=True)
+class _QpSolution:
+    """One QP of the SQP: success, solver name and iterations, states and inputs."""
+
+    success: bool
+    name: str
+    iterations: int
+    X: np.ndarray
+    U: np.ndarray
 
 
 class TrackingNmpc:
@@ -213,6 +233,7 @@ class TrackingNmpc:
         self.R = settings.input_weight * np.eye(n)
         self.f_max = params.f_max * (terminal.health > 0)
         self._fn = _dynamics(params)
+        self._input_R = np.broadcast_to(2 * self.h * self.R, (self.N, n, n))
         self._build()
         self._guess = None
 
@@ -228,6 +249,9 @@ class TrackingNmpc:
                              for j in range(1, N + 1)]
         self._input_costs = [prog.AddQuadraticCost(np.eye(n), np.zeros(n), self.U[j])
                              for j in range(N)]
+        self._x_index = np.array(prog.FindDecisionVariableIndices(self.X.ravel())).reshape(
+            N + 1, STATE_SIZE)
+        self._u_index = np.array(prog.FindDecisionVariableIndices(self.U.ravel())).reshape(N, n)
         self._cone = prog.AddLorentzConeConstraint(np.zeros((13, 13)), np.ones(13), self.X[N])
         # state box of eq. 4.4d: attitude error (changes with q_r), velocity, rates
         upper = self.terminal.upper
@@ -273,33 +297,55 @@ class TrackingNmpc:
 
     # ------------------------------------------------------------------ per step
     def _update(self, t: float, x: np.ndarray) -> None:
+        """The step's QP data as arrays (every node at once); the program's coefficients
+        follow only when the QP goes to Clarabel (:meth:`_update_program`)."""
         N, h = self.N, self.h
         xr, ur = self.terminal.reference.at(t + h * np.arange(N + 1))
         if x[3:7] @ xr[0, 3:7] < 0:
             x = np.concatenate([x[:3], -x[3:7], x[7:]])
-        self._x0.evaluator().UpdateLowerBound(x)
-        self._x0.evaluator().UpdateUpperBound(x)
-        rows, upper = self._box_rows, self.terminal.upper[self._box_rows]
-        for j in range(1, N + 1):
-            L, l = _error_map(xr[j])
-            Lb = L[rows]
-            keep = np.array(rows) < 6  # attitude rows are errors; the others bound x itself
-            offset = np.where(keep, l[rows], 0.0)
-            self._box[j - 1].evaluator().UpdateCoefficients(Lb, -upper - offset, upper - offset)
-            H = 2 * h * L.T @ self.Q @ L
-            self._state_costs[j - 1].evaluator().UpdateCoefficients(
-                H + 1e-9 * np.eye(13), 2 * h * L.T @ self.Q @ l)
-        for j in range(N):
-            self._input_costs[j].evaluator().UpdateCoefficients(
-                2 * h * self.R, -2 * h * self.R @ (ur[j] * (self.f_max > 0)))
+        L, l = _error_maps(xr)
+        LQ = 2 * h * np.swapaxes(L[1:], 1, 2) @ self.Q
+        self._stage_Q = LQ @ L[1:] + 1e-9 * np.eye(13)  # nodes 1..N
+        self._stage_q = (LQ @ l[1:, :, None])[:, :, 0]
+        self._input_r = -2 * h * (ur[:-1] * (self.f_max > 0)) @ self.R
+        rows = self._box_rows
+        self._box_L = L[1:, rows]  # attitude rows are errors; the others bound x itself
+        self._box_offset = np.where(np.array(rows) < 6, l[1:, rows], 0.0)
         Pt, _, level = self.terminal.matrices_at(t + self.settings.horizon)
-        L, l = _error_map(xr[N])
         S = np.linalg.cholesky(Pt).T  # e^T Pt e = |S e|^2
-        A = np.vstack([np.zeros((1, 13)), S @ L])
-        b = np.concatenate([[level], S @ l])
-        self._cone.evaluator().UpdateCoefficients(A, b)
-        self._terminal = (Pt, level, L, l)
+        self._terminal = (Pt, level, L[N], l[N], S)
+        self._cone_on, self._program_current = True, False
         self._xr, self._ur, self._x = xr, ur, x
+
+    def _update_program(self) -> None:
+        """Copies the step's data into the ``MathematicalProgram`` (Clarabel, SNOPT, IPOPT)."""
+        if self._program_current:
+            return
+        self._x0.evaluator().UpdateLowerBound(self._x)
+        self._x0.evaluator().UpdateUpperBound(self._x)
+        upper = self.terminal.upper[self._box_rows]
+        for j in range(self.N):
+            off = self._box_offset[j]
+            self._box[j].evaluator().UpdateCoefficients(self._box_L[j], -upper - off,
+                                                        upper - off)
+            self._state_costs[j].evaluator().UpdateCoefficients(
+                self._stage_Q[j], self._stage_q[j], 0.0, True)
+            self._input_costs[j].evaluator().UpdateCoefficients(
+                2 * self.h * self.R, self._input_r[j], 0.0, True)
+        self._set_cone(self._cone_on)
+        self._program_current = True
+
+    def _set_cone(self, on: bool) -> None:
+        """The terminal cone ``|S (L x_N + l)| <= pi~``, or (off) ``1 >= |0|``."""
+        self._cone_on = on
+        if on:
+            _, level, L, l, S = self._terminal
+            A = np.vstack([np.zeros((1, 13)), S @ L])
+            b = np.concatenate([[level], S @ l])
+        else:
+            A, b = np.zeros((13, 13)), np.zeros(13)
+            b[0] = 1.0
+        self._cone.evaluator().UpdateCoefficients(A, b)
 
     def _initial_guess(self) -> tuple[np.ndarray, np.ndarray]:
         """Shifted previous solution, or the reference (first step / after a failure)."""
@@ -325,10 +371,10 @@ class TrackingNmpc:
             self._update(t, x)
             out = self._solve_ocp(start)
             if out.status == "infeasible" and self.settings.relax_terminal:
-                Pt, level, L, l = self._terminal
-                unbounded = np.zeros(13)
-                unbounded[0] = 1.0  # 1 >= |0|: the cone constraint always holds
-                self._cone.evaluator().UpdateCoefficients(np.zeros((13, 13)), unbounded)
+                if self._qp:
+                    self._cone_on = False
+                else:
+                    self._set_cone(False)
                 relaxed = self._solve_ocp(start)
                 if relaxed.success:
                     return dataclasses.replace(relaxed, status="relaxed")
@@ -341,22 +387,27 @@ class TrackingNmpc:
         """One RTI step, the SQP to convergence, or the NLP solver, from the warm start."""
         Xg, Ug = self._initial_guess()
         if not self._qp:
-            return self._result(self._solve_once(Xg, Ug), start)
+            self._update_program()
+            result = self._solve_once(Xg, Ug)
+            details = result.get_solver_details()
+            iterations = int(getattr(details, "iterations", getattr(details, "info", 0)))
+            return self._result(self._program_solution(result, iterations), start)
         sweeps = 1 if self.settings.mode == "rti" else self.settings.max_iterations
         total, converged = 0, self.settings.mode == "rti"
+        lin = self._linearise(Xg, Ug)
         for _ in range(sweeps):
-            result = self._sqp_step(Xg, Ug)
-            total += int(getattr(result.get_solver_details(), "iterations", 0))
-            if not result.is_success():
+            sol = self._sqp_step(Xg, Ug, lin)
+            total += sol.iterations
+            if not sol.success or self.settings.mode == "rti":
                 break
-            X, U = result.GetSolution(self.X), result.GetSolution(self.U)
-            step = max(np.abs(X - Xg).max(), np.abs(U - Ug).max())
-            Xg, Ug = X, U
-            if step <= self.settings.tolerance and self._defect_max(X, U) <= \
-                    self.settings.tolerance:
+            step = max(np.abs(sol.X - Xg).max(), np.abs(sol.U - Ug).max())
+            Xg, Ug = sol.X, sol.U
+            lin = self._linearise(Xg, Ug)
+            if step <= self.settings.tolerance and \
+                    np.abs(lin[0] - Xg[1:]).max() <= self.settings.tolerance:
                 converged = True
                 break
-        out = self._result(result, start, total)
+        out = self._result(dataclasses.replace(sol, iterations=total), start)
         if out.success and not converged:
             return dataclasses.replace(out, solver_status="IterationLimit")
         return out
@@ -367,19 +418,54 @@ class TrackingNmpc:
         self.prog.SetDecisionVariableValueInVector(self.U, Ug, guess)
         return self._solver.Solve(self.prog, guess, self._options)
 
-    def _sqp_step(self, Xg, Ug):
-        """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians)."""
-        Xn, Ax, Bu = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
-        if not (np.all(np.isfinite(Xn)) and np.all(np.isfinite(Ax)) and np.all(np.isfinite(Bu))):
-            raise ValueError("non-finite linearisation (the prediction diverged)")
-        for j, binding in enumerate(self._dyn):
-            c = Xn[j] - Ax[j] @ Xg[j] - Bu[j] @ Ug[j]
-            binding.evaluator().UpdateCoefficients(np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c)
-        return self._solve_once(Xg, Ug)
+    def _program_solution(self, result, iterations: int) -> _QpSolution:
+        z = result.get_x_val()
+        return _QpSolution(result.is_success(), result.get_solution_result().name, iterations,
+                           z[self._x_index], z[self._u_index])
 
-    def _defect_max(self, X, U) -> float:
-        Xn, _, _ = _rk4_batch(self._fn, X[:-1], U, self.h)
-        return float(np.abs(Xn - X[1:]).max())
+    def _linearise(self, Xg, Ug):
+        """RK4 steps and their exact Jacobians about ``(Xg, Ug)``; raises on a diverged
+        prediction."""
+        lin = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
+        if not all(np.all(np.isfinite(a)) for a in lin):
+            raise ValueError("non-finite linearisation (the prediction diverged)")
+        return lin
+
+    def _sqp_step(self, Xg, Ug, lin) -> _QpSolution:
+        """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians): first
+        without its inequalities (:func:`~drake_uav.optimization.riccati_lq.solve_lq`),
+        which is its solution when it meets them all; otherwise Clarabel."""
+        Xn, Ax, Bu = lin
+        c = Xn - (Ax @ Xg[:-1, :, None])[:, :, 0] - (Bu @ Ug[:, :, None])[:, :, 0]
+        fast = self._riccati(Ax, Bu, c)
+        if fast is not None:
+            return fast
+        self._update_program()
+        self._set_cone(self._cone_on)
+        for j, binding in enumerate(self._dyn):
+            binding.evaluator().UpdateCoefficients(
+                np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c[j])
+        result = self._solver.Solve(self.prog, None, self._options)
+        return self._program_solution(
+            result, int(getattr(result.get_solver_details(), "iterations", 0)))
+
+    def _riccati(self, Ax, Bu, c) -> _QpSolution | None:
+        """The equality-constrained QP by the Riccati recursion; ``None`` when its solution
+        leaves a thrust bound, the state box or the terminal cone."""
+        N = self.N
+        Bu = Bu * (self.f_max > 0)  # failed motors: u = 0 (no gradient, no weight)
+        X, U = solve_lq(self._x, Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R,
+                        self._input_r)
+        if not (np.all(U >= 0.0) and np.all(U <= self.f_max)):
+            return None
+        box = (self._box_L @ X[1:, :, None])[:, :, 0] + self._box_offset
+        if np.any(np.abs(box) > self.terminal.upper[self._box_rows]):
+            return None
+        if self._cone_on:
+            _, level, L, l, S = self._terminal
+            if np.sum((S @ (L @ X[N] + l)) ** 2) > level**2:
+                return None
+        return _QpSolution(True, "Riccati", 1, X, U)
 
     def _failure(self, status, solver_status, start) -> NmpcResult:
         ur = self._ur[0] if hasattr(self, "_ur") else np.zeros(self.n)
@@ -388,24 +474,21 @@ class TrackingNmpc:
                           solve_time=time.perf_counter() - start, terminal_ratio=np.inf,
                           states=np.empty((0, 13)), inputs=np.empty((0, self.n)))
 
-    def _result(self, result, start, iterations: int | None = None) -> NmpcResult:
-        """``iterations``: QP solver iterations summed over the SQP steps (None: the
-        NLP solver's own count, or SNOPT's exit code when it reports none)."""
-        name = result.get_solution_result().name
-        details = result.get_solver_details()
-        if iterations is None:
-            iterations = int(getattr(details, "iterations", getattr(details, "info", 0)))
-        X, U = result.GetSolution(self.X), result.GetSolution(self.U)
-        if not result.is_success() or not np.all(np.isfinite(U)):
+    def _result(self, sol: _QpSolution, start) -> NmpcResult:
+        """``sol.iterations``: QP solver iterations summed over the SQP steps (1 for a
+        Riccati solve), or the NLP solver's own count (SNOPT's exit code when it reports
+        none)."""
+        X, U = sol.X, sol.U
+        if not sol.success or not np.all(np.isfinite(U)):
             self._guess = None
-            status = "infeasible" if "Infeasible" in name else "failed"
-            return dataclasses.replace(self._failure(status, name, start),
-                                       iterations=iterations)
+            status = "infeasible" if "Infeasible" in sol.name else "failed"
+            return dataclasses.replace(self._failure(status, sol.name, start),
+                                       iterations=sol.iterations)
         self._guess = (X, U)
-        Pt, level, L, l = self._terminal
+        Pt, level, L, l, _ = self._terminal
         e = L @ X[-1] + l
         return NmpcResult(thrusts=np.clip(U[0], 0.0, self.f_max), status="solved",
-                          solver_status=name, iterations=iterations,
+                          solver_status=sol.name, iterations=sol.iterations,
                           solve_time=time.perf_counter() - start,
                           terminal_ratio=float(e @ Pt @ e) / level**2, states=X, inputs=U)
 
