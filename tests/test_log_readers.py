@@ -177,7 +177,7 @@ def _us(start_s: float, rate_hz: float, n: int) -> np.ndarray:
 
 
 def _multirate_bin(path, *, gap_in_arsp=False, att_backwards=False, arsp_nan=False,
-                   with_arsp=True, gps_fix=True):
+                   with_arsp=True, gps_fix=True, gap_in_rcou=False):
     """A 4 s log: IMU 50 Hz (two instances), ATT 25, GPS 5 (no fix first), ARSP/BARO/RCOU/RPM
     10, XKF2 25 (two cores), VANE 50. Signals are linear in time so the alignment is exact."""
     w = DataFlashWriter()
@@ -219,7 +219,9 @@ def _multirate_bin(path, *, gap_in_arsp=False, att_backwards=False, arsp_nan=Fal
     w.add("BARO", TimeUS=arsp, I=0, Alt=100.0 + k)
     rcou = _us(1.005, 10, 40)
     k = np.arange(40)
-    w.add("RCOU", TimeUS=rcou, C1=1500 - 10 * k, C2=1500 + 10 * k, C3=1100 + 40 * k, C4=1500)
+    keep = ~((k > 10) & (k < 32)) if gap_in_rcou else np.ones(40, bool)
+    w.add("RCOU", TimeUS=rcou[keep], C1=(1500 - 10 * k)[keep], C2=(1500 + 10 * k)[keep],
+          C3=(1100 + 22 * k)[keep], C4=1500)
     k = np.arange(101)
     for core in (0, 1):
         w.add("XKF2", TimeUS=att, C=core, VWN=3.0 + 27 * core, VWE=-1.0)
@@ -272,7 +274,7 @@ def test_dataflash_channels_units_and_alignment_exact(tmp_path):
     k = np.floor((t - 1.005) / 0.1 + 1e-9)
     np.testing.assert_allclose(log["cmd_elevator"], -(10 * k / 500) * 25 * DEG, atol=1e-15)
     np.testing.assert_allclose(log["cmd_aileron"], -(10 * k / 500) * 25 * DEG, atol=1e-15)
-    np.testing.assert_allclose(log["cmd_throttle"], np.minimum(40 * k / 800, 1.0), atol=1e-15)
+    np.testing.assert_allclose(log["cmd_throttle"], np.minimum(22 * k / 800, 1.0), atol=1e-15)
     np.testing.assert_array_equal(log["cmd_rudder"], np.zeros(t.size))
     # Extra (vane) channels from a named message.
     np.testing.assert_array_equal(log["vane_alpha"], f32(2.0 + 0.1 * j).astype(float) * DEG)
@@ -345,12 +347,20 @@ def test_dataflash_bad_streams_name_stream_and_time(tmp_path, flag, message):
 
 
 def test_dataflash_gap_in_a_stream_cuts_segments(tmp_path):
-    path = _multirate_bin(tmp_path / "gap.bin", gap_in_arsp=True)
+    path = _multirate_bin(tmp_path / "gap.bin", gap_in_rcou=True)
     log = read_log(path)
-    np.testing.assert_allclose(log.metadata["segments"], [[1.4, 2.0], [4.2, 4.905]])
+    np.testing.assert_allclose(log.metadata["segments"], [[1.4, 2.005], [4.205, 4.905]])
     assert log.time[0] == 1.4 and log.time[-1] == 4.9
-    assert not np.any((log.time > 2.0) & (log.time < 4.2))
+    assert not np.any((log.time > 2.005) & (log.time < 4.205))
     np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (log.time - 1.0), atol=1e-12)
+    k = np.floor((log.time - 1.005) / 0.1 + 1e-9)
+    np.testing.assert_allclose(log["cmd_elevator"], -(10 * k / 500) * 25 * DEG, atol=1e-15)
+    path = _multirate_bin(tmp_path / "arsp_gap.bin", gap_in_arsp=True)  # optional: dropped
+    with pytest.warns(UserWarning, match=r"arsp_gap\.bin: optional stream 'ARSP' dropped: a "
+                                         r"gap of 2\.200 s \(t = 2\.000 s to 4\.200 s\)"):
+        log = read_log(path)
+    assert "pitot_airspeed" not in log and log.metadata["dropped_streams"] == ["ARSP"]
+    np.testing.assert_allclose(log.metadata["segments"], [[1.4, 4.905]])
 
 
 def test_dataflash_gap_tolerance_is_configurable(tmp_path):
@@ -366,13 +376,15 @@ def test_dataflash_truncated_file(tmp_path):
     cut.write_bytes(whole[:-7])
     with pytest.raises(FlightLogError, match=r"cut\.bin: truncated file: the last \w+ message "
                                              r"\(byte \d+\) needs \d+ bytes, \d+ remain"):
-        read_log(cut, extra=_VANES)
+        read_log(cut, extra=_VANES, allow_truncated=False)
     with pytest.warns(UserWarning, match=r"truncated file.*; dropped"):
-        log = read_log(cut, extra=_VANES, allow_truncated=True)
+        log = read_log(cut, extra=_VANES)
     assert log.equals(read_log(path, extra=_VANES))
     cut.write_bytes(whole[:len(whole) // 2])
     with pytest.raises(FlightLogError, match=r"cut\.bin: truncated file"):
-        read_log(cut)
+        read_log(cut, allow_truncated=False)
+    with pytest.warns(UserWarning, match=r"cut\.bin: truncated file"):
+        assert read_log(cut).time[-1] < 3.0
 
 
 def test_dataflash_corrupt_data(tmp_path, capfd):

@@ -1,12 +1,8 @@
 """ArduPilot DataFlash (``.bin``) logs into a FlightLog with canonical channels.
 
-pymavlink's ``DFReader_binary`` indexes the file (message formats from the FMT
-messages, byte offset of every message); each needed message type is then
-decoded in one vectorised step (numpy structured view of all its messages) with
-pymavlink's format table and multipliers (a 30-minute log with two IMUs at
-400 Hz, 81 MB, reads in under 2 s). Time is ``TimeUS / 1e6`` [s since boot].
-
-Default mapping (instance 0 of multi-instance messages; see docs/flight_logs.md):
+The file is decoded by :class:`~drake_uav.io.dataflash.DataFlash` (one
+vectorised step per message type). Default mapping (instance 0; see
+docs/flight_logs.md):
 
 =========  ========================  ==============================  =====================
 message    fields                    conversion                      channels
@@ -18,16 +14,18 @@ GPS        Spd GCrs VZ               vn = Spd cos GCrs, ...          gps_vn gps_
 GPS        Lat Lng Alt               local NED about the origin      gps_pn gps_pe gps_pd
 ARSP       Airspeed DiffPress        m/s, Pa                         pitot_airspeed pitot_qbar
 BARO       Alt                       m                               baro_alt
-RCOU       C1 C2 C3 C4               :class:`ActuatorMapping`        cmd_*
+RCOU       C<n> (SERVOn_FUNCTION)    SERVOn_MIN/MAX/TRIM/REVERSED    cmd_*
 XKF2/NKF2  VWN VWE                   m/s                             est_wind_n est_wind_e
 RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
+AOA        AOA SSA                   deg -> rad (AHRS estimate)      ahrs_alpha ahrs_beta
 =========  ========================  ==============================  =====================
 
-GPS samples without a 3-D fix (Status < 3) are dropped. The origin of the local
-positions is the EKF origin (``ORGN`` with Type 0), else the first fix; they use
-the WGS-84 radii of curvature at the origin (flat earth, good to a few km).
-Vane angles are not standard ArduPilot messages: map them with ``extra``
-(e.g. from ``CUR2``).
+IMU, ATT and RCOU are required streams: a gap or a hole of invalid samples
+cuts the log into segments. The others are optional: sparse or gappy, they are
+dropped with a warning. Invalid samples: GPS without a 3-D fix, negative
+airspeed, a servo PWM of 0 or outside its SERVOn_MIN..MAX (+- 50 us). The
+instance of IMU, GPS, BARO and ARSP is the ``I`` field (4.1 and later) or a
+separate message (IMU2, IMU3, GPS2, BAR2, BAR3, ASP2; 4.0 and earlier).
 """
 
 from __future__ import annotations
@@ -38,143 +36,59 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-from pymavlink.DFReader import FORMAT_TO_STRUCT, DFReader_binary
 
+from drake_uav.io.ardupilot_params import mode_name, servo_mapping, vehicle_type
+from drake_uav.io.dataflash import DataFlash
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.model.geodesy import ned_from_geodetic
 
-__all__ = ["read_ardupilot"]
+__all__ = ["AHRS_CHANNELS", "read_ardupilot"]
 
-_HEAD = (0xA3, 0x95, 0x80)  # every DataFlash log starts with a FMT message
-_TRAILING_SLACK = 528
-"""Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
-_EARTH_A, _EARTH_E2 = 6378137.0, 6.69437999014e-3  # WGS-84 semi-major axis [m], e^2
 _RPM = 2.0 * math.pi / 60.0  # rev/min -> rad/s
 _DEG = math.pi / 180.0
+_MIN_IMU_RATE_HZ = 100.0
+_INSTANCE_MESSAGES = {"IMU": ("IMU", "IMU2", "IMU3"), "GPS": ("GPS", "GPS2"),
+                      "BARO": ("BARO", "BAR2", "BAR3"), "ARSP": ("ARSP", "ASP2"),
+                      "XKF2": ("XKF2",), "NKF2": ("NKF2", "NKF7"), "RPM": ("RPM",)}
+"""Message -> the messages of instances 0, 1, ... in logs without an instance field."""
+_INSTANCE_COLUMNS = {"XKF2": "C", "NKF2": "C"}
+AHRS_CHANNELS = {"ahrs_alpha": ("rad", "angle of attack estimated by ArduPlane's AHRS (not "
+                                       "a sensor)"),
+                 "ahrs_beta": ("rad", "sideslip angle estimated by ArduPlane's AHRS (not a "
+                                      "sensor)")}
+"""Channels of ArduPlane's logged ``AOA`` message: name -> (unit, meaning)."""
+_LOG_BITMASK_IMU = 128  # MASK_LOG_IMU of ArduPlane and ArduCopter
 
 
-class _Index(DFReader_binary):
-    """pymavlink's DataFlash index (formats, message offsets) without its clock.
-
-    Every message this module uses carries ``TimeUS``, so the clock search,
-    which parses the whole log message by message when there is no GPS, is skipped.
-    """
-
-    def init_clock(self):
-        self.clock = None
-
-
-def _dtype(fmt) -> np.dtype:
-    """numpy dtype of the payload of DataFlash format ``fmt`` (pymavlink's table)."""
-    fields = []
-    for column, char in zip(fmt.columns, fmt.format, strict=True):
-        code = FORMAT_TO_STRUCT[char][0]
-        fields.append((column, f"S{code[:-1]}" if code.endswith("s") else f"<{code}"))
-    return np.dtype(fields)
+def _instance_source(log: DataFlash, message: str, instance: int) -> tuple[str, str | None]:
+    """(message, instance column or None) holding ``instance`` of ``message``:
+    the message itself with its ``I``/``C`` field, else the separate message of
+    that instance (IMU2, ...); ("", None) when the log has neither."""
+    column = _INSTANCE_COLUMNS.get(message, "I")
+    if log.has(message) and column in log.formats[message].colhash:
+        return message, column
+    names = _INSTANCE_MESSAGES.get(message, (message,))
+    if instance < len(names) and log.has(names[instance]):
+        return names[instance], None
+    return "", None
 
 
-class _DataFlash:
-    """A DataFlash file: its formats, message offsets and vectorised decoding."""
-
-    def __init__(self, path: Path, allow_truncated: bool):
-        self.source = str(path)
-        self.data = np.fromfile(path, dtype=np.uint8)
-        if self.data.size < 3 or tuple(self.data[:3]) != _HEAD:
-            raise FlightLogError(f"{path}: not an ArduPilot DataFlash log (no FMT message at "
-                                 "the start of the file)")
-        try:
-            index = _Index(str(path))
-        except Exception as err:  # pymavlink raises bare Exceptions on malformed formats
-            raise FlightLogError(f"{path}: unreadable DataFlash log ({err})") from None
-        try:
-            self.formats = {f.name: f for f in index.formats.values()}
-            self.offsets = {name: np.asarray(index.offsets[f.type], np.int64)
-                            for name, f in self.formats.items()}
-        finally:
-            index.close()
-        self._check_coverage(allow_truncated)
-
-    def _check_coverage(self, allow_truncated: bool) -> None:
-        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs)."""
-        size, end, covered, where = self.data.size, 0, 0, None
-        for name, offsets in self.offsets.items():
-            if not offsets.size:
-                continue
-            length = self.formats[name].len
-            last = int(offsets[-1])
-            if last + length > size:
-                message = (f"{self.source}: truncated file: the last {name} message (byte "
-                           f"{last}) needs {length} bytes, {size - last} remain")
-                if not allow_truncated:
-                    raise FlightLogError(message + " (allow_truncated=True drops it)")
-                warnings.warn(message + "; dropped", stacklevel=4)
-                self.offsets[name] = offsets = offsets[:-1]
-                if not offsets.size:
-                    continue
-                last = int(offsets[-1])
-            covered += offsets.size * length
-            if last + length > end:
-                end, where = last + length, name
-        if size - end > _TRAILING_SLACK:
-            message = (f"{self.source}: the {size - end} bytes from byte {end} on (after the "
-                       f"last complete message, {where}) could not be parsed: corrupt or "
-                       "truncated log")
-            if not allow_truncated:
-                raise FlightLogError(message)
-            warnings.warn(message + "; ignored", stacklevel=4)
-        if covered < end:
-            warnings.warn(f"{self.source}: {end - covered} bytes of corrupt data skipped",
-                          stacklevel=4)
-
-    def has(self, name: str) -> bool:
-        return name in self.formats and self.offsets[name].size > 0
-
-    def fields(self, name: str) -> list[str]:
-        return list(self.formats[name].columns)
-
-    def read(self, name: str, fields: list[str], instance_column: str | None = None,
-             instance: int | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-        """(time [s], field -> values) of message ``name`` (multipliers applied), keeping
-        the messages whose ``instance_column`` equals ``instance`` when the message has
-        that column; None when there is no such message."""
-        if not self.has(name):
-            return None
-        fmt = self.formats[name]
-        missing = [f for f in ("TimeUS", *fields) if f not in fmt.colhash]
-        if missing:
-            raise FlightLogError(f"{self.source}: message {name} has no field {missing[0]} "
-                                 f"(fields: {', '.join(fmt.columns)})")
-        dtype = _dtype(fmt)
-        if dtype.itemsize != fmt.len - 3:
-            raise FlightLogError(f"{self.source}: FMT of {name} gives length {fmt.len}, its "
-                                 f"format '{fmt.format}' needs {dtype.itemsize + 3}")
-        windows = np.lib.stride_tricks.sliding_window_view(self.data, dtype.itemsize)
-        records = windows[self.offsets[name] + 3].view(dtype)[:, 0]
-        if instance is not None and instance_column in fmt.colhash:
-            records = records[records[instance_column] == instance]
-            if records.size == 0:
-                return None
-        out = {}
-        for field in fields:
-            values = records[field].astype(float)
-            mult = fmt.msg_mults[fmt.colhash[field]]
-            if mult is not None:
-                # Divide by the inverse of a fractional multiplier, as pymavlink does:
-                # 1234 / 100 is exact to the last bit where 1234 * 0.01 is not.
-                values = values / (1.0 / mult) if 0.0 < mult < 1.0 else values * mult
-            out[field] = values
-        return records["TimeUS"].astype(float) / 1e6, out
-
-
-def _stream(name, time, channels, fields: Mapping[str, str], **kwargs) -> Stream:
+def _stream(name, time, channels, fields: Mapping[str, str], units=None, **kwargs) -> Stream:
     """A stream of canonical channels; ``fields``: channel -> field of message ``name``."""
-    return Stream(name, time, channels, {n: CHANNELS[n][0] for n in channels},
+    units = units or {n: CHANNELS[n][0] for n in channels}
+    return Stream(name, time, channels, units,
                   fields={c: f"{name}.{f}" for c, f in fields.items()}, **kwargs)
 
 
-def _simple(log: _DataFlash, name: str, mapping: Mapping[str, str], column: str | None = None,
-            instance: int | None = None, scale: float = 1.0, **kwargs) -> Stream | None:
-    """Stream of message ``name`` with channel <- scale * field, or None when absent."""
+def _simple(log: DataFlash, message: str, mapping: Mapping[str, str], instance: int | None = None,
+            scale: float = 1.0, **kwargs) -> Stream | None:
+    """Stream of ``message`` (instance ``instance``, None: every message) with channel
+    <- scale * field, or None when absent."""
+    name, column = (message, None) if instance is None else _instance_source(log, message,
+                                                                               instance)
+    if not name:
+        return None
     got = log.read(name, list(mapping.values()), column, instance)
     if got is None:
         return None
@@ -183,90 +97,206 @@ def _simple(log: _DataFlash, name: str, mapping: Mapping[str, str], column: str 
                    **kwargs)
 
 
-def _gps(log: _DataFlash, instance: int) -> tuple[Stream, list[float]] | None:
-    got = log.read("GPS", ["Status", "Spd", "GCrs", "VZ", "Lat", "Lng", "Alt"], "I", instance)
+def _missing_instance(log: DataFlash, message: str, instance: int) -> str:
+    """"no IMU messages with I = 2 ...; the log has I = 0, 1" (what exists), for errors."""
+    if log.has(message) and "I" in log.formats[message].colhash:
+        got = np.unique(log.records(message)["I"]).tolist()
+        return (f"no {message} messages with I = {instance} (the time base); the log has "
+                f"I = {', '.join(map(str, got))}")
+    names = _INSTANCE_MESSAGES[message]
+    wanted = names[instance] if instance < len(names) else f"{message} instance {instance}"
+    present = " and ".join(n for n in names if log.has(n))
+    return f"no {wanted} messages (the time base); the log has {present} messages"
+
+
+def _imu(log: DataFlash, instance: int, params: Mapping[str, float]) -> Stream:
+    """The IMU stream of ``instance`` (the time base); FlightLogError naming what exists."""
+    imu = {"imu_ax": "AccX", "imu_ay": "AccY", "imu_az": "AccZ",
+           "imu_p": "GyrX", "imu_q": "GyrY", "imu_r": "GyrZ"}
+    for name in ("IMU", "ATT"):
+        if log.has(name):
+            log.check_time(name)
+    base = _simple(log, "IMU", imu, instance)
+    if base is not None:
+        return base
+    if not any(log.has(n) for n in _INSTANCE_MESSAGES["IMU"]):
+        bitmask = params.get("LOG_BITMASK")
+        why = ("" if bitmask is None or int(bitmask) & _LOG_BITMASK_IMU else
+               f": recorded without IMU logging (LOG_BITMASK = {bitmask:g} has no IMU bit, "
+               f"{_LOG_BITMASK_IMU})")
+        raise FlightLogError(f"{log.source}: no IMU messages (the time base){why}")
+    raise FlightLogError(f"{log.source}: {_missing_instance(log, 'IMU', instance)}")
+
+
+def _gps(log: DataFlash, instance: int) -> tuple[Stream, list[float]] | None:
+    """The GPS stream (samples without a 3-D fix invalid) and the NED origin, or None."""
+    name, column = _instance_source(log, "GPS", instance)
+    got = log.read(name, ["Status", "Spd", "GCrs", "VZ", "Lat", "Lng", "Alt"], column,
+                   instance) if name else None
     if got is None:
         return None
     time, f = got
     fix = f["Status"] >= 3
     if not np.any(fix):
-        warnings.warn(f"{log.source}: no GPS message with a 3-D fix (Status >= 3); no GPS "
+        warnings.warn(f"{log.source}: no {name} message with a 3-D fix (Status >= 3); no GPS "
                       "channels", stacklevel=3)
         return None
-    time, f = time[fix], {k: v[fix] for k, v in f.items()}
+    first = int(np.flatnonzero(fix)[0])
+    origin = [float(f[k][first]) for k in ("Lat", "Lng", "Alt")]
+    orgn = log.read("ORGN", ["Type", "Lat", "Lng", "Alt"])
+    if orgn is not None and np.any(orgn[1]["Type"] == 0):
+        ekf = int(np.flatnonzero(orgn[1]["Type"] == 0)[0])
+        origin = [float(orgn[1][k][ekf]) for k in ("Lat", "Lng", "Alt")]
+    pn, pe, pd = ned_from_geodetic(f["Lat"], f["Lng"], f["Alt"], origin)
     course = np.radians(f["GCrs"])
-    lat0, lon0, alt0 = (float(f[k][0]) for k in ("Lat", "Lng", "Alt"))
-    origin = log.read("ORGN", ["Type", "Lat", "Lng", "Alt"])
-    if origin is not None and np.any(origin[1]["Type"] == 0):
-        ekf = int(np.flatnonzero(origin[1]["Type"] == 0)[0])
-        lat0, lon0, alt0 = (float(origin[1][k][ekf]) for k in ("Lat", "Lng", "Alt"))
-    s2 = 1.0 - _EARTH_E2 * math.sin(math.radians(lat0)) ** 2
-    r_north = _EARTH_A * (1.0 - _EARTH_E2) / s2 ** 1.5
-    r_east = _EARTH_A / math.sqrt(s2) * math.cos(math.radians(lat0))
-    channels = {
-        "gps_pn": np.radians(f["Lat"] - lat0) * r_north,
-        "gps_pe": np.radians(f["Lng"] - lon0) * r_east,
-        "gps_pd": -(f["Alt"] - alt0),
-        "gps_vn": f["Spd"] * np.cos(course),
-        "gps_ve": f["Spd"] * np.sin(course),
-        "gps_vd": f["VZ"],
-    }
+    channels = {"gps_pn": pn, "gps_pe": pe, "gps_pd": pd, "gps_vn": f["Spd"] * np.cos(course),
+                "gps_ve": f["Spd"] * np.sin(course), "gps_vd": f["VZ"]}
     fields = dict(zip(channels, ("Lat", "Lng", "Alt", "Spd", "Spd", "VZ"), strict=True))
-    return _stream("GPS", time, channels, fields), [lat0, lon0, alt0]
+    return _stream(name, time, channels, fields, valid=fix, optional=True), origin
 
 
-def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None,
+def _airspeed(log: DataFlash, instance: int) -> Stream | None:
+    """The pitot stream; a negative airspeed (ground, sensor offset) is an invalid sample."""
+    stream = _simple(log, "ARSP", {"pitot_airspeed": "Airspeed", "pitot_qbar": "DiffPress"},
+                     instance, optional=True)
+    if stream is None:
+        return None
+    return Stream(stream.name, stream.time, stream.channels, stream.units, fields=stream.fields,
+                  valid=~(stream.channels["pitot_airspeed"] < 0.0), optional=True)
+
+
+def _optional_streams(log: DataFlash, instance: int) -> list[Stream | None]:
+    """Barometer, EKF wind, RPM and ArduPlane's AHRS flow angles (optional streams)."""
+    streams = [_simple(log, "BARO", {"baro_alt": "Alt"}, instance, optional=True),
+               _simple(log, "XKF2" if log.has("XKF2") else "NKF2",
+                       {"est_wind_n": "VWN", "est_wind_e": "VWE"}, instance, optional=True)]
+    if log.has("RPM"):
+        field = "rpm1" if "rpm1" in log.fields("RPM") else "RPM"
+        streams.append(_simple(log, "RPM", {"motor_speed": field}, instance, _RPM,
+                               optional=True))
+    if log.has("AOA"):
+        streams.append(_simple(log, "AOA", {"ahrs_alpha": "AOA", "ahrs_beta": "SSA"}, None,
+                               _DEG, units={c: u for c, (u, _) in AHRS_CHANNELS.items()},
+                               optional=True))
+    return streams
+
+
+def _actuator_stream(log: DataFlash, actuators: ActuatorMapping) -> Stream | None:
+    """The ``cmd_*`` channels (held between messages; required), or None without the
+    message. A sample is invalid when any output is outside its valid range or, for
+    the PWM messages RCOU/RCIN, 0 (output not driven)."""
+    commands = actuators.channels()
+    got = log.read(actuators.message, sorted({m.field for m in commands.values()}))
+    if got is None or not commands:
+        return None
+    time, f = got
+    valid = np.ones(time.size, bool)
+    for m in commands.values():
+        valid &= m.valid(f[m.field])
+        if actuators.message in ("RCOU", "RCIN"):
+            valid &= f[m.field] > 0.0
+    return _stream(actuators.message, time,
+                   {c: m.apply(f[m.field]) for c, m in commands.items()},
+                   {c: m.field for c, m in commands.items()}, hold=True, valid=valid)
+
+
+def _resolve_actuators(log: DataFlash, actuators, params: Mapping[str, float],
+                       deflections: Mapping[str, float]) -> tuple[ActuatorMapping | None, dict]:
+    """The mapping to use and its metadata (``"source"`` plus the mapping)."""
+    if isinstance(actuators, ActuatorMapping):
+        return actuators.validate(), {"source": "given", **actuators.describe()}
+    if actuators == "aetr":
+        mapping = ActuatorMapping.ardupilot_aetr(**deflections)
+        if not log.has("AETR"):
+            raise FlightLogError(f"{log.source}: actuators='aetr' but the log has no AETR "
+                                 "messages")
+        return mapping, {"source": "AETR demands", **mapping.describe()}
+    if actuators not in (None, "servo"):
+        raise ValueError(f"actuators: an ActuatorMapping, 'servo' or 'aetr', got {actuators!r}")
+    if not any(k.startswith("SERVO") and k.endswith("_FUNCTION") for k in params):
+        if actuators == "servo":
+            raise FlightLogError(f"{log.source}: actuators='servo' but the log has no "
+                                 "SERVOn_FUNCTION parameters")
+        mapping = ActuatorMapping.ardupilot(**deflections)
+        warnings.warn(f"{log.source}: no SERVOn parameters in the log; RCOU read with the "
+                      "default mapping (C1 aileron, C2 elevator, C3 throttle, C4 rudder, "
+                      "1500 +- 500 us)", stacklevel=3)
+        return mapping, {"source": "default (no SERVOn parameters)", **mapping.describe()}
+    mapping, notes = servo_mapping(params, deflections, log.source)
+    for note in notes:
+        warnings.warn(f"{log.source}: {note}", stacklevel=3)
+    if mapping is None:
+        return None, {"source": "SERVOn parameters", "message": None,
+                      "note": "no aileron, elevator, rudder or throttle servo"}
+    return mapping, {"source": "SERVOn parameters", **mapping.describe()}
+
+
+def _vehicle_metadata(log: DataFlash, params: Mapping[str, float]) -> dict:
+    """vehicle_type, firmware, flight_modes (and vtol_state for a quadplane)."""
+    firmware = ""
+    for message, field in (("VER", "FWS"), ("MSG", "Message")):
+        got = log.strings(message, field)
+        found = [t for t in (got[1] if got else []) if t.startswith(("Ardu", "Rover", "Blimp"))]
+        if found:
+            firmware = found[0]
+            break
+    kind = vehicle_type(firmware, params)
+    modes = []
+    got = log.read("MODE", ["ModeNum"]) if log.has("MODE") else None
+    if got is not None:
+        modes = [[float(t), mode_name(firmware, int(m))]
+                 for t, m in zip(got[0], got[1]["ModeNum"], strict=True)]
+    meta = {"vehicle_type": kind, "firmware": firmware, "flight_modes": modes}
+    if 19 <= kind["mav_type"] <= 24 and firmware.startswith("ArduPlane"):
+        # ArduPlane's Q modes hover on the lift motors; the others fly on the wing.
+        meta["vtol_state"] = [[t, "mc" if name.startswith("Q") else "fw"] for t, name in modes]
+    return meta
+
+
+def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None = None,
                    extra: Mapping[str, FieldSource] | None = None, instance: int = 0,
-                   max_gap: float = 0.5, allow_truncated: bool = False) -> FlightLog:
+                   max_gap: float = 0.5, allow_truncated: bool = True,
+                   deflections: Mapping[str, float] | None = None) -> FlightLog:
     """Reads an ArduPilot DataFlash ``.bin`` log into a FlightLog (canonical channels).
 
     Args:
         path: the ``.bin`` file.
-        actuators: output -> command mapping (default :meth:`ActuatorMapping.ardupilot`).
+        actuators: None (the log's SERVOn parameters, else
+            :meth:`ActuatorMapping.ardupilot` with a warning), ``"servo"`` (the
+            SERVOn parameters or an error), ``"aetr"`` (the AETR demand message)
+            or an :class:`ActuatorMapping`.
         extra: more channels, e.g. vanes: ``{"vane_alpha": FieldSource("CUR2", "Volt",
             "rad", scale=..., offset=...)}``.
-        instance: instance of IMU, GPS, ARSP, BARO, RPM (field ``I``) and EKF core
-            of XKF2/NKF2 (field ``C``); messages without it are left out, except
-            the IMU (the time base), which must have it.
-        max_gap: longest allowed interval between two messages of a stream [s].
-        allow_truncated: drop an incomplete last message (with a warning) instead
-            of raising.
+        instance: instance of IMU, GPS, ARSP, BARO, RPM and EKF core of XKF2/NKF2;
+            an optional message without it is left out, the IMU must have it.
+        max_gap: longest interval between two messages of a stream [s] before a
+            required stream cuts the log or an optional one is dropped.
+        allow_truncated: drop a half-written last record (SD-card logs) with a
+            warning; False raises instead.
+        deflections: surface ("elevator", "aileron", "rudder") -> full deflection
+            [rad] at the servo's MAX (or MIN) PWM or full demand; 25 deg by default.
 
     Raises:
-        FlightLogError: not a DataFlash log, truncated, no IMU messages, a stream
-            with a gap, time not increasing or non-finite values; names the file.
+        FlightLogError: not a DataFlash log, corrupt, a TimeMS log (unsupported
+            firmware), no IMU instance ``instance``, bad SERVOn parameters, no
+            segment where every required stream has valid data; names the file.
     """
     path = Path(path)
-    actuators = (actuators or ActuatorMapping.ardupilot()).validate()
+    deflections = {**dict.fromkeys(("elevator", "aileron", "rudder"), math.radians(25.0)),
+                   **(deflections or {})}
     extra = {name: source.validate() for name, source in (extra or {}).items()}
-    log = _DataFlash(path, allow_truncated)
-    imu = {"imu_ax": "AccX", "imu_ay": "AccY", "imu_az": "AccZ",
-           "imu_p": "GyrX", "imu_q": "GyrY", "imu_r": "GyrZ"}
-    base = _simple(log, "IMU", imu, "I", instance)
-    if base is None:
-        raise FlightLogError(f"{log.source}: no IMU messages with I = {instance} (the time "
-                             "base)")
-    metadata = {"format": "ArduPilot DataFlash", "instance": instance,
-                "actuators": actuators.describe()}
-    streams = [
-        _simple(log, "ATT", {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"},
-                scale=_DEG, angles=("att_roll", "att_yaw")),
-        _simple(log, "ARSP", {"pitot_airspeed": "Airspeed", "pitot_qbar": "DiffPress"}, "I",
-                instance),
-        _simple(log, "BARO", {"baro_alt": "Alt"}, "I", instance),
-        _simple(log, "XKF2" if log.has("XKF2") else "NKF2",
-                {"est_wind_n": "VWN", "est_wind_e": "VWE"}, "C", instance),
-    ]
-    commands = actuators.channels()
-    got = log.read(actuators.message, [m.field for m in commands.values()])
-    if got is not None:
-        time, f = got
-        streams.append(_stream(actuators.message, time,
-                               {c: m.apply(f[m.field]) for c, m in commands.items()},
-                               {c: m.field for c, m in commands.items()}, hold=True))
-    if log.has("RPM"):
-        field = "rpm1" if "rpm1" in log.fields("RPM") else "RPM"
-        streams.append(_simple(log, "RPM", {"motor_speed": field}, "I", instance, _RPM))
+    log = DataFlash(path, allow_truncated)
+    params = log.parameters()
+    base = _imu(log, instance, params)
+    mapping, described = _resolve_actuators(log, actuators, params, deflections)
+    metadata = {"format": "ArduPilot DataFlash", "instance": instance, "actuators": described,
+                **_vehicle_metadata(log, params), "imu_rate_hz": _imu_rate(log, base),
+                "parameters": params}
+    streams = [_simple(log, "ATT", {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"},
+                       scale=_DEG, angles=("att_roll", "att_yaw")),
+               _airspeed(log, instance), *_optional_streams(log, instance)]
+    if mapping is not None:
+        streams.append(_actuator_stream(log, mapping))
     gps = _gps(log, instance)
     if gps is not None:
         streams.append(gps[0])
@@ -276,7 +306,17 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | None = None
                          max_gap=max_gap, metadata=metadata)
 
 
-def _extra_streams(log: _DataFlash, extra: Mapping[str, FieldSource]) -> list[Stream]:
+def _imu_rate(log: DataFlash, base: Stream) -> float:
+    """Median IMU logging rate [Hz]; warns below 100 Hz (too slow for identification)."""
+    rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
+    if rate < _MIN_IMU_RATE_HZ:
+        warnings.warn(f"{log.source}: {base.name} logged at {rate:.3g} Hz (< "
+                      f"{_MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
+                      "IMU faster (INS_LOG_BAT_* or the IMU rate of LOG_BITMASK)", stacklevel=3)
+    return round(rate, 6)
+
+
+def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Stream]:
     """One stream per (message, instance, hold) of the ``extra`` channels."""
     groups: dict[tuple, dict[str, FieldSource]] = {}
     for channel, src in extra.items():

@@ -131,12 +131,17 @@ class FieldSource:
 
 @dataclasses.dataclass(frozen=True)
 class ActuatorChannel:
-    """A logged actuator output mapped linearly onto a command.
+    """A logged actuator output mapped (piecewise) linearly onto a command.
 
-    ``command = full_value * (raw - neutral) / (full - neutral)``, then clipped
-    to ``limits`` when given. For a servo PWM: ``neutral`` is the trim [us] and
-    ``full`` the PWM of full deflection ``full_value`` [rad] (its sign sets the
-    direction); for a throttle: ``neutral`` is the idle PWM and ``full_value`` 1.
+    ``command = full_value * (raw - neutral) / (full - neutral)`` on the side of
+    ``full``; on the other side, when ``full_low`` is given, ``command =
+    full_value * (raw - neutral) / (neutral - full_low)`` (so ``full_low`` gives
+    ``-full_value``: a servo whose trim is not centred between its limits). Then
+    clipped to ``limits`` when given. For a servo PWM: ``neutral`` is the trim
+    [us], ``full`` the PWM of full deflection ``full_value`` [rad] (its sign
+    sets the direction); for a throttle: ``neutral`` is the idle PWM and
+    ``full_value`` 1. A raw value outside ``valid_range`` is an invalid sample
+    (an output not driven, PWM 0), never a command.
 
     Attributes:
         field: field holding the raw output (``"C2"`` in RCOU, ``"output[1]"``
@@ -145,6 +150,9 @@ class ActuatorChannel:
         full: raw value of the command ``full_value`` [us or normalised].
         full_value: command at ``full`` [rad for surfaces, 1 for throttle].
         limits: (low, high) clip of the command, or None.
+        full_low: raw value of the command ``-full_value`` (other side of
+            ``neutral``), or None for one slope.
+        valid_range: (low, high) of plausible raw values [us or normalised], or None.
     """
 
     field: str
@@ -152,6 +160,8 @@ class ActuatorChannel:
     full: float
     full_value: float
     limits: tuple[float, float] | None = None
+    full_low: float | None = None
+    valid_range: tuple[float, float] | None = None
 
     def validate(self, where: str = "ActuatorChannel") -> ActuatorChannel:
         """Raises ValueError naming ``where.field``; returns self."""
@@ -162,70 +172,98 @@ class ActuatorChannel:
                 raise ValueError(f"{where}.{name}: must be finite")
         if self.full == self.neutral:
             raise ValueError(f"{where}.full: must differ from neutral ({self.neutral})")
+        if self.full_low is not None and not (self.full_low - self.neutral) * (
+                self.full - self.neutral) < 0:
+            raise ValueError(f"{where}.full_low: must lie on the other side of neutral "
+                             f"({self.neutral}) from full ({self.full}), got {self.full_low}")
         if self.full_value == 0.0:
             raise ValueError(f"{where}.full_value: must be non-zero")
-        if self.limits is not None and not self.limits[0] < self.limits[1]:
-            raise ValueError(f"{where}.limits: need low < high, got {self.limits}")
+        for name in ("limits", "valid_range"):
+            pair = getattr(self, name)
+            if pair is not None and not pair[0] < pair[1]:
+                raise ValueError(f"{where}.{name}: need low < high, got {pair}")
         return self
 
     def apply(self, raw: np.ndarray) -> np.ndarray:
         """Commands of the raw output values."""
-        value = self.full_value * (np.asarray(raw, float) - self.neutral) / (
-            self.full - self.neutral)
+        offset = np.asarray(raw, float) - self.neutral
+        value = self.full_value * offset / (self.full - self.neutral)
+        if self.full_low is not None:
+            low_side = offset * (self.full - self.neutral) < 0
+            value = np.where(low_side, self.full_value * offset / (self.neutral - self.full_low),
+                             value)
         if self.limits is not None:
             value = np.clip(value, *self.limits)
         return value
 
+    def valid(self, raw: np.ndarray) -> np.ndarray:
+        """Per sample: the raw value lies in ``valid_range`` (all True without one)."""
+        raw = np.asarray(raw, float)
+        if self.valid_range is None:
+            return np.ones(raw.shape, bool)
+        return (raw >= self.valid_range[0]) & (raw <= self.valid_range[1])
+
 
 _SURFACES = ("elevator", "aileron", "rudder")
 _DEFAULT_DEFLECTION = math.radians(25.0)
+_DEFAULT_PWM_RANGE = (950.0, 2050.0)
+"""Plausible servo PWM of the default ArduPilot mapping: 1500 +- (500 + 50) us."""
 
 
 @dataclasses.dataclass(frozen=True)
 class ActuatorMapping:
-    """Where the four commands come from: one message and a channel per command.
+    """Where the commands come from: one message and a channel per command.
 
     The presets follow the autopilots' conventions: a positive pitch demand is
     nose-up, so it maps onto a *negative* elevator here (nose-down positive);
     likewise a positive (nose-right) yaw demand onto a negative rudder. Flip
     the sign of ``full_value`` for a servo reversed in the autopilot
     (ArduPilot ``SERVOn_REVERSED = 1``). ``elevator``, ``aileron`` and
-    ``rudder`` arguments of the presets are full deflections [rad].
+    ``rudder`` arguments of the presets are full deflections [rad]. A command
+    the aircraft has no output for (no rudder servo) is None: its channel is
+    left out.
     """
 
     message: str
-    elevator: ActuatorChannel
-    aileron: ActuatorChannel
-    rudder: ActuatorChannel
-    throttle: ActuatorChannel
+    elevator: ActuatorChannel | None
+    aileron: ActuatorChannel | None
+    rudder: ActuatorChannel | None
+    throttle: ActuatorChannel | None
 
     def validate(self) -> ActuatorMapping:
         """Raises ValueError naming the invalid field; returns self."""
         if not self.message:
             raise ValueError("ActuatorMapping.message: must be a non-empty string")
-        for name in (*_SURFACES, "throttle"):
-            getattr(self, name).validate(f"ActuatorMapping.{name}")
+        for name, channel in self._present().items():
+            channel.validate(f"ActuatorMapping.{name}")
         return self
+
+    def _present(self) -> dict[str, ActuatorChannel]:
+        return {name: getattr(self, name) for name in (*_SURFACES, "throttle")
+                if getattr(self, name) is not None}
 
     def describe(self) -> dict:
         """The mapping as JSON-ready values (for log metadata)."""
         out = dataclasses.asdict(self)
-        for name in (*_SURFACES, "throttle"):
-            limits = out[name]["limits"]
-            out[name]["limits"] = None if limits is None else list(limits)
+        for name in self._present():
+            for key in ("limits", "valid_range"):
+                pair = out[name][key]
+                out[name][key] = None if pair is None else list(pair)
         return out
 
     def channels(self) -> dict[str, ActuatorChannel]:
-        """Canonical command channel -> its mapping."""
-        return {f"cmd_{name}": getattr(self, name) for name in (*_SURFACES, "throttle")}
+        """Canonical command channel -> its mapping (commands without an output left out)."""
+        return {f"cmd_{name}": channel for name, channel in self._present().items()}
 
     @classmethod
-    def _pwm(cls, message, fields, throttle_range, elevator, aileron, rudder):
+    def _pwm(cls, message, fields, throttle_range, elevator, aileron, rudder, valid_range=None):
         signs = {"elevator": -1.0, "aileron": 1.0, "rudder": -1.0}
         limits = {"elevator": elevator, "aileron": aileron, "rudder": rudder}
-        surfaces = {name: ActuatorChannel(fields[name], 1500.0, 2000.0, signs[name] * limits[name])
+        surfaces = {name: ActuatorChannel(fields[name], 1500.0, 2000.0, signs[name] * limits[name],
+                                          valid_range=valid_range)
                     for name in _SURFACES}
-        throttle = ActuatorChannel(fields["throttle"], *throttle_range, 1.0, (0.0, 1.0))
+        throttle = ActuatorChannel(fields["throttle"], *throttle_range, 1.0, (0.0, 1.0),
+                                   valid_range=valid_range)
         return cls(message, throttle=throttle, **surfaces).validate()
 
     @classmethod
@@ -235,10 +273,27 @@ class ActuatorMapping:
         """ArduPlane outputs: C1 aileron, C2 elevator, C3 throttle, C4 rudder.
 
         Surfaces: 1500 us trim, +-500 us for full deflection; throttle 1100..1900 us
-        -> 0..1 (clipped). ``message`` may be ``"RCIN"`` for the pilot's sticks.
+        -> 0..1 (clipped). A PWM outside 950..2050 us (0: output not driven) is
+        invalid. ``message`` may be ``"RCIN"`` for the pilot's sticks. The reader
+        uses this only for a log without SERVOn parameters.
         """
         fields = {"aileron": "C1", "elevator": "C2", "throttle": "C3", "rudder": "C4"}
-        return cls._pwm(message, fields, (1100.0, 1900.0), elevator, aileron, rudder)
+        return cls._pwm(message, fields, (1100.0, 1900.0), elevator, aileron, rudder,
+                        _DEFAULT_PWM_RANGE)
+
+    @classmethod
+    def ardupilot_aetr(cls, elevator: float = _DEFAULT_DEFLECTION,
+                       aileron: float = _DEFAULT_DEFLECTION,
+                       rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
+        """ArduPlane's ``AETR`` demands: Ail, Elev, Rudd in -4500..4500 (4500 = full
+        deflection; positive = roll right, pitch up, yaw right), Thr 0..100 -> 0..1."""
+        return cls(
+            "AETR",
+            elevator=ActuatorChannel("Elev", 0.0, 4500.0, -elevator),
+            aileron=ActuatorChannel("Ail", 0.0, 4500.0, aileron),
+            rudder=ActuatorChannel("Rudd", 0.0, 4500.0, -rudder),
+            throttle=ActuatorChannel("Thr", 0.0, 100.0, 1.0, (0.0, 1.0)),
+        ).validate()
 
     @classmethod
     def px4_outputs(cls, elevator: float = _DEFAULT_DEFLECTION,

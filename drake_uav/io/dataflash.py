@@ -1,0 +1,195 @@
+"""ArduPilot DataFlash (``.bin``) files: format table, message offsets, vectorised decoding.
+
+pymavlink's ``DFReader_binary`` indexes the file (the FMT messages and the byte
+offset of every message); each message type is then decoded at once as a numpy
+structured array with pymavlink's format table and multipliers. Time is
+``TimeUS / 1e6`` [s since boot].
+
+SD-card logs often end in a half-written record followed by block padding:
+that last record is dropped with a warning (``allow_truncated``). Bytes that
+cannot be parsed although complete messages follow them are corrupt data, an
+error whatever ``allow_truncated`` says.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from pymavlink.DFReader import FORMAT_TO_STRUCT, DFReader_binary
+
+from drake_uav.io.flight_log import FlightLogError
+
+__all__ = ["DataFlash"]
+
+_HEAD = (0xA3, 0x95, 0x80)  # every DataFlash log starts with a FMT message
+_TRAILING_SLACK = 528
+"""Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
+
+
+class _Index(DFReader_binary):
+    """pymavlink's DataFlash index (formats, message offsets) without its clock.
+
+    Every message read here carries ``TimeUS``, so the clock search, which
+    parses the whole log message by message when there is no GPS, is skipped.
+    """
+
+    def init_clock(self):
+        self.clock = None
+
+
+def _dtype(fmt) -> np.dtype:
+    """numpy dtype of the payload of DataFlash format ``fmt`` (pymavlink's table)."""
+    fields = []
+    for column, char in zip(fmt.columns, fmt.format, strict=True):
+        code = FORMAT_TO_STRUCT[char][0]
+        fields.append((column, f"S{code[:-1]}" if code.endswith("s") else f"<{code}"))
+    return np.dtype(fields)
+
+
+class DataFlash:
+    """A DataFlash file: its formats, message offsets and vectorised decoding.
+
+    Args:
+        path: the ``.bin`` file.
+        allow_truncated: drop a half-written last record and unparsable block
+            padding at the end with a warning instead of raising.
+
+    Raises:
+        FlightLogError: not a DataFlash log, malformed formats, corrupt data
+            followed by complete messages, or (strict) a truncated end.
+    """
+
+    def __init__(self, path: Path, allow_truncated: bool = True):
+        self.source = str(path)
+        self.data = np.fromfile(path, dtype=np.uint8)
+        if self.data.size < 3 or tuple(self.data[:3]) != _HEAD:
+            raise FlightLogError(f"{path}: not an ArduPilot DataFlash log (no FMT message at "
+                                 "the start of the file)")
+        try:
+            index = _Index(str(path))
+        except Exception as err:  # pymavlink raises bare Exceptions on malformed formats
+            raise FlightLogError(f"{path}: unreadable DataFlash log ({err})") from None
+        try:
+            self.formats = {f.name: f for f in index.formats.values()}
+            self.offsets = {name: np.asarray(index.offsets[f.type], np.int64)
+                            for name, f in self.formats.items()}
+        finally:
+            index.close()
+        self._check_coverage(allow_truncated)
+
+    def _truncated(self, message: str, allow_truncated: bool) -> None:
+        if not allow_truncated:
+            raise FlightLogError(message + " (allow_truncated=True drops it)")
+        warnings.warn(message + "; dropped", stacklevel=5)
+
+    def _check_coverage(self, allow_truncated: bool) -> None:
+        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs)."""
+        size, end, covered, where = self.data.size, 0, 0, None
+        for name, offsets in self.offsets.items():
+            if not offsets.size:
+                continue
+            length = self.formats[name].len
+            last = int(offsets[-1])
+            if last + length > size:
+                self._truncated(f"{self.source}: truncated file: the last {name} message (byte "
+                                f"{last}) needs {length} bytes, {size - last} remain",
+                                allow_truncated)
+                self.offsets[name] = offsets = offsets[:-1]
+                if not offsets.size:
+                    continue
+                last = int(offsets[-1])
+            covered += offsets.size * length
+            if last + length > end:
+                end, where = last + length, name
+        if size - end > _TRAILING_SLACK:
+            message = (f"{self.source}: the {size - end} bytes from byte {end} on (after the "
+                       f"last complete message, {where}) could not be parsed")
+            if self._message_in(end):
+                raise FlightLogError(message + ": corrupt data in the log")
+            self._truncated(message + ": a truncated log", allow_truncated)
+        if covered < end:
+            warnings.warn(f"{self.source}: {end - covered} bytes of corrupt data skipped",
+                          stacklevel=4)
+
+    def _message_in(self, start: int) -> bool:
+        """Whether a complete message of a known type starts at or after byte ``start``."""
+        tail = self.data[start:]
+        at = np.flatnonzero((tail[:-2] == 0xA3) & (tail[1:-1] == 0x95))
+        lengths = {f.type: f.len for f in self.formats.values()}
+        return any(int(tail[i + 2]) in lengths and i + lengths[int(tail[i + 2])] <= tail.size
+                   for i in at)
+
+    def has(self, name: str) -> bool:
+        """Whether the log holds at least one message ``name``."""
+        return name in self.formats and self.offsets[name].size > 0
+
+    def fields(self, name: str) -> list[str]:
+        """The columns of message ``name``."""
+        return list(self.formats[name].columns)
+
+    def records(self, name: str) -> np.ndarray:
+        """Every message ``name`` as a numpy structured array (raw stored values)."""
+        fmt = self.formats[name]
+        dtype = _dtype(fmt)
+        if dtype.itemsize != fmt.len - 3:
+            raise FlightLogError(f"{self.source}: FMT of {name} gives length {fmt.len}, its "
+                                 f"format '{fmt.format}' needs {dtype.itemsize + 3}")
+        windows = np.lib.stride_tricks.sliding_window_view(self.data, dtype.itemsize)
+        return windows[self.offsets[name] + 3].view(dtype)[:, 0]
+
+    def check_time(self, name: str) -> None:
+        """Raises FlightLogError for a message timed in ms (firmware before TimeUS)."""
+        columns = self.formats[name].colhash
+        if "TimeUS" not in columns and "TimeMS" in columns:
+            raise FlightLogError(f"{self.source}: unsupported firmware (TimeMS log): message "
+                                 f"{name} is timed in ms; ArduPilot logs with TimeUS (3.4 and "
+                                 "later) are read")
+
+    def read(self, name: str, fields: list[str], instance_column: str | None = None,
+             instance: int | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        """(time [s], field -> values) of message ``name`` (multipliers applied), keeping
+        the messages whose ``instance_column`` equals ``instance`` when the message has
+        that column; None when there is no such message."""
+        if not self.has(name):
+            return None
+        self.check_time(name)
+        fmt = self.formats[name]
+        missing = [f for f in ("TimeUS", *fields) if f not in fmt.colhash]
+        if missing:
+            raise FlightLogError(f"{self.source}: message {name} has no field {missing[0]} "
+                                 f"(fields: {', '.join(fmt.columns)})")
+        records = self.records(name)
+        if instance is not None and instance_column in fmt.colhash:
+            records = records[records[instance_column] == instance]
+            if records.size == 0:
+                return None
+        out = {}
+        for field in fields:
+            values = records[field].astype(float)
+            mult = fmt.msg_mults[fmt.colhash[field]]
+            if mult is not None:
+                # Divide by the inverse of a fractional multiplier, as pymavlink does:
+                # 1234 / 100 is exact to the last bit where 1234 * 0.01 is not.
+                values = values / (1.0 / mult) if 0.0 < mult < 1.0 else values * mult
+            out[field] = values
+        return records["TimeUS"].astype(float) / 1e6, out
+
+    def strings(self, name: str, field: str) -> tuple[np.ndarray, list[str]] | None:
+        """(time [s], decoded text) of a text field of message ``name``, or None."""
+        if not self.has(name) or field not in self.formats[name].colhash:
+            return None
+        records = self.records(name)
+        text = [raw.split(b"\0", 1)[0].decode("ascii", "replace") for raw in records[field]]
+        time = (records["TimeUS"].astype(float) / 1e6 if "TimeUS" in records.dtype.names
+                else np.zeros(len(text)))
+        return time, text
+
+    def parameters(self) -> dict[str, float]:
+        """The log's parameters (PARM Name -> last Value)."""
+        got = self.strings("PARM", "Name")
+        if got is None:
+            return {}
+        values = self.records("PARM")["Value"].astype(float)
+        return dict(zip(got[1], values.tolist(), strict=True))
