@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -73,27 +74,35 @@ def _vane_sources(text: str, unit: str) -> dict:
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
+    path = _sample_flight() if args.log is None else Path(args.log)
+    _check_identify_arguments(args, path)
     from drake_uav.identification.main_job import identify
     from drake_uav.io.readers import read_log
     from drake_uav.reporting.identification_report import write_report
     from drake_uav.vehicles.loading import load_fixed_wing
 
-    if args.log is None:
-        path = Path(__file__).parent / "data" / SAMPLE_FLIGHT
-        print(f"no log given: using the bundled sample flight {path.name}")
-    else:
-        path = Path(args.log)
     params = load_fixed_wing(args.aircraft)
+    spec = None
+    if args.sensor_spec:
+        from drake_uav.vehicles.loading import load_sensor_spec
+
+        spec = load_sensor_spec(args.sensor_spec)
     progress = _Progress()
     progress(f"reading {path}")
     options = {}
     if args.vanes:
         options["extra"] = _vane_sources(args.vanes, args.vane_unit)
+    if args.max_gap is not None:
+        options["max_gap"] = args.max_gap
     log = read_log(path, format=args.format, **options)
-    run = identify(log, params, progress=progress, source=str(path), seed=args.seed)
+    run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
+                   air_data=args.air_data, sensor_noise_std=spec,
+                   segment=None if args.segment == "auto" else _parse_segment(args.segment))
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()
+    for note in run.notes:
+        print(f"note: {note}")
     print(run.discovery.message)
     for k, (before, after) in run.discovery.rms_change().items():
         print(f"  {k}: equation-error RMS {before:.4g} -> {after:.4g} (held-out)")
@@ -104,6 +113,87 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(f"  reconstruction MAE {name}: {b * s:.3g} -> {a * s:.3g}")
     print(f"report: {out / 'report.html'}")
     return 0
+
+
+def _sample_flight() -> Path:
+    path = Path(__file__).parent / "data" / SAMPLE_FLIGHT
+    print(f"no log given: using the bundled sample flight {path.name}")
+    return path
+
+
+def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
+    """Raises ValueError for a bad argument before the analysis stack is imported."""
+    _check_readable(log, "LOG")
+    if args.format is None and log.suffix.lower() not in _LOG_SUFFIXES:
+        formats = ",".join(sorted(set(_LOG_SUFFIXES.values())))
+        raise ValueError(f"{log}: unknown log format {log.suffix or '(no suffix)'!r}; name "
+                         f"the format with --format {{{formats}}}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: is an existing file; give a folder for the report")
+    _check_aircraft(args.aircraft)
+    if args.sensor_spec:
+        _check_toml(Path(args.sensor_spec), "--sensor-spec")
+    if args.max_gap is not None and not args.max_gap > 0:
+        raise ValueError(f"--max-gap: must be positive, got {args.max_gap:g}")
+    if args.segment != "auto":
+        _parse_segment(args.segment)
+
+
+_LOG_SUFFIXES = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet",
+                 ".pq": "parquet"}
+"""Log suffix -> format (the readers' table, repeated here so that the checks stay light;
+tests/test_cli.py checks the two agree)."""
+
+
+def _check_readable(path: Path, what: str) -> None:
+    if not path.exists():
+        raise ValueError(f"{path}: no such file (the {what} argument)")
+    if not path.is_file():
+        raise ValueError(f"{path}: not a file (the {what} argument)")
+    try:
+        with path.open("rb") as stream:
+            empty = not stream.read(1)
+    except OSError as err:
+        raise ValueError(f"{path}: cannot be read ({err.strerror or err})") from None
+    if empty:
+        raise ValueError(f"{path}: empty file")
+
+
+def _check_toml(path: Path, what: str) -> dict:
+    import tomllib
+
+    _check_readable(path, what)
+    try:
+        return tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: not valid TOML ({err}) (the {what} file)") from None
+
+
+def _check_aircraft(name: str) -> None:
+    from drake_uav.vehicles.catalog_names import FIXED_WING_NAMES
+
+    if name in FIXED_WING_NAMES:
+        return
+    if not name.endswith(".toml"):
+        raise ValueError(f"--aircraft {name}: not a catalog aircraft "
+                         f"({', '.join(FIXED_WING_NAMES)}) nor a parameter .toml file")
+    base = _check_toml(Path(name), "--aircraft").get("base")
+    if base is not None and base not in FIXED_WING_NAMES:
+        raise ValueError(f"{name}: base = {base!r} is not a catalog aircraft "
+                         f"({', '.join(FIXED_WING_NAMES)})")
+
+
+def _parse_segment(text: str) -> tuple[float, float]:
+    """``"T0:T1"`` [s] -> (T0, T1)."""
+    try:
+        start, end = (float(part) for part in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--segment {text}: expected auto or START:END in seconds of log "
+                         "time, e.g. 120:300") from None
+    if not start < end:
+        raise ValueError(f"--segment {text}: START must be before END")
+    return start, end
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
@@ -198,6 +288,19 @@ def _identify_parser(sub) -> None:
                        help="unit of the vane fields (default: deg)")
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
+    ident.add_argument("--air-data", choices=("auto", "vanes", "estimate", "ahrs"),
+                       default="auto",
+                       help="alpha and beta from the vanes, estimated from IMU, attitude, GPS "
+                            "and pitot (smoother), or the autopilot's own AHRS estimate "
+                            "(ArduPlane AOA/SSA); auto: vanes when logged, else estimate")
+    ident.add_argument("--max-gap", type=float, metavar="SECONDS",
+                       help="longest gap inside a stream before the log is cut into segments "
+                            "(default 0.5 s)")
+    ident.add_argument("--segment", default="auto", metavar="auto|START:END",
+                       help="log time span to use [s]; auto: the airborne segments")
+    ident.add_argument("--sensor-spec", metavar="FILE",
+                       help="declared sensor noise (TOML: channel = std in SI units); default: "
+                            "estimated from the data")
     ident.set_defaults(handler=_cmd_identify)
 
 
@@ -251,8 +354,14 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line each, without the source line they were raised from."""
+    print(f"warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``drake-uav`` console script; returns the exit code."""
+    warnings.showwarning = _show_warning
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -101,3 +101,44 @@ def test_the_console_script_exits_with_the_error_code(tmp_path):
                           timeout=300)
     assert done.returncode == 2
     assert "error:" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{absent}"], "no such file (the LOG argument)"),
+    (["{empty}"], "empty file"),
+    (["{log}", "--out", "{log}"], "is an existing file; give a folder"),
+    (["{log}", "--aircraft", "cessna"], "--aircraft cessna: not a catalog aircraft"),
+    (["{log}", "--aircraft", "{bad_toml}"], "not valid TOML"),
+    (["{log}", "--sensor-spec", "{absent}"], "the --sensor-spec argument"),
+    (["{log}", "--segment", "10-20"], "expected auto or START:END"),
+    (["{log}", "--max-gap", "0"], "--max-gap: must be positive"),
+    (["{odd}"], "name the format with --format"),
+])
+def test_bad_arguments_fail_fast_without_a_traceback(args, message, tmp_path):
+    """Checked before the analysis stack loads: exit 2 within 2 s, one line, no report."""
+    paths = {"absent": tmp_path / "absent.bin", "empty": tmp_path / "empty.bin",
+             "log": tmp_path / "flight.bin", "bad_toml": tmp_path / "plane.toml",
+             "odd": tmp_path / "flight.txt"}
+    paths["empty"].touch()
+    for name in ("log", "odd"):
+        paths[name].write_bytes(b"\xa3\x95\x80")
+    paths["bad_toml"].write_text("mass = = 3\n")
+    argv = [a.format(**paths) for a in args]
+    code = ("import sys, time; t = time.perf_counter(); from drake_uav.cli import main; "
+            f"rc = main(['identify', *{argv!r}, '--out', {str(tmp_path / 'out')!r}] "
+            f"if '--out' not in {argv!r} else ['identify', *{argv!r}]); "
+            "print(rc, 'pydrake' in sys.modules, time.perf_counter() - t)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    rc, drake_loaded, _ = done.stdout.split()
+    assert rc == "2" and drake_loaded == "False", done
+    assert message in done.stderr and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_cli_suffix_table_is_the_readers_table():
+    from drake_uav.cli import _LOG_SUFFIXES
+    from drake_uav.io.streams import FORMATS
+
+    assert _LOG_SUFFIXES == FORMATS

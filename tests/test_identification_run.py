@@ -7,7 +7,7 @@ from synthetic_flight import synthetic_samples
 
 from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS, identify_samples
 
-RUN_KEYS = {"source", "aircraft", "message", "samples", "holdout_start_s", "effects",
+RUN_KEYS = {"source", "aircraft", "data", "message", "samples", "holdout_start_s", "effects",
             "equation_error_rms_holdout", "reconstruction_mae_holdout",
             "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
             "parameters"}

@@ -83,6 +83,15 @@ def raw_noise_variance(log: FlightLog) -> dict[str, float]:
             for name, channel in _NOISE_SOURCES.items()}
 
 
+def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
+    """``log`` with channels ``sources`` values copied under their keys' names."""
+    log.require(*sources.values())
+    measured = {n: log[n] for n in log.measured_names if n not in sources}
+    measured.update({name: log[source] for name, source in sources.items()})
+    units = {**log.units, **{name: log.unit(source) for name, source in sources.items()}}
+    return FlightLog(log.time, measured, units=units, metadata=log.metadata)
+
+
 def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
                   hold_period: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Held commands on the sample times ``time``: (at the instants, over the intervals).
@@ -134,13 +143,18 @@ def check_gaps(log: FlightLog, max_gap: float) -> None:
 
 
 def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
-                     max_gap: float = 0.5, min_airspeed: float = 5.0) -> AeroSamples:
+                     max_gap: float = 0.5, min_airspeed: float = 5.0,
+                     flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
+                     sensor_noise_std: dict[str, float] | None = None) -> AeroSamples:
     """Regression samples (measured coefficients and regressors) from a flight log.
 
     Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
-    take-off roll) are cut from the ends of the log. Raises
+    take-off roll) are cut from the ends of the log. ``flow_channels`` hold the
+    angle of attack and sideslip [rad] (vanes, or an estimate). Raises
     :class:`FlightLogError` naming a missing channel, a non-finite sample or a gap.
     """
+    if tuple(flow_channels) != ("vane_alpha", "vane_beta"):
+        log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
     noise = raw_noise_variance(log)

@@ -8,14 +8,15 @@ logging gaps. :func:`usable_spans` keeps the time spans where
   required stream),
 * the aircraft is airborne: pitot airspeed above ``min_airspeed`` and, when a
   barometric altitude is logged, the height above the ground level (the median
-  baro altitude while the airspeed is below half of ``min_airspeed``, else the
-  lowest) above ``min_height``,
+  baro altitude while the airspeed is below half of ``min_airspeed``; a log that
+  starts and ends in the air has no ground level and no height test) above
+  ``min_height``,
 * the flight mode is not a take-off, landing or VTOL hover mode
   (:data:`EXCLUDED_MODES`, ArduPilot MODE messages and PX4 ``nav_state``) and a
   VTOL is in fixed-wing flight (``metadata["vtol_state"]``),
 
-each span trimmed by ``margin`` at both ends (the settling after a transition) and
-at least ``min_duration`` long.
+each span trimmed by ``margin`` where it starts or ends inside the log (the
+settling after a transition) and at least ``min_duration`` long.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 
-__all__ = ["EXCLUDED_MODES", "PhaseSettings", "usable_spans", "mode_timeline"]
+__all__ = ["DEFAULT_PHASES", "EXCLUDED_MODES", "PhaseSettings", "usable_spans", "mode_timeline"]
 
 EXCLUDED_MODES = frozenset({
     # ArduPlane: take-off, landing and the quadplane (hover) modes.
@@ -51,6 +52,10 @@ class PhaseSettings:
     """Shortest usable span [s]."""
     margin: float = 1.0
     """Trimmed from both ends of every span [s]."""
+
+
+DEFAULT_PHASES = PhaseSettings()
+"""The thresholds the main job uses unless told otherwise."""
 
 
 def mode_timeline(log: FlightLog) -> list[tuple[float, float, str]]:
@@ -86,15 +91,14 @@ def _excluded_by_metadata(log: FlightLog) -> np.ndarray:
 def _airborne(log: FlightLog, settings: PhaseSettings) -> np.ndarray:
     airspeed = log["pitot_airspeed"]
     flying = airspeed >= settings.min_airspeed
-    if "baro_alt" in log:
+    slow = airspeed < 0.5 * settings.min_airspeed
+    if "baro_alt" in log and slow.any():
         altitude = log["baro_alt"]
-        slow = airspeed < 0.5 * settings.min_airspeed
-        ground = float(np.median(altitude[slow])) if slow.any() else float(altitude.min())
-        flying &= altitude - ground >= settings.min_height
+        flying &= altitude - float(np.median(altitude[slow])) >= settings.min_height
     return flying
 
 
-def usable_spans(log: FlightLog, settings: PhaseSettings = PhaseSettings(),
+def usable_spans(log: FlightLog, settings: PhaseSettings = DEFAULT_PHASES,
                  segment: tuple[float, float] | None = None) -> list[tuple[float, float]]:
     """Airborne, continuous fixed-wing spans (start, end) [s] of ``log``.
 
@@ -116,7 +120,10 @@ def usable_spans(log: FlightLog, settings: PhaseSettings = PhaseSettings(),
     for first, last in continuous:
         inside = (t >= first) & (t <= last)
         for start, end in _runs(keep & inside, t):
-            start, end = start + settings.margin, end - settings.margin
+            # The margin is for the settling after a take-off or a mode change, not for
+            # the ends of the log or of a segment.
+            start += settings.margin if start > t[inside][0] else 0.0
+            end -= settings.margin if end < t[inside][-1] else 0.0
             if end - start >= settings.min_duration:
                 spans.append((start, end))
     if not spans:

@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from drake_uav.identification.air_data_source import choose_air_data, flow_angles
 from drake_uav.identification.discovery import (
     DiscoveryResult,
     EvidenceRule,
@@ -21,20 +22,40 @@ from drake_uav.identification.discovery import (
     fit_derivatives,
 )
 from drake_uav.identification.flight_data import samples_from_log
+from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
-from drake_uav.io.flight_log import FlightLog
+from drake_uav.identification.segments import concatenate_samples
+from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["IdentificationRun", "identify", "identify_samples", "identify_derivatives",
+__all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
+           "identify_derivatives", "select_samples", "check_fixed_wing",
            "coefficient_uncertainty"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 """Reconstructed outputs, in the order of :class:`Reconstruction` columns."""
 RECONSTRUCTED_UNITS = ("m/s", "rad", "rad", "rad/s", "rad/s", "rad/s")
 """Units of :data:`RECONSTRUCTED_OUTPUTS`."""
+
+
+@dataclasses.dataclass(frozen=True)
+class LogSelection:
+    """The parts of a log the main job used, and how it read their air data."""
+
+    spans: tuple[tuple[float, float], ...]
+    """Airborne fixed-wing spans (start, end) [s] (:func:`usable_spans`)."""
+    air_data: str
+    """"vanes", "estimate" or "ahrs" (:mod:`~drake_uav.identification.air_data_source`)."""
+    air_data_description: str
+    notes: tuple[str, ...] = ()
+
+    def summary(self) -> dict:
+        """JSON-ready: spans, air data and notes."""
+        return {"spans_s": [list(s) for s in self.spans], "air_data": self.air_data,
+                "air_data_description": self.air_data_description, "notes": list(self.notes)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,12 +70,19 @@ class IdentificationRun:
     source: str
     coefficient_sigma: dict
     """Monte-Carlo standard deviation of the measured C_L, C_D, C_Y (Vaiopoulos 2017, sec. 5.6)."""
+    data: LogSelection | None = None
+    """What the job used of the log: spans, air data, notes (None: samples given directly)."""
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the job did with the log that the user should know (one line each)."""
+        return () if self.data is None else self.data.notes
 
     def summary(self) -> dict:
         """JSON-ready summary: effects with evidence, errors before/after, parameters.
 
-        Run-level keys: ``source, aircraft, message, samples, holdout_start_s, effects,
-        equation_error_rms_holdout, reconstruction_mae_holdout, reconstruction_divergences,
+        Run-level keys: ``source, aircraft, data (spans, air data, notes), message,
+        samples, holdout_start_s, effects, equation_error_rms_holdout, reconstruction_mae_holdout, reconstruction_divergences,
         measured_coefficient_sigma_monte_carlo, parameters``; each entry of ``effects`` has
         ``name, kind, explanation, coefficients, evidence, parameters``.
         """
@@ -65,6 +93,7 @@ class IdentificationRun:
         return {
             "source": self.source,
             "aircraft": self.params.name,
+            "data": None if self.data is None else self.data.summary(),
             "message": d.message,
             "samples": len(self.samples),
             "holdout_start_s": d.holdout_start,
@@ -139,32 +168,108 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     """The aircraft model's derivatives identified from ``log``, with their uncertainty.
 
     The first steps of :func:`identify` without the search for missing effects: the
-    log is isolated into coefficients (:func:`samples_from_log`) and each coefficient
+    log is isolated into coefficients (:func:`select_samples`) and each coefficient
     is fitted on the aircraft's own derivative names over the whole flight
     (:func:`~drake_uav.identification.discovery.fit_derivatives`). Raises
     :class:`~drake_uav.io.flight_log.FlightLogError` naming the problem when the log
     cannot be used.
     """
-    return fit_derivatives(samples_from_log(log, params, rate_hz=rate_hz), params)
+    return fit_derivatives(select_samples(log, params, rate_hz=rate_hz)[0], params)
 
 
 def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
              rule: EvidenceRule | None = None, reset_interval: float = 5.0,
              progress: Callable[[str], None] | None = None,
-             source: str = "flight log", seed: int = 0) -> IdentificationRun:
+             source: str = "flight log", seed: int = 0, air_data: str = "auto",
+             segment: tuple[float, float] | None = None,
+             sensor_noise_std: dict[str, float] | None = None,
+             phases: PhaseSettings = DEFAULT_PHASES) -> IdentificationRun:
     """Runs the main job on ``log`` for the aircraft ``params``.
 
-    ``seed`` drives the Monte-Carlo uncertainty of the measured coefficients;
-    everything else is deterministic.
+    Only what a real log holds is read: the airborne fixed-wing spans
+    (:func:`~drake_uav.identification.flight_phases.usable_spans`, within
+    ``segment`` [s] when given) are isolated one by one and joined; ``air_data``
+    picks the flow angles (:mod:`~drake_uav.identification.air_data_source`);
+    ``sensor_noise_std`` (channel -> std, SI) are declared sensor specs, else the
+    noise comes from the data. ``seed`` drives the Monte-Carlo uncertainty of the
+    measured coefficients; everything else is deterministic.
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
     naming the problem when the log cannot be used.
     """
     say = progress or (lambda message: None)
-    say("isolating aerodynamic coefficients")
-    samples = samples_from_log(log, params, rate_hz=rate_hz)
-    return identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
-                            progress=say, source=source, seed=seed)
+    samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
+                                        air_data=air_data, segment=segment,
+                                        sensor_noise_std=sensor_noise_std, phases=phases,
+                                        progress=say)
+    run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
+                           progress=say, source=source, seed=seed)
+    return dataclasses.replace(run, data=selection)
+
+
+def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
+                   source: str = "flight log", air_data: str = "auto",
+                   segment: tuple[float, float] | None = None,
+                   sensor_noise_std: dict[str, float] | None = None,
+                   phases: PhaseSettings = DEFAULT_PHASES,
+                   progress: Callable[[str], None] | None = None,
+                   ) -> tuple[AeroSamples, LogSelection]:
+    """Regression samples of the usable spans of ``log`` and what was used (see
+    :func:`identify` for the arguments)."""
+    check_fixed_wing(log, source)
+    mode = choose_air_data(log, air_data, source)
+    spans = usable_spans(log, phases, segment)
+    if progress is not None:
+        progress(f"isolating aerodynamic coefficients ({len(spans)} airborne span"
+                 f"{'s' if len(spans) > 1 else ''}, {_AIR_DATA_STEP[mode]})")
+    parts = []
+    for start, end in spans:
+        angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
+        part = samples_from_log(angles.log, params, rate_hz=rate_hz,
+                                flow_channels=angles.channels,
+                                sensor_noise_std=sensor_noise_std)
+        parts.append(_with_flow_error(part, angles.error_variance))
+    selection = LogSelection(tuple(spans), mode, angles.description,
+                             _selection_notes(log, spans, angles.description))
+    return concatenate_samples(parts), selection
+
+
+_AIR_DATA_STEP = {"vanes": "vane air data", "estimate": "air data estimated without vanes",
+                  "ahrs": "AHRS air data"}
+
+_FIXED_WING_TYPES = {1, 19, 20, 21, 22, 23, 24, 25}
+"""MAV_TYPE of aircraft with a wing: fixed wing and the VTOL types."""
+
+
+def check_fixed_wing(log: FlightLog, source: str) -> None:
+    """Raises FlightLogError for a log whose vehicle type is not a fixed wing or VTOL."""
+    vehicle = log.metadata.get("vehicle_type") or {}
+    kind = vehicle.get("mav_type")
+    if kind is not None and int(kind) not in _FIXED_WING_TYPES:
+        name = vehicle.get("name", "")
+        raise FlightLogError(f"{source}: not a fixed-wing log (MAV_TYPE {int(kind)}"
+                             f"{f', {name}' if name else ''}); identify works on fixed-wing "
+                             "and VTOL flights")
+
+
+def _with_flow_error(samples: AeroSamples, variance: dict[str, float] | None) -> AeroSamples:
+    """Samples whose alpha/beta error variance is an estimate's, not a sensor's."""
+    if variance is None:
+        return samples
+    noise = {**samples.noise_variance, **variance}
+    view = None if samples.moment_view is None else dataclasses.replace(
+        samples.moment_view, noise_variance=noise)
+    return dataclasses.replace(samples, noise_variance=noise, moment_view=view)
+
+
+def _selection_notes(log: FlightLog, spans, air_data: str) -> tuple[str, ...]:
+    used = sum(end - start for start, end in spans)
+    notes = [f"used {used:.0f} s of {log.time[-1] - log.time[0]:.0f} s: "
+             + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in spans),
+             f"air data: {air_data}"]
+    for stream in log.metadata.get("dropped_streams") or []:
+        notes.append(f"stream {stream} left out (sparse or with gaps)")
+    return tuple(notes)
 
 
 def identify_samples(samples: AeroSamples, params: FixedWingParams, *,

@@ -1,0 +1,105 @@
+"""Where the main job's angle of attack and sideslip come from.
+
+=========  ===================================================================
+mode       flow angles
+=========  ===================================================================
+vanes      the logged vanes ``vane_alpha, vane_beta`` (a sensor, white noise)
+estimate   estimated offline from the IMU, attitude, GPS velocity and pitot by a
+           forward filter and a backward smoother
+           (:func:`~drake_uav.estimation.estimate_air_data`); their error is the
+           smoother's standard deviation, which enters the errors-in-variables
+           fits in place of a vane's noise
+ahrs       the autopilot's own estimate (ArduPlane ``AOA`` message: channels
+           ``ahrs_alpha, ahrs_beta``), an estimate, never taken for a sensor; its
+           error is unknown, so the vane noise of the default sensor suite stands in
+auto       ``vanes`` when the log holds them, else ``estimate``
+=========  ===================================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from drake_uav.io.flight_log import FlightLog, FlightLogError
+
+__all__ = ["AIR_DATA_MODES", "FlowAngles", "flow_angles", "choose_air_data"]
+
+AIR_DATA_MODES = ("auto", "vanes", "estimate", "ahrs")
+"""Accepted ``air_data`` modes."""
+
+_CHANNELS = {"vanes": ("vane_alpha", "vane_beta"), "estimate": ("est_alpha", "est_beta"),
+             "ahrs": ("ahrs_alpha", "ahrs_beta")}
+_DESCRIPTION = {
+    "vanes": "alpha and beta from the logged vanes",
+    "estimate": "alpha, beta and wind estimated from IMU, attitude, GPS and pitot "
+                "(forward filter and backward smoother; no vanes)",
+    "ahrs": "alpha and beta from the autopilot's own AHRS estimate (AOA message), "
+            "not a sensor",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class FlowAngles:
+    """The flow angles of one log segment, as channels of its log."""
+
+    mode: str
+    """"vanes", "estimate" or "ahrs"."""
+    log: FlightLog
+    """The segment's log, holding ``channels``."""
+    channels: tuple[str, str]
+    """Alpha and beta channels [rad]."""
+    error_variance: dict[str, float] | None
+    """Mean error variance of ``alpha, beta`` [rad^2] of an estimate (None: a sensor,
+    whose noise the isolation reads from the data)."""
+
+    @property
+    def description(self) -> str:
+        """One line for the report."""
+        return _DESCRIPTION[self.mode]
+
+
+def choose_air_data(log: FlightLog, mode: str, source: str = "flight log") -> str:
+    """The mode ``auto`` resolves to for ``log``; checks the channels a mode needs."""
+    if mode not in AIR_DATA_MODES:
+        raise ValueError(f"air_data: unknown mode {mode!r} (known: {', '.join(AIR_DATA_MODES)})")
+    if mode == "auto":
+        return "vanes" if all(c in log for c in _CHANNELS["vanes"]) else "estimate"
+    if mode == "estimate":
+        missing = [c for c in ("pitot_airspeed", "gps_vn", "gps_ve", "gps_vd") if c not in log]
+        if missing:
+            raise FlightLogError(
+                f"{source}: cannot estimate alpha and beta without {', '.join(missing)}; "
+                "log vanes and use --air-data vanes")
+        return mode
+    for channel in _CHANNELS[mode]:
+        if channel not in log:
+            other = "--air-data estimate" if mode == "vanes" else "--air-data auto"
+            raise FlightLogError(f"{source}: missing channel '{channel}' for --air-data "
+                                 f"{mode}; use {other}")
+    return mode
+
+
+def flow_angles(log: FlightLog, params, mode: str,
+                noise_std: dict[str, float] | None = None) -> FlowAngles:
+    """The flow angles of one continuous segment ``log`` by a resolved ``mode``.
+
+    ``noise_std`` (log channel -> standard deviation) tunes the estimator; None
+    lets it use its documented defaults.
+    """
+    if mode != "estimate":
+        return FlowAngles(mode, log, _CHANNELS[mode], None)
+    from drake_uav.estimation import estimate_air_data
+
+    estimate = estimate_air_data(log, params, noise_std=noise_std)
+    alpha = np.interp(log.time, estimate.time, estimate.alpha)
+    beta = np.interp(log.time, estimate.time, estimate.beta)
+    measured = {n: log[n] for n in log.measured_names}
+    measured.update({"est_alpha": alpha, "est_beta": beta})
+    truth = {n: log[n] for n in log.truth_names}
+    units = {**log.units, "est_alpha": "rad", "est_beta": "rad"}
+    with_estimate = FlightLog(log.time, measured, truth, units, log.metadata)
+    variance = {"alpha": float(np.mean(estimate.alpha_std ** 2)),
+                "beta": float(np.mean(estimate.beta_std ** 2))}
+    return FlowAngles(mode, with_estimate, _CHANNELS[mode], variance)
