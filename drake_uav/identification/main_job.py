@@ -82,7 +82,8 @@ class IdentificationRun:
         """JSON-ready summary: effects with evidence, errors before/after, parameters.
 
         Run-level keys: ``source, aircraft, data (spans, air data, notes), message,
-        samples, holdout_start_s, effects, equation_error_rms_holdout, reconstruction_mae_holdout, reconstruction_divergences,
+        samples, holdout_start_s, effects, equation_error_rms_holdout,
+        reconstruction_mae_holdout, reconstruction_divergences,
         measured_coefficient_sigma_monte_carlo, parameters``; each entry of ``effects`` has
         ``name, kind, explanation, coefficients, evidence, parameters``.
         """
