@@ -15,8 +15,9 @@ files made here test the readers against the format rather than against themselv
 
 Both writers collect messages as numpy byte rows and write them sorted by time
 (a stable sort: messages of one time keep the order they were added in).
-``last_size`` is the length [bytes] of the last message written by ``to_bytes``
-(what a power cut halfway through it would leave incomplete).
+After ``to_bytes``, ``body_offset`` is the byte offset of the first time-ordered
+message and ``record_sizes`` the length of each of them in file order (to cut a
+file inside a chosen message, as a power loss during writing does).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ class DataFlashWriter:
         self._formats: dict[str, tuple[int, str, tuple[str, ...], np.dtype]] = {}
         self._definitions: list[bytes] = []
         self._blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (time_us, rows of bytes)
-        self.last_size = 0
+        self.body_offset, self.record_sizes = 0, np.zeros(0, np.int64)
 
     def define(self, name: str, fmt: str, columns: str) -> None:
         """Declares message ``name`` with format characters ``fmt`` and comma-separated columns."""
@@ -88,8 +89,9 @@ class DataFlashWriter:
     def to_bytes(self) -> bytes:
         """The FMT messages, then every message in time order."""
         body = _sorted_rows(self._blocks)
-        self.last_size = len(body[-1]) if body else 0
-        return b"".join(self._definitions) + b"".join(body)
+        head = b"".join(self._definitions)
+        self.body_offset, self.record_sizes = len(head), np.array([len(r) for r in body])
+        return head + b"".join(body)
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
@@ -132,7 +134,7 @@ class ULogWriter:
         self._subscriptions: list[bytes] = []
         self._blocks: list[tuple[np.ndarray, np.ndarray]] = []
         self._next_id = 0
-        self.last_size = 0
+        self.body_offset, self.record_sizes = 0, np.zeros(0, np.int64)
 
     def format(self, name: str, fields: str) -> None:
         """Declares topic ``name`` with fields ``"uint64_t timestamp;float[3] x;..."``."""
@@ -199,9 +201,9 @@ class ULogWriter:
         header = b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", self._start_us)
         flags = _ulog_message("B", bytes(16) + bytes(24))
         body = _sorted_rows(self._blocks)
-        self.last_size = len(body[-1]) if body else 0
-        return (header + flags + b"".join(self._definitions) + b"".join(self._subscriptions)
-                + b"".join(body))
+        head = header + flags + b"".join(self._definitions) + b"".join(self._subscriptions)
+        self.body_offset, self.record_sizes = len(head), np.array([len(r) for r in body])
+        return head + b"".join(body)
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
