@@ -43,12 +43,13 @@ from pydrake.solvers import (
     SnoptSolver,
     SolverOptions,
 )
+from scipy.optimize import brentq
 
 from drake_uav.model.attitude_error import ERROR_SIZE
 from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.multirotor import STATE_SIZE, motor_wrench, multirotor_dynamics
 from drake_uav.model.rotations import quat_conjugate
-from drake_uav.optimization.riccati_lq import solve_lq
+from drake_uav.optimization.riccati_lq import solve_lq, terminal_sensitivity
 from drake_uav.optimization.terminal_set import TerminalSet, positive_definite
 from drake_uav.vehicles.multirotor import MultirotorParams
 
@@ -450,22 +451,60 @@ class TrackingNmpc:
             result, int(getattr(result.get_solver_details(), "iterations", 0)))
 
     def _riccati(self, Ax, Bu, c) -> _QpSolution | None:
-        """The equality-constrained QP by the Riccati recursion; ``None`` when its solution
-        leaves a thrust bound, the state box or the terminal cone."""
-        N = self.N
+        """The QP by the Riccati recursion: without inequalities, and with the terminal
+        cone as an equality when the first solution leaves it; ``None`` when the solution
+        leaves a thrust bound or the state box (or the cone cannot be met this way)."""
         Bu = Bu * (self.f_max > 0)  # failed motors: u = 0 (no gradient, no weight)
-        X, U = solve_lq(self._x, Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R,
-                        self._input_r)
+        data = (Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R, self._input_r)
+        sol, name = solve_lq(self._x, *data), "Riccati"
+        if self._cone_on and self._cone_ratio(sol.X[-1]) > 1.0:
+            w = self._cone_multiplier(sol, Ax, Bu)
+            if w is None:
+                return None
+            sol, name = solve_lq(self._x, *data, terminal=(0.0, w)), "Riccati, cone active"
+            if self._cone_ratio(sol.X[-1]) > 1.0 + 1e-6:
+                return None
+        X, U = sol.X, sol.U
         if not (np.all(U >= 0.0) and np.all(U <= self.f_max)):
             return None
         box = (self._box_L @ X[1:, :, None])[:, :, 0] + self._box_offset
         if np.any(np.abs(box) > self.terminal.upper[self._box_rows]):
             return None
-        if self._cone_on:
-            _, level, L, l, S = self._terminal
-            if np.sum((S @ (L @ X[N] + l)) ** 2) > level**2:
+        return _QpSolution(True, name, 1, X, U)
+
+    def _cone_ratio(self, xN) -> float:
+        """``e_N^T P~ e_N / pi~^2`` of the end state ``xN``."""
+        Pt, level, L, l, _ = self._terminal
+        e = L @ xN + l
+        return float(e @ Pt @ e) / level**2
+
+    def _cone_multiplier(self, sol, Ax, Bu) -> np.ndarray | None:
+        """The linear term ``w = mu grad g(x_N)`` on ``x_N`` with which the equality-
+        constrained QP ends on the cone, ``g = e_N^T P~ e_N``; ``None`` if none is found.
+
+        With ``G = dx_N/dw`` (:func:`~drake_uav.optimization.riccati_lq.terminal_sensitivity`)
+        the end state for a multiplier ``mu >= 0`` solves the 13 x 13 system
+        ``(I - 2 mu G L^T P~ L) x_N = x_N(0) + 2 mu G L^T P~ l``; ``g(x_N(mu))`` decreases
+        in ``mu`` and its root ``g = pi~^2`` is bracketed and found by Brent's method.
+        Those are the KKT conditions of the QP with the cone (multiplier ``mu``).
+        """
+        Pt, level, L, l, _ = self._terminal
+        GM = terminal_sensitivity(sol, Ax, Bu) @ (2.0 * L.T @ Pt)
+        GML, GMl, x0N, eye = GM @ L, GM @ l, sol.X[-1], np.eye(STATE_SIZE)
+
+        def end(mu):
+            return np.linalg.solve(eye - mu * GML, x0N + mu * GMl)
+
+        def excess(mu):
+            return self._cone_ratio(end(mu)) - 1.0
+
+        high = 1.0
+        while excess(high) > 0.0:
+            high *= 8.0
+            if high > 1e15:
                 return None
-        return _QpSolution(True, "Riccati", 1, X, U)
+        mu = brentq(excess, 0.0, high, xtol=1e-12 * high, rtol=1e-14, maxiter=200)
+        return 2.0 * mu * L.T @ Pt @ (L @ end(mu) + l)
 
     def _failure(self, status, solver_status, start) -> NmpcResult:
         ur = self._ur[0] if hasattr(self, "_ur") else np.zeros(self.n)

@@ -20,14 +20,27 @@ path of its sparse QP (:mod:`drake_uav.optimization.nmpc`).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.linalg.lapack import dposv
 
-__all__ = ["solve_lq"]
+__all__ = ["LqSolution", "solve_lq", "terminal_sensitivity"]
 
 
-def solve_lq(x0, A, B, c, Q, q, R, r, terminal=None) -> tuple[np.ndarray, np.ndarray]:
-    """States (N+1, nx) and inputs (N, nu) of the problem of the module docstring.
+@dataclasses.dataclass(frozen=True)
+class LqSolution:
+    """States (N+1, nx), inputs (N, nu), feedback gains ``u_j = K_j x_j + k_j`` (N, nu, nx)
+    and the stage Hessians ``R_j + B_j^T P_{j+1} B_j`` (N, nu, nu)."""
+
+    X: np.ndarray
+    U: np.ndarray
+    K: np.ndarray
+    Huu: np.ndarray
+
+
+def solve_lq(x0, A, B, c, Q, q, R, r, terminal=None) -> LqSolution:
+    """The solution of the problem of the module docstring.
 
     ``A`` (N, nx, nx), ``B`` (N, nx, nu), ``c`` (N, nx); ``Q`` (N, nx, nx), ``q`` (N, nx)
     weight ``x_1..x_N``; ``R`` (N, nu, nu), ``r`` (N, nu) weight ``u_0..u_{N-1}``.
@@ -54,8 +67,10 @@ def solve_lq(x0, A, B, c, Q, q, R, r, terminal=None) -> tuple[np.ndarray, np.nda
         Pa[:nx, nx] += terminal[1]
         Pa[nx, :nx] += terminal[1]
     gains = np.empty((N, nu, na))
+    Huu = np.empty((N, nu, nu))
     for j in range(N - 1, -1, -1):
         W = Ma[j].T @ (Pa @ Ma[j]) + Ca[j]
+        Huu[j] = W[na:, na:]
         _, sol, info = dposv(W[na:, na:], W[na:, :na])
         if info:
             raise np.linalg.LinAlgError(f"stage Hessian {j} is not positive definite")
@@ -70,4 +85,22 @@ def solve_lq(x0, A, B, c, Q, q, R, r, terminal=None) -> tuple[np.ndarray, np.nda
     for j in range(N):
         U[j] = z[na:] = -(gains[j] @ z[:na])
         X[j + 1] = z[:nx] = Ma[j, :nx] @ z
-    return X, U
+    return LqSolution(X, U, -gains[:, :, :nx], Huu)
+
+
+def terminal_sensitivity(sol: LqSolution, A, B) -> np.ndarray:
+    """``G = dx_N / dw`` (nx, nx) for a linear term ``w^T x_N`` added to the cost.
+
+    ``G = -sum_j Phi_{N,j+1} B_j H_j^-1 B_j^T Phi_{N,j+1}^T`` with the closed-loop
+    transitions ``Phi`` of ``A_j + B_j K_j`` and the stage Hessians ``H_j`` (the
+    feedforward of stage ``j`` moves by ``-H_j^-1 B_j^T Phi_{N,j+1}^T w``). Negative
+    semi-definite; singular where ``x_N`` cannot be moved.
+    """
+    N, nx = A.shape[0], A.shape[1]
+    Phi = np.empty((N, nx, nx))  # Phi[j] = Phi_{N, j+1}
+    Phi[N - 1] = np.eye(nx)
+    closed = A + B @ sol.K
+    for j in range(N - 1, 0, -1):
+        Phi[j - 1] = Phi[j] @ closed[j]
+    Y = Phi @ B
+    return -np.sum(Y @ np.linalg.solve(sol.Huu, np.swapaxes(Y, 1, 2)), axis=0)
