@@ -87,12 +87,10 @@ def _imu(log: ULogFile, instance: int) -> tuple[Stream, Stream | None]:
     if log.has("sensor_combined", instance) and (instance == 0 or not accel):
         return _simple(log, ["sensor_combined"], _IMU, instance), None
     if accel:
-        axes = dict(zip("xyz", "xyz", strict=True))
-        base = _simple(log, ["sensor_accel"], {f"imu_a{a}": a for a in axes}, instance)
-        gyro = _simple(log, ["sensor_gyro"], {f"imu_{w}": a for w, a in zip("pqr", axes,
-                                                                                strict=True)},
-                       instance)
-        return base, gyro
+        return (_simple(log, ["sensor_accel"], {"imu_ax": "x", "imu_ay": "y", "imu_az": "z"},
+                        instance),
+                _simple(log, ["sensor_gyro"], {"imu_p": "x", "imu_q": "y", "imu_r": "z"},
+                        instance))
     raise FlightLogError(
         f"{log.source}: no IMU of instance {instance}: multi-ids of sensor_combined "
         f"{log.instances('sensor_combined')}, sensor_accel {log.instances('sensor_accel')}, "

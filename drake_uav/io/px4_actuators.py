@@ -160,12 +160,12 @@ def _allocation_terms(log: ULogFile, servos: dict[int, tuple[str, float, float]]
 
 def _allocated(log: ULogFile, vtol: bool) -> list[_Source]:
     """actuator_servos + actuator_motors (PX4 1.14+) through the CA_* parameters."""
-    count = int(log.parameter("CA_SV_CS_COUNT", 8))
-    servos = {k: (f"control[{k}]", 0.0, 1.0) for k in range(count)
-              if log.has("actuator_servos") and f"control[{k}]" in log.fields("actuator_servos")}
-    rotors = int(log.parameter("CA_ROTOR_COUNT", 1))
-    motors = {r: (f"control[{r}]", 0.0, 1.0) for r in range(rotors)
-              if log.has("actuator_motors") and f"control[{r}]" in log.fields("actuator_motors")}
+    def controls(topic: str, count: int) -> dict[int, tuple[str, float, float]]:
+        fields = log.fields(topic) if log.has(topic) else {}
+        return {k: (f"control[{k}]", 0.0, 1.0) for k in range(count) if f"control[{k}]" in fields}
+
+    servos = controls("actuator_servos", int(log.parameter("CA_SV_CS_COUNT", 8)))
+    motors = controls("actuator_motors", int(log.parameter("CA_ROTOR_COUNT", 1)))
     surfaces, throttle = _allocation_terms(log, servos, motors, vtol)
     sources = [_Source("actuator_servos", surfaces)] if surfaces else []
     if throttle:

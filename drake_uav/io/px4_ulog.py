@@ -54,8 +54,7 @@ class ULogFile:
         info: the log's information messages (``ver_sw_release``, ``sys_name``, ...).
     """
 
-    def __init__(self, path: Path, topics: list[str], allow_truncated: bool,
-                 stacklevel: int = 3):
+    def __init__(self, path: Path, topics: list[str], allow_truncated: bool):
         self.source = str(path)
         handle = _ShortReads(io.FileIO(path, "r"))
         try:
@@ -72,10 +71,10 @@ class ULogFile:
             if not allow_truncated or not self.data:
                 raise FlightLogError(message + (" (allow_truncated=True drops it)"
                                                 if self.data else " (no data before it)"))
-            warnings.warn(message + "; dropped", stacklevel=stacklevel + 1)
+            # stacklevel 4: the caller of read_log (read_px4 builds this object).
+            warnings.warn(message + "; dropped", stacklevel=4)
         elif ulog.file_corruption:
-            warnings.warn(f"{path}: corrupt data skipped by the ULog parser",
-                          stacklevel=stacklevel + 1)
+            warnings.warn(f"{path}: corrupt data skipped by the ULog parser", stacklevel=4)
         self.parameters = {k: _plain(v) for k, v in ulog.initial_parameters.items()}
         self.parameter_changes = [(t / 1e6, name, _plain(v))
                                   for t, name, v in ulog.changed_parameters]
