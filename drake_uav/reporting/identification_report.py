@@ -29,6 +29,7 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
     report.add_text(
         f"Source: `{run.source}`, {len(run.samples)} samples, held-out data from "
         f"t = {d.holdout_start:.1f} s.\n\n**Result: {d.message}.**")
+    _add_data(report, run)
     _add_effects(report, run)
     _add_errors(report, run)
     _add_figures(report, run)
@@ -37,6 +38,14 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
     _add_parameters(report, run)
     _add_evidence(report, run)
     return report.write(out_dir, run.summary())
+
+
+def _add_data(report: Report, run: IdentificationRun) -> None:
+    """Which parts of the log were used and where the air data came from."""
+    if run.data is None:
+        return
+    report.add_heading("Data used")
+    report.add_text("\n".join(f"- {note}" for note in run.notes))
 
 
 def _add_effects(report: Report, run: IdentificationRun) -> None:
