@@ -258,4 +258,4 @@ def write_ardupilot_log(log: FlightLog, path: str | Path, *, seed: int,
         data = cut_tail(data, w.body_offset, w.record_sizes, _BLOCK)
     path = Path(path)
     path.write_bytes(data)
-    return dataclasses.replace(flight.phases, path=path)
+    return WrittenLog(path, flight.phases)

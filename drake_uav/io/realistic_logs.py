@@ -38,8 +38,8 @@ from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 
-__all__ = ["LogProfile", "WrittenLog", "ExtendedFlight", "extend_flight", "SURFACE_DEMAND",
-           "ORIGIN"]
+__all__ = ["LogProfile", "LogPhases", "WrittenLog", "ExtendedFlight", "extend_flight",
+           "cut_tail", "SURFACE_DEMAND", "ORIGIN"]
 
 ORIGIN = (47.3977, 8.5456, 488.0)
 """Latitude, longitude [deg] and ground altitude [m] of the flight's NED origin."""
@@ -110,10 +110,9 @@ class LogProfile:
 
 
 @dataclasses.dataclass(frozen=True)
-class WrittenLog:
-    """A written log and its phases in the log's time [s since boot]."""
+class LogPhases:
+    """The phases of a realistic log in the log's time [s since boot]."""
 
-    path: Path
     gps_fix_s: float
     arm_s: float
     takeoff_s: float
@@ -121,7 +120,16 @@ class WrittenLog:
     flight_s: float
     """First sample of the simulated flight."""
     end_s: float
-    """Last complete sample of the simulated flight."""
+    """Last sample of the simulated flight (a truncated tail loses a fraction of a second
+    before it)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class WrittenLog:
+    """A written log file and its phases."""
+
+    path: Path
+    phases: LogPhases
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,7 +146,7 @@ class ExtendedFlight:
     channels: dict[str, np.ndarray]
     params: FixedWingParams
     profile: LogProfile
-    phases: WrittenLog
+    phases: LogPhases
     heading: float
     """Runway heading [rad]."""
 
@@ -309,7 +317,7 @@ def extend_flight(log: FlightLog, aircraft: str | FixedWingParams | None = None,
     merged = {name: np.concatenate([before[name], values]) for name, values in
               channels.items()}
     time = profile.boot_s + np.arange(n + log.time.size) * dt
-    phases = WrittenLog(Path(), profile.boot_s + profile.gps_fix_s,
+    phases = LogPhases(profile.boot_s + profile.gps_fix_s,
                         profile.boot_s + profile.arm_s, profile.boot_s + profile.ground_s,
                         float(time[n]), float(time[-1]))
     return ExtendedFlight(time, dt, merged, params, profile, phases, heading)

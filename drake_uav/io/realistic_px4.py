@@ -37,7 +37,6 @@ angle, no simulation metadata goes into the file.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -289,4 +288,4 @@ def write_px4_log(log: FlightLog, path: str | Path, *, seed: int,
         data = cut_tail(data, w.body_offset, w.record_sizes, None)
     path = Path(path)
     path.write_bytes(data)
-    return dataclasses.replace(flight.phases, path=path)
+    return WrittenLog(path, flight.phases)
