@@ -105,7 +105,12 @@ def usable_spans(log: FlightLog, settings: PhaseSettings = DEFAULT_PHASES,
     ``segment`` restricts them to a chosen time span. Raises :class:`FlightLogError`
     with the reason when no span is left ("no airborne segment: ...").
     """
-    log.require("pitot_airspeed")
+    if "pitot_airspeed" not in log:
+        dropped = [s for s in log.metadata.get("dropped_streams") or [] if "airspeed" in s]
+        raise FlightLogError(
+            "no airspeed: the log has no pitot airspeed"
+            + (f" (stream {', '.join(dropped)} left out: no valid sample)" if dropped else "")
+            + "; identify needs a pitot-static airspeed sensor")
     t = log.time
     keep = _airborne(log, settings)
     if not keep.any():

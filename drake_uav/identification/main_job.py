@@ -219,7 +219,10 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
     :func:`identify` for the arguments)."""
     check_fixed_wing(log, source)
     mode = choose_air_data(log, air_data, source)
-    spans = usable_spans(log, phases, segment)
+    try:
+        spans = usable_spans(log, phases, segment)
+    except FlightLogError as err:
+        raise FlightLogError(f"{source}: {err}") from None
     if progress is not None:
         progress(f"isolating aerodynamic coefficients ({len(spans)} airborne span"
                  f"{'s' if len(spans) > 1 else ''}, {_AIR_DATA_STEP[mode]})")
