@@ -12,8 +12,15 @@
 * :mod:`~drake_uav.estimation.signals`: the filter signals, their log channels and
   which held samples are new.
 * :mod:`~drake_uav.estimation.offline`: flight logs to filter arrays.
+* :mod:`~drake_uav.estimation.smoother`: the Rauch-Tung-Striebel smoother over a
+  forward pass (:func:`filter_pass`).
+* :mod:`~drake_uav.estimation.vaneless_models`: the air-data filter model for flights
+  without vanes (Gauss-Markov vertical wind, free-coefficient specific-force relation).
+* :mod:`~drake_uav.estimation.air_data_estimate`: air data without vanes over a log
+  (:func:`estimate_air_data`).
 """
 
+from drake_uav.estimation.air_data_estimate import AirDataEstimate, estimate_air_data
 from drake_uav.estimation.air_data_models import (
     MIN_START_AIRSPEED,
     AirDataModel,
@@ -28,9 +35,11 @@ from drake_uav.estimation.ekf import (
     EkfModel,
     EkfNoise,
     ExtendedKalmanFilter,
+    FilterPass,
     FilterRun,
     UpdateResult,
     chi2_bounds,
+    filter_pass,
     run_filter,
     wrap_angle,
 )
@@ -48,6 +57,8 @@ from drake_uav.estimation.parameter_models import (
     ParameterModel,
 )
 from drake_uav.estimation.signals import LOG_CHANNELS, fresh_samples, is_new_sample
+from drake_uav.estimation.smoother import SmoothedPass, rts_smooth
+from drake_uav.estimation.vaneless_models import VanelessAirDataModel
 
 __all__ = [
     "ATTITUDE_TIME_CONSTANT",
@@ -58,22 +69,29 @@ __all__ = [
     "MIN_START_AIRSPEED",
     "TURBULENT_DERIVATIVE_WALK",
     "WIND_PSD",
+    "AirDataEstimate",
     "AirDataModel",
     "EkfModel",
     "EkfNoise",
     "ExtendedKalmanFilter",
     "FilterData",
+    "FilterPass",
     "FilterRun",
     "LogReader",
     "ModelBasedAirDataModel",
     "ParameterModel",
+    "SmoothedPass",
     "UpdateResult",
+    "VanelessAirDataModel",
     "chi2_bounds",
+    "estimate_air_data",
+    "filter_pass",
     "fresh_samples",
     "gps_latency_correction",
     "gust_rate_psd",
     "is_new_sample",
     "ned_acceleration",
+    "rts_smooth",
     "run_filter",
     "sensor_std",
     "smoothed_attitude",

@@ -60,7 +60,9 @@ __all__ = [
     "UpdateResult",
     "ExtendedKalmanFilter",
     "FilterRun",
+    "FilterPass",
     "run_filter",
+    "filter_pass",
     "wrap_angle",
     "chi2_bounds",
 ]
@@ -392,8 +394,15 @@ class ExtendedKalmanFilter:
             return self._predict_one(x, P, u, dt)
         return self._predict_batch(x, P, u, dt)
 
-    def _predict_one(self, x: np.ndarray, P: np.ndarray, u, dt: float) -> tuple:
-        """:meth:`predict` of one filter.
+    def predict_transition(self, x: np.ndarray, P: np.ndarray, u: np.ndarray,
+                           dt: float) -> tuple:
+        """:meth:`predict` of one filter that also returns the transition matrix ``Phi``
+        of the step: ``(x-, P-, Phi)``, what a Rauch-Tung-Striebel smoother needs."""
+        return self._predict_one(x, P, u, dt, transition=True)
+
+    def _predict_one(self, x: np.ndarray, P: np.ndarray, u, dt: float,
+                     transition: bool = False) -> tuple:
+        """:meth:`predict` of one filter (and ``Phi`` with ``transition``).
 
         Small matrices: ``ndarray.dot`` (a fraction of matmul's call cost) on contiguous
         operands of equal shape (numpy's broadcasting and strided loops cost more than
@@ -408,6 +417,8 @@ class ExtendedKalmanFilter:
         half = L.dot(L.T)
         P_new = Phi.dot(P + half).dot(Phi.T)
         P_new += half
+        if transition:
+            return x_new, _symmetric(P_new), Phi
         return x_new, _symmetric(P_new)
 
     def _predict_batch(self, x: np.ndarray, P: np.ndarray, u: np.ndarray, dt) -> tuple:
@@ -760,3 +771,63 @@ def run_filter(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=
             history.update(k, result)
         history.posterior(k, X, P)
     return history.run(ekf, samples)
+
+
+@dataclasses.dataclass
+class FilterPass:
+    """Forward pass of one filter over N samples, kept for a smoother
+    (:func:`filter_pass`)."""
+
+    time: np.ndarray
+    """Sample times [s] (N)."""
+    prior_state: np.ndarray
+    """State after the time update to each sample (N, n); the initial state at 0."""
+    prior_covariance: np.ndarray
+    """Its covariance (N, n, n)."""
+    state: np.ndarray
+    """Posterior state (N, n)."""
+    covariance: np.ndarray
+    """Posterior covariance (N, n, n)."""
+    transition: np.ndarray
+    """Transition matrix ``Phi`` of the step ending at each sample (N, n, n); identity
+    at 0."""
+    inputs: np.ndarray
+    """The inputs the filter used (N, n_inputs): NaN entries replaced, smoothed inputs
+    smoothed."""
+    rejected: np.ndarray
+    """Updates rejected by the innovation gate, per group (G)."""
+
+
+def filter_pass(ekf: ExtendedKalmanFilter, time, inputs, measurements, available=None, *,
+                x0: np.ndarray | None = None, P0: np.ndarray | None = None) -> FilterPass:
+    """Runs ``ekf`` over the samples of one flight (arguments as in :func:`run_filter`,
+    no batch axis) and keeps the prior, the posterior and the transition matrix of every
+    step: the forward pass of a Rauch-Tung-Striebel smoother.
+
+    The steps are rounded to 1 ns: a log's time stamps carry floating-point noise that
+    would defeat the cache of the step-dependent noise scale.
+    """
+    samples = _samples(ekf, time, inputs, measurements, available)
+    if not samples.single:
+        raise ValueError("filter_pass: one flight only (inputs of shape (N, n_inputs))")
+    X, P0s = _start(ekf, samples, x0, P0)
+    x, P = X[0], P0s[0]
+    U, Y, avail = samples.inputs[0], samples.measurements[0], samples.available[0]
+    n, nx = len(samples.time), ekf.n_states
+    prior_x, post_x = np.empty((n, nx)), np.empty((n, nx))
+    prior_P, post_P, Phi = (np.empty((n, nx, nx)) for _ in range(3))
+    Phi[0] = ekf._eye
+    rejected = np.zeros(len(ekf.group_names), int)
+    steps = np.round(np.diff(samples.time), 9).tolist()
+    updated = avail.any(axis=1).tolist()
+    for k in range(n):
+        if k:
+            x, P, Phi[k] = ekf.predict_transition(x, P, ekf.midpoint_input(U[k - 1], U[k]),
+                                                  steps[k - 1])
+        prior_x[k], prior_P[k] = x, P
+        if updated[k]:
+            result = ekf.update(x, P, U[k], Y[k], avail[k], diagnostics=False)
+            x, P = result.x, result.P
+            rejected += result.rejected
+        post_x[k], post_P[k] = x, P
+    return FilterPass(samples.time, prior_x, prior_P, post_x, post_P, Phi, U, rejected)

@@ -1,0 +1,230 @@
+"""Air data without vanes, estimated offline: forward EKF and RTS smoother per segment.
+
+:func:`estimate_air_data` estimates the airspeed, alpha, beta and the NED wind over a
+flight from what a real log holds (IMU, attitude, GPS velocity, pitot and, for the
+specific-force relation, the elevator and rudder commands) with
+:class:`~drake_uav.estimation.vaneless_models.VanelessAirDataModel`: a forward pass of
+the EKF core (:func:`~drake_uav.estimation.ekf.filter_pass`) then the
+Rauch-Tung-Striebel backward pass (:func:`~drake_uav.estimation.smoother.rts_smooth`),
+each segment of the log on its own. It never reads truth channels or the simulator's
+noise metadata. Accuracy and cost on simulated flights: ``docs/estimation.md``
+(Air data without vanes).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from drake_uav.estimation.air_data_models import MIN_START_AIRSPEED
+from drake_uav.estimation.ekf import ExtendedKalmanFilter, filter_pass
+from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
+from drake_uav.estimation.signals import ATTITUDE, GPS_VELOCITY, IMU, LOG_CHANNELS
+from drake_uav.estimation.smoother import rts_smooth
+from drake_uav.estimation.vaneless_models import VanelessAirDataModel
+from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.model.air_data import air_data_from_velocity, dynamic_pressure
+from drake_uav.model.compiled import CompiledFunction
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["AirDataEstimate", "estimate_air_data"]
+
+_REQUIRED = {"gps_vn": "GPS velocity", "gps_ve": "GPS velocity", "gps_vd": "GPS velocity",
+             "pitot": "pitot"}
+_SENSOR_SIGNALS = (*IMU, *ATTITUDE, *GPS_VELOCITY, "pitot")
+
+
+@dataclasses.dataclass(frozen=True)
+class AirDataEstimate:
+    """Smoothed air data and wind over the samples of a log (NaN outside the estimated
+    segments).
+
+    ``alpha_std``, ``beta_std`` and ``airspeed_std`` map the smoothed covariance of
+    the air-relative velocity through the Jacobian of the air-data relation;
+    ``wind_std`` is that of the total (mean plus gust) wind.
+    """
+
+    time: np.ndarray
+    """Sample times of the log [s] (N)."""
+    airspeed: np.ndarray
+    """True airspeed [m/s] (N)."""
+    alpha: np.ndarray
+    """Angle of attack [rad] (N)."""
+    beta: np.ndarray
+    """Sideslip angle [rad] (N)."""
+    wind_ned: np.ndarray
+    """Wind NED [m/s] (N, 3)."""
+    airspeed_std: np.ndarray
+    """[m/s] (N)."""
+    alpha_std: np.ndarray
+    """[rad] (N)."""
+    beta_std: np.ndarray
+    """[rad] (N)."""
+    wind_std: np.ndarray
+    """[m/s] (N, 3)."""
+    valid: np.ndarray
+    """True where a sample was estimated (N, bool)."""
+    segments: tuple[tuple[float, float], ...]
+    """The estimated stretches [s]: each segment from its first sample with GPS velocity
+    and a pitot airspeed above the start threshold to its end."""
+    coefficients: tuple[dict[str, float], ...]
+    """Smoothed specific-force coefficients of each segment [m^2/kg] (empty dicts
+    without the relation)."""
+    rejected: dict[str, int]
+    """Measurements rejected by the innovation gate, per sensor group."""
+
+
+@functools.cache
+def _air_data_function() -> CompiledFunction:
+    return CompiledFunction(lambda v: np.array(air_data_from_velocity(v[0], v[1], v[2])),
+                            (3,), {0: None}, "air_data_from_velocity")
+
+
+def _filter_std(noise_std: Mapping[str, float] | None) -> dict[str, float]:
+    """``noise_std`` by filter signal name: keys may be filter names (``"ax"``) or log
+    channels (``"imu_ax"``)."""
+    by_channel = {LOG_CHANNELS[n]: n for n in _SENSOR_SIGNALS}
+    out = {}
+    for key, value in (noise_std or {}).items():
+        name = key if key in _SENSOR_SIGNALS else by_channel.get(key)
+        if name is None:
+            raise ValueError(f"noise_std: unknown channel '{key}' (known: "
+                             f"{sorted(by_channel)})")
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"noise_std['{key}'] must be positive, got {value}")
+        out[name] = float(value)
+    return out
+
+
+def _check_channels(log: FlightLog) -> None:
+    """Raises FlightLogError naming the first missing or empty required channel."""
+    for name in (*IMU, *ATTITUDE, *_REQUIRED):
+        channel = LOG_CHANNELS[name]
+        what = _REQUIRED.get(name, "IMU" if name in IMU else "attitude")
+        if channel not in log or not np.isfinite(np.asarray(log[channel], float)).any():
+            raise FlightLogError(
+                f"estimate_air_data: the log has no {what} samples (channel '{channel}'); "
+                "air data without vanes need IMU, attitude, GPS velocity and pitot")
+
+
+def _segment_bounds(log: FlightLog, segments) -> list[tuple[float, float]]:
+    bounds = segments if segments is not None else log.metadata.get("segments")
+    if not bounds:
+        return [(float(log.time[0]), float(log.time[-1]))]
+    return [(float(t0), float(t1)) for t0, t1 in bounds]
+
+
+def _first_usable(measurements: np.ndarray, rho: float) -> int | None:
+    """First row with a full GPS velocity and a pitot airspeed above the start threshold."""
+    gps = np.isfinite(measurements[:, 0:3]).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        ok = gps & (measurements[:, 3] >= dynamic_pressure(MIN_START_AIRSPEED, rho))
+    first = np.flatnonzero(ok)
+    return int(first[0]) if first.size else None
+
+
+class _Output:
+    """The per-sample arrays of an :class:`AirDataEstimate` as segments fill them."""
+
+    def __init__(self, n: int):
+        self.values = {k: np.full(n, np.nan) for k in (
+            "airspeed", "alpha", "beta", "airspeed_std", "alpha_std", "beta_std")}
+        self.wind, self.wind_std = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+        self.valid = np.zeros(n, bool)
+
+    def fill(self, rows: slice, model: VanelessAirDataModel, state, covariance) -> None:
+        air, J = _air_data_function().batch_value_and_jacobian(state[:, 0:3])
+        P_air = J @ covariance[:, 0:3, 0:3] @ J.swapaxes(1, 2)
+        std = np.sqrt(np.einsum("kii->ki", P_air))
+        for i, name in enumerate(("airspeed", "alpha", "beta")):
+            self.values[name][rows] = air[:, i]
+            self.values[f"{name}_std"][rows] = std[:, i]
+        # Total wind = S x with S selecting the mean (and gust) states of each axis.
+        S = np.zeros((3, len(model.state_names)))
+        S[[0, 1, 2], [3, 4, 5]] = 1.0
+        if model.gust:
+            S[[0, 1], [6, 7]] = 1.0
+        self.wind[rows] = state @ S.T
+        self.wind_std[rows] = np.sqrt(np.einsum("ij,kjl,il->ki", S, covariance, S))
+        self.valid[rows] = True
+
+
+def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
+                      noise_std: Mapping[str, float] | None = None,
+                      segments: Sequence[Sequence[float]] | None = None,
+                      lift_relation: bool = True, gust: bool = False,
+                      turbulence: str = "light", altitude: float = 100.0,
+                      gps_latency: float = DEFAULT_GPS_LATENCY) -> AirDataEstimate:
+    """Airspeed, alpha, beta and wind over a flight without vanes (module docstring).
+
+    Args:
+        log: the flight; needs IMU, attitude, GPS velocity and pitot channels
+            (``imu_*``, ``att_*``, ``gps_v*``, ``pitot_qbar``). Vane and truth channels
+            are never read. Missing elevator / rudder commands count as zero.
+        params: the aircraft: air density and gravity; with ``lift_relation`` also its
+            mass, wing area and span (the loose prior of the coefficients). Its
+            aerodynamic coefficients are not used.
+        noise_std: per-sample noise standard deviation by channel (log names such as
+            ``"imu_az"`` or filter names such as ``"az"``), in the channel's unit.
+            Channels not given take the default low-cost suite
+            (:class:`~drake_uav.vehicles.sensors.SensorSuiteParams`, Vaiopoulos 2017,
+            Table 7). To use noise estimated from the data, pass e.g. the standard
+            deviation of each channel's high-pass residual (the sample-to-sample
+            difference divided by sqrt(2) on a steady stretch) under the channel's name.
+        segments: ``[[t0, t1], ...]`` [s] smoothed separately; default the log's
+            ``metadata["segments"]``, else the whole log. Each segment starts at its
+            first sample with GPS velocity and a pitot airspeed of at least
+            :data:`~drake_uav.estimation.air_data_models.MIN_START_AIRSPEED`, from the
+            wind triangle with zero flow angles.
+        lift_relation: observe the flow angles through the accelerometer with the
+            free-coefficient specific-force relation (see
+            :class:`~drake_uav.estimation.vaneless_models.VanelessAirDataModel`);
+            False: kinematics only.
+        gust: Gauss-Markov states for the horizontal gusts.
+        turbulence, altitude: the Dryden prior of the gust model (level, m).
+        gps_latency: GPS velocity latency removed with the IMU [s].
+
+    Raises:
+        FlightLogError: naming the channel when IMU, attitude, GPS velocity or pitot
+            samples are missing, or when no segment ever has both GPS and airspeed.
+    """
+    _check_channels(log)
+    model = VanelessAirDataModel(params, gust=gust, lift_relation=lift_relation,
+                                 turbulence=turbulence, altitude=altitude)
+    data = model.log_data(log, gps_latency)
+    inputs = data.inputs
+    for i in model.held_inputs:  # commands absent from the log: zero
+        inputs[:, i] = np.nan_to_num(inputs[:, i])
+    period = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 0.01
+    ekf = ExtendedKalmanFilter(model, model.default_noise(_filter_std(noise_std),
+                                                          period=period))
+    out = _Output(len(data.time))
+    done, coefficients = [], []
+    rejected = dict.fromkeys(ekf.group_names, 0)
+    for t0, t1 in _segment_bounds(log, segments):
+        inside = np.flatnonzero((data.time >= t0) & (data.time <= t1))
+        start = _first_usable(data.measurements[inside], model.rho) if inside.size else None
+        if start is None or inside.size - start < 2:
+            continue
+        rows = slice(inside[start], inside[-1] + 1)
+        forward = filter_pass(ekf, data.time[rows], inputs[rows], data.measurements[rows],
+                              data.available[rows])
+        smoothed = rts_smooth(forward)
+        out.fill(rows, model, smoothed.state, smoothed.covariance)
+        done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
+        names = model.state_names[len(model.state_names) - 6:] if lift_relation else ()
+        coefficients.append({n: float(smoothed.state[0, model.state_names.index(n)])
+                             for n in names})
+        for g, count in zip(ekf.group_names, forward.rejected.tolist(), strict=True):
+            rejected[g] += count
+    if not done:
+        raise FlightLogError("estimate_air_data: no segment has both GPS velocity and a pitot "
+                             f"airspeed of at least {MIN_START_AIRSPEED} m/s (channels "
+                             "'gps_vn', 'pitot_qbar')")
+    v = out.values
+    return AirDataEstimate(data.time, v["airspeed"], v["alpha"], v["beta"], out.wind,
+                           v["airspeed_std"], v["alpha_std"], v["beta_std"], out.wind_std,
+                           out.valid, tuple(done), tuple(coefficients), rejected)
