@@ -43,7 +43,7 @@ from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
 from drake_uav.model.geodesy import ned_from_geodetic
 
-__all__ = ["AHRS_CHANNELS", "read_ardupilot"]
+__all__ = ["AHRS_CHANNELS", "read_ardupilot", "read_ardupilot_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0  # rev/min -> rad/s
 _DEG = math.pi / 180.0
@@ -122,8 +122,8 @@ def _imu(log: DataFlash, instance: int, params: Mapping[str, float]) -> Stream:
     if not any(log.has(n) for n in _INSTANCE_MESSAGES["IMU"]):
         bitmask = params.get("LOG_BITMASK")
         why = ("" if bitmask is None or int(bitmask) & _LOG_BITMASK_IMU else
-               f": recorded without IMU logging (LOG_BITMASK = {bitmask:g} has no IMU bit, "
-               f"{_LOG_BITMASK_IMU})")
+               f": recorded without IMU logging (LOG_BITMASK = {bitmask:g} lacks the IMU bit "
+               f"{_LOG_BITMASK_IMU}; set it to log the IMU)")
         raise FlightLogError(f"{log.source}: no IMU messages (the time base){why}")
     raise FlightLogError(f"{log.source}: {_missing_instance(log, 'IMU', instance)}")
 
@@ -282,8 +282,7 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
             segment where every required stream has valid data; names the file.
     """
     path = Path(path)
-    deflections = {**dict.fromkeys(("elevator", "aileron", "rudder"), math.radians(25.0)),
-                   **(deflections or {})}
+    deflections = _deflections(deflections)
     extra = {name: source.validate() for name, source in (extra or {}).items()}
     log = DataFlash(path, allow_truncated)
     params = log.parameters()
@@ -304,6 +303,26 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     streams += _extra_streams(log, extra)
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
+
+
+def read_ardupilot_metadata(path: str | Path, *, allow_truncated: bool = True,
+                            deflections: Mapping[str, float] | None = None) -> dict:
+    """What a ``.bin`` log says about the vehicle, without reading its streams.
+
+    Returns the metadata keys of :func:`read_ardupilot` that need no IMU:
+    ``vehicle_type``, ``firmware``, ``flight_modes`` (``vtol_state`` for a
+    quadplane), ``parameters`` and ``actuators`` (the mapping the reader would use).
+    """
+    log = DataFlash(Path(path), allow_truncated)
+    params = log.parameters()
+    _, described = _resolve_actuators(log, None, params, _deflections(deflections))
+    return {**_vehicle_metadata(log, params), "parameters": params, "actuators": described}
+
+
+def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:
+    """Full surface deflections [rad]: 25 deg unless given."""
+    return {**dict.fromkeys(("elevator", "aileron", "rudder"), math.radians(25.0)),
+            **(given or {})}
 
 
 def _imu_rate(log: DataFlash, base: Stream) -> float:

@@ -26,6 +26,8 @@ __all__ = ["DataFlash"]
 _HEAD = (0xA3, 0x95, 0x80)  # every DataFlash log starts with a FMT message
 _TRAILING_SLACK = 528
 """Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
+_PADDING_RUN = 8
+"""Shortest run of 0x00 or 0xFF bytes at the end of a file taken for block padding."""
 
 
 class _Index(DFReader_binary):
@@ -87,15 +89,16 @@ class DataFlash:
     def _check_coverage(self, allow_truncated: bool) -> None:
         """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs)."""
         size, end, covered, where = self.data.size, 0, 0, None
+        padding = self._padding_start()
         for name, offsets in self.offsets.items():
             if not offsets.size:
                 continue
             length = self.formats[name].len
             last = int(offsets[-1])
-            if last + length > size:
-                self._truncated(f"{self.source}: truncated file: the last {name} message (byte "
-                                f"{last}) needs {length} bytes, {size - last} remain",
-                                allow_truncated)
+            cut = self._cut_short(name, last, length, padding)
+            if cut:
+                self._truncated(f"{self.source}: truncated file: the last {name} message "
+                                f"(byte {last}) {cut}", allow_truncated)
                 self.offsets[name] = offsets = offsets[:-1]
                 if not offsets.size:
                     continue
@@ -112,6 +115,30 @@ class DataFlash:
         if covered < end:
             warnings.warn(f"{self.source}: {end - covered} bytes of corrupt data skipped",
                           stacklevel=4)
+
+    def _cut_short(self, name: str, last: int, length: int, padding: int) -> str:
+        """Why the last message ``name`` (at byte ``last``) is incomplete, or ""."""
+        size = self.data.size
+        if last + length > size:
+            return f"needs {length} bytes, {size - last} remain"
+        if last < padding < last + length < size:
+            return f"runs into the block padding that ends the file (from byte {padding})"
+        return ""
+
+    def _padding_start(self) -> int:
+        """Start of the run of >= 8 equal 0x00 or 0xFF bytes that ends the file (block
+        padding after a power loss), or the file size when there is none."""
+        data, window = self.data, 4096
+        if data[-1] not in (0x00, 0xFF):
+            return data.size
+        while True:  # look back from the end only: the padding is a block or so
+            tail = data[max(data.size - window, 0):]
+            other = np.flatnonzero(tail != data[-1])
+            if other.size or tail.size == data.size:
+                break
+            window *= 8
+        start = data.size - tail.size + (int(other[-1]) + 1 if other.size else 0)
+        return start if data.size - start >= _PADDING_RUN else data.size
 
     def _message_in(self, start: int) -> bool:
         """Whether a complete message of a known type starts at or after byte ``start``."""
