@@ -44,8 +44,8 @@ from drake_uav.io.realistic_logs import (
     ExtendedFlight,
     LogProfile,
     WrittenLog,
-    cut_tail,
     extend_flight,
+    save_log,
 )
 from drake_uav.io.writers import DataFlashWriter
 from drake_uav.model.geodesy import geodetic_from_ned
@@ -253,9 +253,4 @@ def write_ardupilot_log(log: FlightLog, path: str | Path, *, seed: int,
     _define(w, "motor_speed" in flight.channels)
     for part in (_events, _inertial, _gps, _air_data, _outputs):
         part(w, flight)
-    data = w.to_bytes()
-    if flight.profile.truncate:
-        data = cut_tail(data, w.body_offset, w.record_sizes, _BLOCK)
-    path = Path(path)
-    path.write_bytes(data)
-    return WrittenLog(path, flight.phases)
+    return save_log(w, flight, path, _BLOCK)

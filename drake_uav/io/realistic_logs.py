@@ -39,7 +39,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["LogProfile", "LogPhases", "WrittenLog", "ExtendedFlight", "extend_flight",
-           "cut_tail", "SURFACE_DEMAND", "ORIGIN"]
+           "cut_tail", "save_log", "SURFACE_DEMAND", "ORIGIN"]
 
 ORIGIN = (47.3977, 8.5456, 488.0)
 """Latitude, longitude [deg] and ground altitude [m] of the flight's NED origin."""
@@ -343,3 +343,14 @@ def cut_tail(data: bytes, body_offset: int, sizes: np.ndarray, block: int | None
     start, cut = int(starts[k]), int(boundary[k])
     written = min(cut - start, int(sizes[k]) // 2)
     return data[:start + written] + bytes(cut - start - written)
+
+
+def save_log(writer, flight: ExtendedFlight, path: str | Path, block: int | None) -> WrittenLog:
+    """Writes the messages of ``writer`` (a :mod:`drake_uav.io.writers` writer) to ``path``,
+    cut inside the last message (:func:`cut_tail` with ``block``) when the profile says so."""
+    data = writer.to_bytes()
+    if flight.profile.truncate:
+        data = cut_tail(data, writer.body_offset, writer.record_sizes, block)
+    path = Path(path)
+    path.write_bytes(data)
+    return WrittenLog(path, flight.phases)

@@ -47,8 +47,8 @@ from drake_uav.io.realistic_logs import (
     ExtendedFlight,
     LogProfile,
     WrittenLog,
-    cut_tail,
     extend_flight,
+    save_log,
 )
 from drake_uav.io.writers import ULogWriter
 from drake_uav.model.geodesy import geodetic_from_ned
@@ -255,20 +255,9 @@ def _actuators(w: ULogWriter, ids: dict, flight: ExtendedFlight) -> None:
 def write_px4_log(log: FlightLog, path: str | Path, *, seed: int,
                   aircraft: str | FixedWingParams | None = None,
                   profile: LogProfile | None = None) -> WrittenLog:
-    """Writes a simulated flight as a PX4 1.14 ``.ulg`` log (see the module).
-
-    Args:
-        log: a simulated fixed-wing flight (:func:`drake_uav.diagrams.fly`).
-        path: the ``.ulg`` to write.
-        seed: noise of the synthesised ground and take-off; the same seed gives the
-            same bytes.
-        aircraft: the aircraft flown (default the log's ``metadata["aircraft"]``).
-        profile: timing and rates (default :class:`LogProfile`); with ``truncate`` the
-            last message keeps its first half.
-
-    Returns:
-        The path and the phases in the log's time (s since boot).
-    """
+    """Writes a simulated flight as a PX4 1.14 ``.ulg`` log (see the module); arguments
+    and result as :func:`drake_uav.io.realistic_ardupilot.write_ardupilot_log`. With
+    ``profile.truncate`` the last message keeps its first half."""
     flight = extend_flight(log, aircraft, profile, seed=seed)
     w = ULogWriter(start_us=int(flight.time_us(np.array([0]))[0]))
     for key, value in (("sys_name", "PX4"), ("ver_hw", "CUBEPILOT_CUBEORANGE"),
@@ -283,9 +272,4 @@ def write_px4_log(log: FlightLog, path: str | Path, *, seed: int,
             ids[topic] = w.subscribe(topic)
     for part in (_status, _inertial, _position, _air_data, _actuators):
         part(w, ids, flight)
-    data = w.to_bytes()
-    if flight.profile.truncate:
-        data = cut_tail(data, w.body_offset, w.record_sizes, None)
-    path = Path(path)
-    path.write_bytes(data)
-    return WrittenLog(path, flight.phases)
+    return save_log(w, flight, path, None)

@@ -42,14 +42,36 @@ _DF_TYPES = {
 _FMT_TYPE = 0x80
 
 
-class DataFlashWriter:
+class _TimeOrderedWriter:
+    """Messages kept as (time [us], rows of bytes) blocks, written in time order after a
+    head of definitions."""
+
+    def __init__(self):
+        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []
+        self.body_offset, self.record_sizes = 0, np.zeros(0, np.int64)
+
+    def _assemble(self, head: bytes) -> bytes:
+        rows = _sorted_rows(self._blocks)
+        self.body_offset, self.record_sizes = len(head), np.array([len(r) for r in rows])
+        return head + b"".join(rows)
+
+    def to_bytes(self) -> bytes:
+        raise NotImplementedError
+
+    def save(self, path: str | Path) -> Path:
+        """Writes :meth:`to_bytes` to ``path``; returns the path."""
+        path = Path(path)
+        path.write_bytes(self.to_bytes())
+        return path
+
+
+class DataFlashWriter(_TimeOrderedWriter):
     """Collects DataFlash messages and writes them (definitions first, then by time)."""
 
     def __init__(self):
+        super().__init__()
         self._formats: dict[str, tuple[int, str, tuple[str, ...], np.dtype]] = {}
         self._definitions: list[bytes] = []
-        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (time_us, rows of bytes)
-        self.body_offset, self.record_sizes = 0, np.zeros(0, np.int64)
 
     def define(self, name: str, fmt: str, columns: str) -> None:
         """Declares message ``name`` with format characters ``fmt`` and comma-separated columns."""
@@ -88,15 +110,7 @@ class DataFlashWriter:
 
     def to_bytes(self) -> bytes:
         """The FMT messages, then every message in time order."""
-        body = _sorted_rows(self._blocks)
-        head = b"".join(self._definitions)
-        self.body_offset, self.record_sizes = len(head), np.array([len(r) for r in body])
-        return head + b"".join(body)
-
-    def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_bytes(self.to_bytes())
-        return path
+        return self._assemble(b"".join(self._definitions))
 
 
 # ULog field type -> numpy dtype.
@@ -124,17 +138,16 @@ def _sorted_rows(blocks: list[tuple[np.ndarray, np.ndarray]]) -> list[bytes]:
     return [rows[i].tobytes() for i in np.argsort(times, kind="stable")]
 
 
-class ULogWriter:
+class ULogWriter(_TimeOrderedWriter):
     """Collects ULog formats, subscriptions and data; writes them in timestamp order."""
 
     def __init__(self, start_us: int = 0):
+        super().__init__()
         self._start_us = start_us
         self._definitions: list[bytes] = []
         self._topics: dict[str, np.dtype] = {}
         self._subscriptions: list[bytes] = []
-        self._blocks: list[tuple[np.ndarray, np.ndarray]] = []
         self._next_id = 0
-        self.body_offset, self.record_sizes = 0, np.zeros(0, np.int64)
 
     def format(self, name: str, fields: str) -> None:
         """Declares topic ``name`` with fields ``"uint64_t timestamp;float[3] x;..."``."""
@@ -200,12 +213,5 @@ class ULogWriter:
         """Header, flag bits, definitions, subscriptions, then data and text in time order."""
         header = b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", self._start_us)
         flags = _ulog_message("B", bytes(16) + bytes(24))
-        body = _sorted_rows(self._blocks)
-        head = header + flags + b"".join(self._definitions) + b"".join(self._subscriptions)
-        self.body_offset, self.record_sizes = len(head), np.array([len(r) for r in body])
-        return head + b"".join(body)
-
-    def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_bytes(self.to_bytes())
-        return path
+        return self._assemble(header + flags + b"".join(self._definitions)
+                              + b"".join(self._subscriptions))
