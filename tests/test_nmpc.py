@@ -85,6 +85,7 @@ def test_far_offset_falls_back_without_raising(params, tset):
     ("input_weight", NmpcSettings(input_weight=0.0)),
     ("mode", NmpcSettings(mode="fast")),
     ("nlp_solver", NmpcSettings(nlp_solver="newton")),
+    ("qp_solver", NmpcSettings(qp_solver="osqp")),
 ])
 def test_bad_settings_name_the_field(params, tset, field, settings):
     with pytest.raises(ValueError, match=field):
@@ -126,3 +127,49 @@ def test_tracking_plots_are_written(params, tset, tmp_path):
     assert [f.name for f in files] == ["path_3d.png", "position_error.png", "thrusts.png",
                                        "solve_times.png"]
     assert all(f.stat().st_size > 5000 for f in files)
+
+
+def test_riccati_qps_are_the_clarabel_qps(params, tset):
+    from pydrake.solvers import ClarabelSolver, SolverOptions
+
+    fast = TrackingNmpc(params, tset)
+    exact = TrackingNmpc(params, tset, NmpcSettings(qp_solver="clarabel"))
+    exact._options = SolverOptions()
+    for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio"):
+        exact._options.SetOption(ClarabelSolver.id(), name, 1e-10)
+    x, _ = tset.reference.at(0.0)
+    x = x.copy()
+    x[:3] += (0.3, 0.4, 0.0)
+    names = set()
+    for k in range(8):  # the prediction of each step is the next state
+        a, b = fast.solve(0.025 * k, x), exact.solve(0.025 * k, x)
+        assert a.status == b.status == "solved"
+        names.add(a.solver_status)
+        # the interior-point iterate stops ~1e-5 N short of the optimum on an active cone
+        np.testing.assert_allclose(a.inputs, b.inputs, atol=1e-4)
+        assert a.terminal_ratio <= 1.0 + 1e-6
+        x = a.states[1]
+    assert "Riccati, cone active" in names
+
+
+def test_sensor_noise_is_seeded_and_tracked_through(params, tset):
+    from drake_uav.diagrams.tracking import StateNoise
+
+    runs = [fly_tracking(params, tset, 3.0, offset=(0.3, 0.4, 0.0),
+                         attitude_offset=np.radians(10.0), sensor_noise=StateNoise(), seed=s)
+            for s in (4, 4, 5)]
+    np.testing.assert_array_equal(runs[0].thrusts, runs[1].thrusts)
+    assert not np.array_equal(runs[0].thrusts, runs[2].thrusts)
+    for run in runs[::2]:
+        assert run.rmse(2.0) < 0.05
+        assert np.all(run.status == STATUS_SOLVED)
+        assert np.all(run.terminal_ratio <= 1.0 + 1e-3)
+        assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
+
+
+@pytest.mark.parametrize("field", ["position", "attitude", "velocity", "rates", "period"])
+def test_bad_sensor_noise_names_the_field(field):
+    from drake_uav.systems.state_sensor import NoisyStateSensor, StateNoise
+
+    with pytest.raises(ValueError, match=field):
+        NoisyStateSensor(StateNoise(**{field: -1.0}))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource, VectorLogSink
@@ -17,10 +18,11 @@ from drake_uav.optimization.nmpc import NmpcSettings, default_waypoints
 from drake_uav.optimization.terminal_set import ReferenceTable, TerminalSet, terminal_set
 from drake_uav.systems.multirotor import MultirotorPlant
 from drake_uav.systems.nmpc_controller import NmpcController
+from drake_uav.systems.state_sensor import StateNoise, add_noisy_state_sensor
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = ["TrackingRun", "tracking_reference", "gust_force", "fly_tracking",
-           "build_terminal_set", "solve_time_stats"]
+           "build_terminal_set", "solve_time_stats", "StateNoise"]
 
 
 def tracking_reference(params: MultirotorParams, waypoints=None, duration: float | None = None,
@@ -84,15 +86,21 @@ class TrackingRun:
 def fly_tracking(params: MultirotorParams, terminal: TerminalSet, duration: float, *,
                  settings: NmpcSettings | None = None, offset=(0.0, 0.0, 0.0),
                  attitude_offset: float = 0.0, gust_sigma: float = 0.0, seed: int = 0,
-                 log_period: float = 0.025) -> TrackingRun:
+                 log_period: float = 0.025, sensor_noise: StateNoise | None = None
+                 ) -> TrackingRun:
     """Simulates the closed loop for ``duration`` [s] from the reference start shifted by
     ``offset`` (NED [m]) and rolled by ``attitude_offset`` [rad], with an optional gust
-    force of standard deviation ``gust_sigma`` [N] (seeded). ``params`` may carry a
-    motor time constant (the controller's model does not)."""
+    force of standard deviation ``gust_sigma`` [N] and an optional noisy state
+    measurement ``sensor_noise`` between plant and controller (both seeded by ``seed``).
+    ``params`` may carry a motor time constant (the controller's model does not). The
+    logged state and the RMSE are the plant's true state."""
     builder = DiagramBuilder()
     plant = builder.AddSystem(MultirotorPlant(params))
     ctrl = builder.AddSystem(NmpcController(params, terminal, settings))
-    builder.Connect(plant.GetOutputPort("state"), ctrl.GetInputPort("state"))
+    measured = plant.GetOutputPort("state")
+    if sensor_noise is not None:
+        measured = add_noisy_state_sensor(builder, sensor_noise, measured)
+    builder.Connect(measured, ctrl.GetInputPort("state"))
     builder.Connect(ctrl.GetOutputPort("motor_thrusts"), plant.GetInputPort("motor_thrusts"))
     if gust_sigma > 0:
         gust = builder.AddSystem(TrajectorySource(gust_force(duration, gust_sigma, seed=seed)))
@@ -108,13 +116,10 @@ def fly_tracking(params: MultirotorParams, terminal: TerminalSet, duration: floa
     diagram = builder.Build()
     sim = Simulator(diagram)
     context = sim.get_mutable_context()
-    x0 = terminal.reference.state[0].copy()
-    x0[:3] += np.asarray(offset, dtype=float)
-    x0[3:7] = quat_multiply(x0[3:7], euler_to_quat([attitude_offset, 0.0, 0.0]))
-    pc = plant.GetMyMutableContextFromRoot(context)
-    xc = pc.get_continuous_state_vector().CopyToVector()
-    xc[:13] = x0
-    pc.SetContinuousState(xc)
+    if sensor_noise is not None:
+        diagram.SetRandomContext(context, RandomGenerator(seed))
+    _set_initial_state(plant.GetMyMutableContextFromRoot(context), terminal, offset,
+                       attitude_offset)
     sim.AdvanceTo(duration)
     get = {k: v.FindLog(context) for k, v in logs.items()}
     n = params.num_motors
@@ -124,6 +129,16 @@ def fly_tracking(params: MultirotorParams, terminal: TerminalSet, duration: floa
                        control_time=get["control"].sample_times(), thrusts=c[:, :n],
                        status=c[:, n], solve_time=c[:, n + 1],
                        terminal_ratio=c[:, n + 2], f_max=params.f_max)
+
+
+def _set_initial_state(plant_context, terminal: TerminalSet, offset, attitude_offset) -> None:
+    """The reference start shifted by ``offset`` [m] and rolled by ``attitude_offset`` [rad]."""
+    x0 = terminal.reference.state[0].copy()
+    x0[:3] += np.asarray(offset, dtype=float)
+    x0[3:7] = quat_multiply(x0[3:7], euler_to_quat([attitude_offset, 0.0, 0.0]))
+    xc = plant_context.get_continuous_state_vector().CopyToVector()
+    xc[:13] = x0
+    plant_context.SetContinuousState(xc)
 
 
 def build_terminal_set(params: MultirotorParams, reference: ReferenceTable | None = None,

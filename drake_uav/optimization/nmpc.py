@@ -25,7 +25,16 @@ Two modes share one program built once (only coefficients change per step):
   dynamics as nonlinear constraints with compiled Jacobians for SNOPT or IPOPT;
 * ``"rti"``: one SQP step per period (real-time iteration): the dynamics are
   linearised about the shifted previous solution, and the sparse convex QP
-  (quadratic cost, linear dynamics, bounds, cone) goes to Clarabel.
+  (quadratic cost, linear dynamics, bounds, cone) is solved.
+
+Each QP of the SQP is first solved by a Riccati recursion over the horizon
+(:mod:`drake_uav.optimization.riccati_lq`) without its bounds; when that solution
+leaves the terminal cone, the cone's multiplier is found from the end-state
+sensitivity (the QP's KKT conditions with the cone active). A solution that meets
+every thrust bound and state-box row is the QP's unique optimum; otherwise the
+QP goes to Clarabel through the ``MathematicalProgram``, whose coefficients are
+then updated. Along a reference the bounds are rarely active, so most steps cost
+one linearisation and one or two Riccati sweeps.
 """
 
 from __future__ import annotations
@@ -88,6 +97,11 @@ class NmpcSettings:
     nlp_solver: str = "sqp"
     """Full-NLP solver: ``"sqp"`` (Gauss-Newton SQP iterated to convergence, QPs with
     Clarabel), ``"snopt"`` or ``"ipopt"`` (through ``MathematicalProgram``)."""
+    qp_solver: str = "riccati"
+    """QPs of the SQP (both modes): ``"riccati"`` solves each by the Riccati recursion
+    (:mod:`drake_uav.optimization.riccati_lq`), exact when no thrust bound or state-box
+    row is active (the terminal cone may be), and hands the others to Clarabel;
+    ``"clarabel"`` gives every QP to Clarabel."""
     max_iterations: int = 20
     """Iteration limit of the full NLP (SQP iterations, SNOPT major iterations)."""
     tolerance: float = 1e-4
@@ -114,6 +128,9 @@ class NmpcSettings:
         if self.nlp_solver not in ("sqp", "snopt", "ipopt"):
             raise ValueError(f"NmpcSettings.nlp_solver must be 'sqp', 'snopt' or 'ipopt', "
                              f"got {self.nlp_solver!r}")
+        if self.qp_solver not in ("riccati", "clarabel"):
+            raise ValueError(f"NmpcSettings.qp_solver must be 'riccati' or 'clarabel', "
+                             f"got {self.qp_solver!r}")
         if not (self.max_iterations >= 1 and self.tolerance > 0):
             raise ValueError("NmpcSettings.max_iterations must be >= 1 and tolerance > 0")
 
@@ -438,7 +455,7 @@ class TrackingNmpc:
         which is its solution when it meets them all; otherwise Clarabel."""
         Xn, Ax, Bu = lin
         c = Xn - (Ax @ Xg[:-1, :, None])[:, :, 0] - (Bu @ Ug[:, :, None])[:, :, 0]
-        fast = self._riccati(Ax, Bu, c)
+        fast = self._riccati(Ax, Bu, c) if self.settings.qp_solver == "riccati" else None
         if fast is not None:
             return fast
         self._update_program()
