@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from drake_uav.io.flight_log import FlightLogError
-from drake_uav.io.px4 import read_px4
+from drake_uav.io.px4 import read_px4, read_px4_metadata
 from drake_uav.io.readers import read_log
 from drake_uav.model.rotations import euler_to_quat
 
@@ -65,7 +65,16 @@ def test_vtol_ground_log_reads_the_fixed_wing_group_with_plausible_values():
     # xy_valid = 0 throughout: no horizontal position, the height kept.
     assert "gps_pn" not in log and "gps_vn" not in log
     assert np.abs(log["gps_pd"]).max() < 1.5
-    assert log.duration > 6.2  # the whole log: the IMU starts at 20.49 s, ends at 26.79 s
+    # Commands invalid once disarmed (vehicle_status at 25.83 s): the log ends there.
+    assert log.time[0] == pytest.approx(20.488, abs=1e-3)
+    assert log.time[-1] < 25.83 and log.duration > 5.3
+
+
+def test_vtol_metadata_without_the_streams():
+    meta = read_px4_metadata(VTOL)
+    assert meta["vehicle_type"]["mav_type"] == 22 and meta["vtol_state"][0][1] == "mc"
+    assert meta["actuators"]["message"] == "actuator_controls_1"
+    assert meta["parameters"] == read_log(VTOL).metadata["parameters"]
 
 
 def test_vtol_ground_log_options_fail_clearly():
@@ -175,11 +184,12 @@ def test_sparse_optional_topics_dropped_and_invalid_samples_are_holes(tmp_path):
     for topic in ("differential_pressure", "wind"):
         assert any(m.startswith(f"{path}: optional stream '{topic}' dropped: sparse: logged "
                                 "at 1 Hz") for m in messages)
-    assert meta["segments"] == [[1.0, 5.0]]  # nothing cut for an optional stream
     assert "gps_pn" not in flight and "gps_vn" not in flight
     np.testing.assert_allclose(flight["gps_pd"], -50 - 10 * (flight.time - 1.0), atol=1e-4)
+    # The pitot of a plane is required: its negative samples are a hole between segments.
     assert meta["streams"]["airspeed"]["invalid"] == 3
-    assert flight["pitot_airspeed"].min() >= 20.0  # the hole interpolated over, not negative
+    np.testing.assert_allclose(meta["segments"], [[1.0, 2.95], [3.15, 5.0]])
+    assert flight["pitot_airspeed"].min() >= 20.0
     assert meta["actuators"]["message"] == "actuator_controls_0"
     assert meta["vehicle_type"] == {"mav_type": 1, "name": "fixed wing"}
 
@@ -231,6 +241,10 @@ def test_allocated_servos_and_pusher_motor_of_px4_114(tmp_path):
     np.testing.assert_allclose(flight["cmd_throttle"], 0.7, rtol=1e-7)  # motor 4 only
     assert flight.time[0] == pytest.approx(1.2)  # motors not driven before
     assert flight.metadata["streams"]["actuator_motors"]["invalid"] == 10
+    limit = math.radians(20.0)  # the aircraft's aileron limit: a servo at +-1
+    flight = read_px4(_allocated_vtol(tmp_path), deflections={"aileron": limit})
+    np.testing.assert_allclose(flight["cmd_aileron"], np.float32(0.3) * limit, rtol=1e-7)
+    np.testing.assert_allclose(flight["cmd_elevator"], -np.float32(0.5) * FULL, rtol=1e-7)
     with pytest.raises(FlightLogError, match=r"vtol114\.ulg: VTOL log without a forward "
                                              r"\(fixed-wing\) motor: no CA_ROTORn_AX = 1"):
         read_px4(_allocated_vtol(tmp_path, pusher=False))

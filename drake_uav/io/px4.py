@@ -14,7 +14,7 @@ vehicle_local_position    x y / z / vx vy / vz (NED),     gps_pn gps_pe / gps_pd
 (opt.)                    valid where xy_valid / z_valid  gps_vn gps_ve / gps_vd
                           / v_xy_valid / v_z_valid
 airspeed_validated (or    true_airspeed_m_s (or           pitot_airspeed, valid where
-airspeed) (opt.)          indicated_airspeed_m_s)         finite and >= 0
+airspeed) (opt.*)         indicated_airspeed_m_s)         finite and >= 0
 differential_pressure     differential_pressure_pa        pitot_qbar
 (opt.)                    (or ..._filtered_pa)
 vehicle_air_data (opt.)   baro_alt_meter                  baro_alt
@@ -25,7 +25,8 @@ wind (or wind_estimate)   windspeed_north, _east          est_wind_n est_wind_e
 rpm (opt.)                indicated_frequency_rpm         motor_speed
 ========================  ==============================  ==============================
 
-Required: the IMU, the attitude and (but on a multicopter) the commands.
+Required: the IMU, the attitude and (but on a multicopter) the commands; *the
+pitot too on a plane or VTOL when it is logged at 2 Hz or more with valid samples.
 ``vehicle_local_position`` is the PX4 estimator's GPS-aided solution, not the
 raw receiver; its validity flags split it into four streams, so a missing
 horizontal fix never shows as zero positions. The accelerometer's
@@ -42,13 +43,13 @@ from pathlib import Path
 import numpy as np
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
-from drake_uav.io.px4_actuators import ACTUATOR_TOPICS, actuator_streams
-from drake_uav.io.px4_metadata import px4_metadata
+from drake_uav.io.px4_actuators import ACTUATOR_TOPICS, actuator_plan, actuator_streams
+from drake_uav.io.px4_metadata import MULTICOPTER_TYPES, px4_metadata
 from drake_uav.io.px4_ulog import ULogFile, channel_stream
 from drake_uav.io.streams import ActuatorMapping, FieldSource, Stream, align_streams
 from drake_uav.model.rotations import quat_to_euler
 
-__all__ = ["read_px4"]
+__all__ = ["read_px4", "read_px4_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0
 _MIN_IMU_RATE_HZ = 100.0
@@ -125,22 +126,28 @@ def _position(log: ULogFile) -> list[Stream]:
     return streams
 
 
-def _airspeed(log: ULogFile, airspeed: str) -> Stream | None:
+def _airspeed(log: ULogFile, airspeed: str, winged: bool) -> Stream | None:
     """``pitot_airspeed`` from airspeed_validated (unless logged below 2 Hz where
-    ``airspeed`` is not), else airspeed; negative or NaN samples invalid."""
+    ``airspeed`` is not), else airspeed; negative or NaN samples invalid.
+
+    Required on a plane or VTOL when logged at 2 Hz or more with valid samples:
+    the pitot is the air data of fixed-wing work, so its holes (a negative
+    airspeed on the ground) cut segments instead of dropping it; else optional.
+    """
     topics = [t for t in ("airspeed_validated", "airspeed") if log.has(t)]
-    if len(topics) == 2:
-        rates = [_rate(log.get(t, [])[0]) for t in topics]
-        if rates[0] < _MIN_OPTIONAL_RATE_HZ <= rates[1]:
-            topics.reverse()
     if not topics:
         return None
+    rates = [_rate(log.get(t, [])[0]) for t in topics]
+    if len(topics) == 2 and rates[0] < _MIN_OPTIONAL_RATE_HZ <= rates[1]:
+        topics.reverse()
+        rates.reverse()
     field = _AIRSPEED_FIELDS[airspeed]
     time, f = log.get(topics[0], [field])
     value = f[field]
+    valid = np.isfinite(value) & (value >= 0)
+    required = winged and rates[0] >= _MIN_OPTIONAL_RATE_HZ and bool(valid.any())
     return channel_stream(topics[0], time, {"pitot_airspeed": value},
-                          {"pitot_airspeed": field}, optional=True,
-                          valid=np.isfinite(value) & (value >= 0))
+                          {"pitot_airspeed": field}, optional=not required, valid=valid)
 
 
 def _pitot_qbar(log: ULogFile) -> Stream | None:
@@ -152,12 +159,14 @@ def _pitot_qbar(log: ULogFile) -> Stream | None:
     return _simple(log, ["differential_pressure"], {"pitot_qbar": field}, optional=True)
 
 
-def _optional_streams(log: ULogFile, airspeed: str) -> list[Stream | None]:
-    """The optional streams of the default mapping (module docstring); None for a
-    topic the log does not have."""
+def _air_and_position_streams(log: ULogFile, airspeed: str, winged: bool
+                              ) -> list[Stream | None]:
+    """The streams of the default mapping but the IMU, attitude and commands (module
+    docstring; all optional but a usable pitot on a plane or VTOL); None for a topic
+    the log does not have."""
     return [
         *_position(log),
-        _airspeed(log, airspeed),
+        _airspeed(log, airspeed, winged),
         _pitot_qbar(log),
         _simple(log, ["vehicle_air_data"], {"baro_alt": "baro_alt_meter"}, optional=True),
         _simple(log, ["wind", "wind_estimate"],
@@ -175,8 +184,8 @@ def _rate(time: np.ndarray) -> float:
 
 def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None,
              airspeed: str = "true", extra: Mapping[str, FieldSource] | None = None,
-             instance: int = 0, max_gap: float = 0.5,
-             allow_truncated: bool = True) -> FlightLog:
+             instance: int = 0, max_gap: float = 0.5, allow_truncated: bool = True,
+             deflections: Mapping[str, float] | None = None) -> FlightLog:
     """Reads a PX4 ``.ulg`` log into a FlightLog (canonical channels).
 
     Args:
@@ -196,6 +205,9 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
         max_gap: longest interval between two messages of a required topic before
             the log is cut into segments [s].
         allow_truncated: keep the data before a cut (with a warning) instead of raising.
+        deflections: surface ("elevator", "aileron", "rudder") -> full deflection
+            [rad] at a demand of 1 or a full servo throw (the aircraft's limits);
+            25 deg unless given. Not used with an ``ActuatorMapping``.
 
     Metadata: ``vehicle_type``, ``firmware``, ``flight_modes``, ``vtol_state``
     (VTOLs), ``imu_rate_hz``, ``parameters``, ``actuators`` and the alignment's
@@ -222,12 +234,30 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
         warnings.warn(f"{log.source}: IMU ({base.name} multi-id {instance}) logged at "
                       f"{metadata['imu_rate_hz']:.3g} Hz, below {_MIN_IMU_RATE_HZ:g} Hz: "
                       "fast dynamics are aliased", stacklevel=3)
-    commands, metadata["actuators"] = actuator_streams(
-        log, actuators, metadata["vehicle_type"]["mav_type"])
-    streams = [gyro, _attitude(log), *commands, *_optional_streams(log, airspeed),
+    mav_type = metadata["vehicle_type"]["mav_type"]
+    sources, metadata["actuators"] = actuator_plan(log, actuators, mav_type, deflections)
+    streams = [gyro, _attitude(log), *actuator_streams(log, sources),
+               *_air_and_position_streams(log, airspeed, mav_type not in MULTICOPTER_TYPES),
                *_extra_streams(log, extra, instance)]
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
+
+
+def read_px4_metadata(path: str | Path, *, allow_truncated: bool = True,
+                      deflections: Mapping[str, float] | None = None) -> dict:
+    """What a ``.ulg`` log says about the vehicle, without reading its streams.
+
+    Returns the metadata keys of :func:`read_px4` that need no IMU:
+    ``vehicle_type``, ``firmware``, ``flight_modes`` (``vtol_state`` for a VTOL),
+    ``parameters``, ``parameter_changes`` and ``actuators`` (the mapping the
+    reader would use by default).
+    """
+    log = ULogFile(Path(path), sorted({"vtol_vehicle_status", *ACTUATOR_TOPICS}),
+                   allow_truncated)
+    metadata = px4_metadata(log)
+    _, metadata["actuators"] = actuator_plan(log, None, metadata["vehicle_type"]["mav_type"],
+                                             deflections)
+    return metadata
 
 
 def _extra_streams(log: ULogFile, extra: Mapping[str, FieldSource], instance: int

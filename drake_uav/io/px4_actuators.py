@@ -21,16 +21,20 @@ unsaturated servos. Demands become deflections as in
 Throttle: the mean of the forward-pointing motors (``CA_ROTORn_AX = 1``) of a
 VTOL, of every motor of a plane.
 
-A PWM sample is invalid (``Stream.valid`` False) at 0 (output not driven),
-outside ``PWM_MAIN_MINn..MAXn``, or at the disarmed value ``PWM_MAIN_DISn``
-while ``vehicle_status`` says disarmed (an armed servo may sit at a disarmed
-value equal to its centre); a NaN servo or motor value (PX4's "not driven") too.
+Invalid samples (``Stream.valid`` False): every command while
+``vehicle_status.arming_state`` says disarmed (the outputs then sit at their
+disarmed values ``PWM_MAIN_DISn``, whatever the logged demand; an armed servo
+at a disarmed value equal to its centre is a valid sample), a PWM of 0 (output
+not driven) or outside ``PWM_MAIN_MINn..MAXn``, a NaN servo or motor value
+(PX4's "not driven").
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -39,7 +43,7 @@ from drake_uav.io.px4_metadata import MULTICOPTER_TYPES, VTOL_TYPES
 from drake_uav.io.px4_ulog import ULogFile, channel_stream
 from drake_uav.io.streams import ActuatorMapping, Stream
 
-__all__ = ["ACTUATOR_TOPICS", "actuator_streams"]
+__all__ = ["ACTUATOR_TOPICS", "actuator_plan", "actuator_streams"]
 
 ACTUATOR_TOPICS = ("actuator_controls_0", "actuator_controls_1", "actuator_servos",
                    "actuator_motors", "actuator_outputs", "vehicle_status")
@@ -66,7 +70,7 @@ class _Source:
         message: the topic.
         terms: channel -> ((field, offset, scale, weight), ...).
         limits: channel -> (low, high) clip, for the throttle.
-        pwm: field -> (min, max, disarmed) [us] of a PWM output, for validity.
+        pwm: field -> (min, max, disarmed) [us] of a PWM output (min..max for validity).
     """
 
     message: str
@@ -140,11 +144,13 @@ def _forward_motors(log: ULogFile, motors: list[int], vtol: bool) -> list[int]:
 
 
 def _allocation_terms(log: ULogFile, servos: dict[int, tuple[str, float, float]],
-                      motors: dict[int, tuple[str, float, float]], vtol: bool) -> tuple:
+                      motors: dict[int, tuple[str, float, float]], vtol: bool,
+                      deflections: Mapping[str, float]) -> tuple:
     """(surface terms, throttle terms) of servos and motors given as index -> (field,
     offset, scale) of their -1..1 (servo) or 0..1 (motor) value."""
     torques = _servo_torques(log, sorted(servos))
-    full = {c: m.full_value for c, m in ActuatorMapping.px4_controls().channels().items()}
+    full = {c: m.full_value
+            for c, m in ActuatorMapping.px4_controls(**deflections).channels().items()}
     surfaces = {}
     for axis, channel in enumerate(_AXES):
         terms = tuple((*servos[k], full[channel] * t[axis]) for k, t in torques.items()
@@ -158,7 +164,7 @@ def _allocation_terms(log: ULogFile, servos: dict[int, tuple[str, float, float]]
     return surfaces, throttle
 
 
-def _allocated(log: ULogFile, vtol: bool) -> list[_Source]:
+def _allocated(log: ULogFile, vtol: bool, deflections: Mapping[str, float]) -> list[_Source]:
     """actuator_servos + actuator_motors (PX4 1.14+) through the CA_* parameters."""
     def controls(topic: str, count: int) -> dict[int, tuple[str, float, float]]:
         fields = log.fields(topic) if log.has(topic) else {}
@@ -166,7 +172,7 @@ def _allocated(log: ULogFile, vtol: bool) -> list[_Source]:
 
     servos = controls("actuator_servos", int(log.parameter("CA_SV_CS_COUNT", 8)))
     motors = controls("actuator_motors", int(log.parameter("CA_ROTOR_COUNT", 1)))
-    surfaces, throttle = _allocation_terms(log, servos, motors, vtol)
+    surfaces, throttle = _allocation_terms(log, servos, motors, vtol, deflections)
     sources = [_Source("actuator_servos", surfaces)] if surfaces else []
     if throttle:
         sources.append(_Source("actuator_motors", {"cmd_throttle": throttle},
@@ -174,7 +180,7 @@ def _allocated(log: ULogFile, vtol: bool) -> list[_Source]:
     return sources
 
 
-def _outputs(log: ULogFile, vtol: bool) -> list[_Source]:
+def _outputs(log: ULogFile, vtol: bool, deflections: Mapping[str, float]) -> list[_Source]:
     """actuator_outputs through ``PWM_MAIN_FUNCn`` (101-112 motors, 201-208 servos), or
     the standard plane mixer's order (:meth:`ActuatorMapping.px4_outputs`) without it."""
     functions = {n: int(log.parameter(f"PWM_MAIN_FUNC{n}", 0)) for n in range(1, 17)}
@@ -184,7 +190,7 @@ def _outputs(log: ULogFile, vtol: bool) -> list[_Source]:
                 f"{log.source}: actuator outputs of a VTOL without PWM_MAIN_FUNCn parameters "
                 "(PX4 < 1.14) cannot be mapped: read the default control group "
                 "(actuator_controls_1) or pass an ActuatorMapping")
-        return [_with_pwm(log, _from_mapping(ActuatorMapping.px4_outputs()))]
+        return [_with_pwm(log, _from_mapping(ActuatorMapping.px4_outputs(**deflections)))]
     servos, motors, pwm = {}, {}, {}
     for n, function in functions.items():
         low, high, disarmed = pwm[f"output[{n - 1}]"] = _pwm_limits(log, n)
@@ -194,14 +200,15 @@ def _outputs(log: ULogFile, vtol: bool) -> list[_Source]:
                                       sign * (high - low) / 2)
         elif 101 <= function <= 112:
             motors[function - 101] = (f"output[{n - 1}]", low, high - low)
-    surfaces, throttle = _allocation_terms(log, servos, motors, vtol)
+    surfaces, throttle = _allocation_terms(log, servos, motors, vtol, deflections)
     terms = dict(surfaces, **({"cmd_throttle": throttle} if throttle else {}))
     used = {t[0] for ts in terms.values() for t in ts}
     return [_Source("actuator_outputs", terms, {"cmd_throttle": (0.0, 1.0)},
                     {f: v for f, v in pwm.items() if f in used})]
 
 
-def _select(log: ULogFile, actuators, mav_type: int) -> tuple[list[_Source], str]:
+def _select(log: ULogFile, actuators, mav_type: int, deflections: Mapping[str, float]
+            ) -> tuple[list[_Source], str]:
     """The command sources and why they were chosen (module docstring)."""
     if isinstance(actuators, ActuatorMapping):
         return [_with_pwm(log, _from_mapping(actuators.validate()))], "given mapping"
@@ -212,10 +219,12 @@ def _select(log: ULogFile, actuators, mav_type: int) -> tuple[list[_Source], str
         return [], f"none: a multicopter (MAV_TYPE {mav_type}) has no control surfaces"
     vtol = mav_type in VTOL_TYPES
     if actuators == "outputs":
-        return _outputs(log, vtol), "actuator_outputs as asked (PWM_MAIN_* parameters)"
+        return (_outputs(log, vtol, deflections),
+                "actuator_outputs as asked (PWM_MAIN_* parameters)")
     group = "actuator_controls_1" if vtol else "actuator_controls_0"
     if log.has(group):
-        mapping = dataclasses.replace(ActuatorMapping.px4_controls(), message=group)
+        mapping = dataclasses.replace(ActuatorMapping.px4_controls(**deflections),
+                                      message=group)
         why = "fixed-wing control group of a VTOL" if vtol else "control group of a plane"
         return [_from_mapping(mapping)], why
     if vtol and log.has("actuator_controls_0"):
@@ -223,9 +232,10 @@ def _select(log: ULogFile, actuators, mav_type: int) -> tuple[list[_Source], str
             f"{log.source}: VTOL log (MAV_TYPE {mav_type}) without actuator_controls_1 (the "
             "fixed-wing control group); actuator_controls_0 drives the hover rotors")
     if log.has("actuator_servos") or log.has("actuator_motors"):
-        return _allocated(log, vtol), "actuator_servos/actuator_motors (CA_* parameters)"
+        return (_allocated(log, vtol, deflections),
+                "actuator_servos/actuator_motors (CA_* parameters)")
     if actuators is None and log.has("actuator_outputs"):
-        return _outputs(log, vtol), "actuator_outputs (no control topic in the log)"
+        return _outputs(log, vtol, deflections), "actuator_outputs (no control topic in the log)"
     raise FlightLogError(f"{log.source}: no actuator topic (actuator_controls_0/1, "
                          "actuator_servos, actuator_motors or actuator_outputs)")
 
@@ -244,15 +254,12 @@ def _stream(log: ULogFile, source: _Source) -> Stream:
     """The held command stream of one source, invalid samples flagged."""
     fields = sorted({t[0] for terms in source.terms.values() for t in terms})
     time, raw = log.get(source.message, fields)
-    valid = np.ones(time.size, bool)
-    disarmed = _disarmed(log, time) if source.pwm else None
+    valid = ~_disarmed(log, time)
     for field in fields:
-        good = np.isfinite(raw[field])
+        valid &= np.isfinite(raw[field])
         if field in source.pwm:
-            low, high, off = source.pwm[field]
-            x = raw[field]
-            good &= (x != 0) & (x >= low) & (x <= high) & ~((x == off) & disarmed)
-        valid &= good
+            low, high, _ = source.pwm[field]
+            valid &= (raw[field] != 0) & (raw[field] >= low) & (raw[field] <= high)
     channels = {}
     for channel, terms in source.terms.items():
         value = sum(w * (raw[f] - offset) / scale for f, offset, scale, w in terms)
@@ -263,23 +270,33 @@ def _stream(log: ULogFile, source: _Source) -> Stream:
                           hold=True, valid=None if valid.all() else valid)
 
 
-def actuator_streams(log: ULogFile, actuators, mav_type: int) -> tuple[list[Stream], dict]:
-    """The ``cmd_*`` streams and their description for ``metadata["actuators"]``.
+def actuator_plan(log: ULogFile, actuators, mav_type: int,
+                  deflections: Mapping[str, float] | None = None) -> tuple[list, dict]:
+    """(the command sources, their description for ``metadata["actuators"]``).
 
     Args:
         log: the ULog file.
         actuators: an :class:`ActuatorMapping`, ``"controls"``, ``"outputs"`` or
             None (the module docstring's choice).
         mav_type: the vehicle's MAV_TYPE (0 when unknown: treated as a plane).
+        deflections: surface ("elevator", "aileron", "rudder") -> full deflection
+            [rad] at a demand of 1 (full servo throw); 25 deg unless given.
 
     Raises:
         FlightLogError: a VTOL without its fixed-wing group or forward motor, or a
             log without any actuator topic (a plane's or VTOL's), naming the file.
     """
-    sources, why = _select(log, actuators, mav_type)
-    streams = [_stream(log, s) for s in sources]
+    deflections = {**dict.fromkeys(("elevator", "aileron", "rudder"), math.radians(25.0)),
+                   **(deflections or {})}
+    sources, why = _select(log, actuators, mav_type, deflections)
     description = {"message": sources[0].message if sources else None, "selected": why,
+                   "deflections_rad": deflections,
                    "sources": {s.message: s.describe() for s in sources}}
     if isinstance(actuators, ActuatorMapping):
         description.update(actuators.describe())
-    return streams, description
+    return sources, description
+
+
+def actuator_streams(log: ULogFile, sources: list) -> list[Stream]:
+    """The held ``cmd_*`` streams of the sources of :func:`actuator_plan`."""
+    return [_stream(log, s) for s in sources]
