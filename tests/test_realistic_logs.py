@@ -8,6 +8,7 @@ import math
 import struct
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from drake_uav.io.realistic_logs import LogProfile, extend_flight
 from drake_uav.io.realistic_px4 import VER_SW_RELEASE, write_px4_log
 
 LIMIT = math.radians(25.0)  # the Aerosonde's surface limits: the full servo throw
+REAL = Path(__file__).parent / "data"  # real logs (ArduPlane 4.2.3, PX4 1.15)
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +140,36 @@ def test_bin_ground_segment_reads_gravity_and_no_airspeed(bin_log):
     assert all(0.0 <= x.Airspeed < 8.0 for x in arsp)
 
 
+def test_bin_layouts_are_those_of_a_real_arduplane_log(bin_log):
+    real = DFReader.DFReader_binary(str(REAL / "ardupilot_center_0003.bin"))
+    real_formats = {f.name: (f.format, f.columns) for f in real.formats.values()}
+    ours = DFReader.DFReader_binary(str(bin_log.path))
+    shared = 0
+    for f in ours.formats.values():
+        if f.name == "PARM":  # ArduPlane 4.3+ adds the Default column to 4.2's QNf
+            assert (f.format, f.columns) == ("QNff", ["TimeUS", "Name", "Value", "Default"])
+        elif f.name in real_formats:
+            assert (f.format, f.columns) == real_formats[f.name], f.name
+            shared += 1
+    assert shared >= 13
+
+
 # ---------------------------------------------------------------- PX4 .ulg
+def test_ulg_fields_are_those_of_a_real_px4_log(ulg_log):
+    real = {d.name: {(f.field_name, f.type_str) for f in d.field_data}
+            for d in ULog(str(REAL / "px4_sample_px4_events.ulg")).data_list}
+    shared = 0
+    for d in ULog(str(ulg_log.path)).data_list:
+        fields = {(f.field_name, f.type_str) for f in d.field_data}
+        if d.name == "vehicle_gps_position":  # PX4 1.14: int32 lat/lon (1e-7 deg), alt (mm)
+            fields -= {("lat", "int32_t"), ("lon", "int32_t"), ("alt", "int32_t"),
+                       ("alt_ellipsoid", "int32_t")}
+        if d.name in real:
+            assert fields <= real[d.name], (d.name, fields - real[d.name])
+            shared += 1
+    assert shared >= 8
+
+
 def test_ulg_topics_parameters_and_info_as_px4_writes_them(ulg_log):
     ulog, ph = ULog(str(ulg_log.path)), ulg_log.phases
     data = {d.name: d.data for d in ulog.data_list}
@@ -235,6 +266,17 @@ def test_takeoff_joins_the_flight_and_phases_are_ordered(flight):
     assert np.all(ch["cmd_throttle"][extended.time < ph.takeoff_s] == 0.0)
     takeoff = (extended.time >= ph.takeoff_s) & (extended.time < ph.flight_s)
     assert np.all(ch["cmd_throttle"][takeoff] == 1.0)
+
+
+def test_motor_speed_is_logged_as_rpm(flight, tmp_path):
+    measured = {k: flight[k] for k in flight.measured_names}
+    measured["motor_speed"] = np.full(len(flight), 2.0 * np.pi * 60.0)  # 3600 rev/min
+    log = FlightLog(flight.time, measured, units={**flight.units, "motor_speed": "rad/s"},
+                    metadata=flight.metadata)
+    rpm = _dataflash(write_ardupilot_log(log, tmp_path / "f.bin", seed=0).path)["RPM"]
+    assert [x.RPM for x in rpm][-5:] == pytest.approx([3600.0] * 5)
+    ulog = ULog(str(write_px4_log(log, tmp_path / "f.ulg", seed=0).path))
+    assert ulog.get_dataset("rpm").data["indicated_frequency_rpm"][-5:] == pytest.approx(3600.0)
 
 
 def test_a_flight_without_a_channel_is_refused_by_name(flight):
