@@ -329,6 +329,8 @@ def test_flight_modes_vehicle_type_and_ahrs_angles(tmp_path):
     assert hexa.metadata["vehicle_type"] == {"mav_type": 13, "name": "hexarotor"}
     assert hexa.metadata["flight_modes"] == [[0.5, "LOITER"]]
     assert not any(n.startswith("cmd_") for n in hexa.names)
+    unknown = read_ardupilot(_flight(tmp_path / "unknown.bin", firmware=""))
+    assert "vehicle_type" not in unknown.metadata  # not guessed when nothing tells
 
 
 def test_aetr_demands_on_request(tmp_path):

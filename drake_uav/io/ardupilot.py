@@ -232,7 +232,7 @@ def _resolve_actuators(log: DataFlash, actuators, params: Mapping[str, float],
 
 
 def _vehicle_metadata(log: DataFlash, params: Mapping[str, float]) -> dict:
-    """vehicle_type, firmware, flight_modes (and vtol_state for a quadplane)."""
+    """firmware, flight_modes, vehicle_type (when known) and vtol_state (quadplanes)."""
     firmware = ""
     for message, field in (("VER", "FWS"), ("MSG", "Message")):
         got = log.strings(message, field)
@@ -246,8 +246,11 @@ def _vehicle_metadata(log: DataFlash, params: Mapping[str, float]) -> dict:
     if got is not None:
         modes = [[float(t), mode_name(firmware, int(m))]
                  for t, m in zip(got[0], got[1]["ModeNum"], strict=True)]
-    meta = {"vehicle_type": kind, "firmware": firmware, "flight_modes": modes}
-    if 19 <= kind["mav_type"] <= 24 and firmware.startswith("ArduPlane"):
+    meta = {"firmware": firmware, "flight_modes": modes}
+    if kind is None:  # unknown: left out rather than guessed
+        return meta
+    meta["vehicle_type"] = kind
+    if 19 <= kind["mav_type"] <= 24:
         # ArduPlane's Q modes hover on the lift motors; the others fly on the wing.
         meta["vtol_state"] = [[t, "mc" if name.startswith("Q") else "fw"] for t, name in modes]
     return meta

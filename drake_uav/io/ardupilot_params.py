@@ -67,15 +67,20 @@ def _firmware_name(firmware: str) -> str:
     return name if name in _MODES or name in ("ArduSub", "Blimp", "AntennaTracker") else ""
 
 
-def vehicle_type(firmware: str, params: Mapping[str, float]) -> dict:
-    """``{"mav_type": int, "name": str}`` (MAVLink MAV_TYPE numbering) of a log.
+def vehicle_type(firmware: str, params: Mapping[str, float]) -> dict | None:
+    """``{"mav_type": int, "name": str}`` (MAVLink MAV_TYPE numbering) of a log, or None
+    when neither the firmware string nor the parameters tell.
 
     ArduPlane is a fixed wing (1) unless ``Q_ENABLE = 1`` (a quadplane: 20
     tailsitter, 21 tiltrotor, 22 fixed-rotor VTOL, or ``Q_MAV_TYPE`` when set);
     ArduCopter takes its type from ``FRAME_CLASS`` (2 quadrotor by default);
-    Rover is a ground rover (10); anything else 0 (generic).
+    Rover is a ground rover (10). Without a firmware string, ``Q_ENABLE`` marks
+    ArduPlane and ``FRAME_CLASS`` ArduCopter (parameters only those firmwares have).
     """
     name = _firmware_name(firmware)
+    if not name:
+        name = ("ArduPlane" if "Q_ENABLE" in params
+                else "ArduCopter" if "FRAME_CLASS" in params else "")
     if name == "ArduPlane":
         if params.get("Q_ENABLE", 0.0) < 1.0:
             return {"mav_type": 1, "name": "fixed wing"}
@@ -94,7 +99,7 @@ def vehicle_type(firmware: str, params: Mapping[str, float]) -> dict:
         return {"mav_type": 10, "name": "ground rover"}
     if name == "ArduSub":
         return {"mav_type": 12, "name": "submarine"}
-    return {"mav_type": 0, "name": f"unknown ({firmware or 'no firmware string'})"}
+    return None
 
 
 def mode_name(firmware: str, mode_number: int) -> str:
