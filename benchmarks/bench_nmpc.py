@@ -5,16 +5,21 @@ for ``--duration`` seconds with four controllers of the same OCP (T_p = 1 s, 40
 RK4 multiple-shooting intervals, the same weights, thrust bounds and terminal
 level set):
 
-* drake_uav RTI (one SQP step, Clarabel) and full NLP (SQP to convergence);
+* drake_uav RTI (one SQP step) and full NLP (SQP to convergence), each with its QPs
+  solved by the Riccati recursion (Clarabel when a bound is active) and, as
+  ``rti_clarabel`` / ``nlp_clarabel``, with every QP given to Clarabel;
 * CasADi + IPOPT (full NLP) and CasADi ``sqpmethod`` limited to one iteration.
 
 The CasADi model is not a second copy of the equations: the plant function
 ``multirotor_dynamics`` and ``state_error`` are traced with Drake symbolic variables
 and their expressions evaluated with CasADi symbols. The plant is integrated
-with RK4 at 5 ms between 40 Hz control steps. Prints median / p95 / max per
-mode, the RMSE after 2 s and the ratios against CasADi.
+with RK4 at 5 ms between 40 Hz control steps. All controllers fly in lockstep
+(each its own loop; at every control step each is timed in turn), so the load of a
+shared machine falls on all of them alike. Prints median / p95 / max of the wall
+time of each step and the median of its process CPU time per mode, the RMSE after
+2 s, which solver path the steps took, and the ratios of the medians.
 
-    python benchmarks/bench_nmpc.py [--duration 20] [--modes rti,nlp,casadi_ipopt,casadi_sqp]
+    python benchmarks/bench_nmpc.py [--duration 20] [--modes rti,nlp,casadi_ipopt,...]
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import argparse
 import time
 
 import numpy as np
+from figures import figure
 from pydrake.symbolic import Expression, Variable
 
 from drake_uav.diagrams.tracking import build_terminal_set, tracking_reference
@@ -128,34 +134,77 @@ class CasadiNmpc:
         return np.clip(U[0], 0.0, self.terminal.params.f_max), elapsed, ok
 
 
-def _closed_loop(controller, params, terminal, duration, x0):
-    x, t, times, errors, failures = x0.copy(), 0.0, [], [], 0
-    period, sub = 0.025, 5
+def _plant_step(x, u, params, period=0.025, sub=5):
+    """RK4 at ``period / sub`` of the plant (with its thrust saturation) under ``u``."""
+    h = period / sub
+    for _ in range(sub):
+        def f(s, u=u):
+            return multirotor_derivatives(s, u, params)
+        k1 = f(x)
+        k2 = f(x + h / 2 * k1)
+        k3 = f(x + h / 2 * k2)
+        k4 = f(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+def _closed_loops(controllers: dict, params, terminal, duration, x0) -> dict:
+    """Every controller flies its own copy of the loop, all in lockstep: at each control
+    step each one is timed in turn, so load on a shared machine hits all alike. Per
+    controller: wall and CPU times per step [s], RMSE after 2 s [m], failed steps, and
+    the count of each solver status."""
+    period = 0.025
+    runs = {name: {"x": x0.copy(), "wall": [], "cpu": [], "errors": [], "failures": 0,
+                   "paths": {}} for name in controllers}
+    t = 0.0
     while t < duration - 1e-9:
-        u, elapsed, ok = controller(t, x)
-        times.append(elapsed)
-        failures += not ok
-        h = period / sub
-        for _ in range(sub):
-            def f(s, u=u):
-                return multirotor_derivatives(s, u, params)
-            k1 = f(x)
-            k2 = f(x + h / 2 * k1)
-            k3 = f(x + h / 2 * k2)
-            k4 = f(x + h * k3)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        xr, _ = terminal.reference.at(t + period)
+        for name, controller in controllers.items():
+            run = runs[name]
+            cpu = time.process_time()
+            u, elapsed, ok, path = controller(t, run["x"])
+            run["cpu"].append(time.process_time() - cpu)
+            run["wall"].append(elapsed)
+            run["failures"] += not ok
+            run["paths"][path] = run["paths"].get(path, 0) + 1
+            run["x"] = _plant_step(run["x"], u, params, period)
+            run["errors"].append((t + period, np.linalg.norm(run["x"][:3] - xr[:3])))
         t += period
-        xr, _ = terminal.reference.at(t)
-        errors.append((t, np.linalg.norm(x[:3] - xr[:3])))
-    e = np.array(errors)
-    rmse = float(np.sqrt(np.mean(e[e[:, 0] >= 2.0, 1] ** 2)))
-    return np.array(times), rmse, failures
+    for run in runs.values():
+        e = np.array(run.pop("errors"))
+        run["rmse"] = float(np.sqrt(np.mean(e[e[:, 0] >= 2.0, 1] ** 2)))
+        run["wall"], run["cpu"] = np.array(run["wall"]), np.array(run["cpu"])
+    return runs
+
+
+def _controller(mode, params, terminal):
+    """``(t, x) -> (thrusts, wall time, ok, status name)`` of one benchmarked mode."""
+    if mode.startswith("casadi"):
+        casadi = CasadiNmpc(params, terminal, NmpcSettings(), mode.split("_")[1])
+
+        def ctrl(t, x):
+            u, elapsed, ok = casadi.solve(t, x)
+            return u, elapsed, ok, "casadi"
+        return ctrl
+    base, _, qp = mode.partition("_")
+    mpc = TrackingNmpc(params, terminal, NmpcSettings(mode=base, qp_solver=qp or "riccati"))
+
+    def ctrl(t, x):
+        r = mpc.solve(t, x)
+        path = "Clarabel" if r.solver_status.startswith("k") else r.solver_status
+        return r.thrusts, r.solve_time, r.success, path
+    return ctrl
+
+
+MODES = "rti,nlp,rti_clarabel,nlp_clarabel,casadi_ipopt,casadi_sqp"
+RATIOS = (("rti", "casadi_sqp"), ("nlp", "casadi_ipopt"), ("rti", "casadi_ipopt"),
+          ("rti", "rti_clarabel"), ("nlp", "nlp_clarabel"))
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=20.0)
-    parser.add_argument("--modes", default="rti,nlp,casadi_ipopt,casadi_sqp")
+    parser.add_argument("--modes", default=MODES)
     args = parser.parse_args(argv)
     params = hexacopter()
     t0 = time.perf_counter()
@@ -164,25 +213,23 @@ def main(argv=None) -> None:
     x0 = terminal.reference.state[0].copy()
     x0[:3] += [0.3, 0.4, 0.0]
     x0[3:7] = quat_multiply(x0[3:7], euler_to_quat([np.radians(10.0), 0.0, 0.0]))
-    stats = {}
-    for mode in args.modes.split(","):
-        settings = NmpcSettings(mode=mode if mode in ("rti", "nlp") else "rti")
-        if mode.startswith("casadi"):
-            ctrl = CasadiNmpc(params, terminal, settings, mode.split("_")[1]).solve
-        else:
-            mpc = TrackingNmpc(params, terminal, settings)
-
-            def ctrl(t, x, mpc=mpc):
-                r = mpc.solve(t, x)
-                return r.thrusts, r.solve_time, r.success
-        times, rmse, failures = _closed_loop(ctrl, params, terminal, args.duration, x0)
-        stats[mode] = np.median(times)
-        print(f"{mode:13s} median {1e3 * np.median(times):7.2f} ms  p95 "
-              f"{1e3 * np.percentile(times, 95):7.2f} ms  max {1e3 * times.max():7.2f} ms  "
-              f"RMSE after 2 s {100 * rmse:.3f} cm  failed steps {failures}", flush=True)
-    for mine, ref in (("rti", "casadi_sqp"), ("nlp", "casadi_ipopt"), ("rti", "casadi_ipopt")):
-        if mine in stats and ref in stats:
-            print(f"median ratio {mine} / {ref}: {stats[mine] / stats[ref]:.2f}")
+    modes = args.modes.split(",")
+    runs = _closed_loops({m: _controller(m, params, terminal) for m in modes}, params,
+                         terminal, args.duration, x0)
+    for mode, run in runs.items():
+        w, c = 1e3 * run["wall"], 1e3 * run["cpu"]
+        print(f"{mode:13s} wall median {np.median(w):7.2f} ms  p95 {np.percentile(w, 95):7.2f}"
+              f" ms  max {w.max():7.2f} ms | CPU median {np.median(c):7.2f} ms  p95 "
+              f"{np.percentile(c, 95):7.2f} ms | RMSE after 2 s {100 * run['rmse']:.3f} cm  "
+              f"failed steps {run['failures']}  {run['paths']}", flush=True)
+        figure(f"nmpc_{mode}_median_wall", np.median(w), "ms", "lower")
+        figure(f"nmpc_{mode}_median_cpu", np.median(c), "ms", "lower")
+    for mine, ref in RATIOS:
+        if mine in runs and ref in runs:
+            wall = np.median(runs[mine]["wall"]) / np.median(runs[ref]["wall"])
+            cpu = np.median(runs[mine]["cpu"]) / np.median(runs[ref]["cpu"])
+            print(f"median ratio {mine} / {ref}: wall {wall:.3f}, CPU {cpu:.3f}")
+            figure(f"nmpc_ratio_{mine}_over_{ref}", cpu, "x", "lower")
 
 
 if __name__ == "__main__":
