@@ -282,18 +282,26 @@ class ActuatorMapping:
                         _DEFAULT_PWM_RANGE)
 
     @classmethod
+    def _demands(cls, message, fields, full, throttle_full, elevator, aileron, rudder):
+        """Roll, pitch, yaw demands about 0 (``full`` = full deflection; pitch-up and
+        yaw-right positive, so negative elevator and rudder) and a 0..throttle_full
+        throttle."""
+        return cls(
+            message,
+            elevator=ActuatorChannel(fields["elevator"], 0.0, full, -elevator),
+            aileron=ActuatorChannel(fields["aileron"], 0.0, full, aileron),
+            rudder=ActuatorChannel(fields["rudder"], 0.0, full, -rudder),
+            throttle=ActuatorChannel(fields["throttle"], 0.0, throttle_full, 1.0, (0.0, 1.0)),
+        ).validate()
+
+    @classmethod
     def ardupilot_aetr(cls, elevator: float = _DEFAULT_DEFLECTION,
                        aileron: float = _DEFAULT_DEFLECTION,
                        rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
         """ArduPlane's ``AETR`` demands: Ail, Elev, Rudd in -4500..4500 (4500 = full
         deflection; positive = roll right, pitch up, yaw right), Thr 0..100 -> 0..1."""
-        return cls(
-            "AETR",
-            elevator=ActuatorChannel("Elev", 0.0, 4500.0, -elevator),
-            aileron=ActuatorChannel("Ail", 0.0, 4500.0, aileron),
-            rudder=ActuatorChannel("Rudd", 0.0, 4500.0, -rudder),
-            throttle=ActuatorChannel("Thr", 0.0, 100.0, 1.0, (0.0, 1.0)),
-        ).validate()
+        fields = {"aileron": "Ail", "elevator": "Elev", "rudder": "Rudd", "throttle": "Thr"}
+        return cls._demands("AETR", fields, 4500.0, 100.0, elevator, aileron, rudder)
 
     @classmethod
     def px4_outputs(cls, elevator: float = _DEFAULT_DEFLECTION,
@@ -314,13 +322,9 @@ class ActuatorMapping:
                      rudder: float = _DEFAULT_DEFLECTION) -> ActuatorMapping:
         """PX4 ``actuator_controls_0``: control[0..2] roll, pitch, yaw demands in -1..1
         (1 = full deflection), control[3] throttle 0..1."""
-        return cls(
-            "actuator_controls_0",
-            elevator=ActuatorChannel("control[1]", 0.0, 1.0, -elevator),
-            aileron=ActuatorChannel("control[0]", 0.0, 1.0, aileron),
-            rudder=ActuatorChannel("control[2]", 0.0, 1.0, -rudder),
-            throttle=ActuatorChannel("control[3]", 0.0, 1.0, 1.0, (0.0, 1.0)),
-        ).validate()
+        fields = {"aileron": "control[0]", "elevator": "control[1]", "rudder": "control[2]",
+                  "throttle": "control[3]"}
+        return cls._demands("actuator_controls_0", fields, 1.0, 1.0, elevator, aileron, rudder)
 
 
 # -------------------------------------------------------------------- alignment
