@@ -303,6 +303,11 @@ def test_negative_airspeed_late_gps_fix_and_slow_imu(tmp_path):
     # keeps its start and leaves them out (with a warning) rather than cutting it.
     assert log.time[0] == 0.0
     assert set(log.metadata["dropped_streams"]) == {"GPS", "ARSP"}
+    later = read_ardupilot(tmp_path / "ground.bin", segment=(2.5, 5.0))
+    assert later.time[0] == 2.5 and later.time[-1] == 5.0
+    assert later.metadata["dropped_streams"] == [] and "gps_vn" in later
+    with pytest.raises(FlightLogError, match=r"no segment .* stream 'IMU' .*span t = 7 s to 8 s"):
+        read_ardupilot(tmp_path / "ground.bin", segment=(7.0, 8.0))
     with pytest.warns(UserWarning, match=r"slow\.bin: IMU logged at 50 Hz \(< 100 Hz\)"):
         log = read_ardupilot(_flight(tmp_path / "slow.bin", imu_hz=50.0))
     assert log.metadata["imu_rate_hz"] == pytest.approx(50.0)

@@ -259,7 +259,8 @@ def _vehicle_metadata(log: DataFlash, params: Mapping[str, float]) -> dict:
 def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None = None,
                    extra: Mapping[str, FieldSource] | None = None, instance: int = 0,
                    max_gap: float = 0.5, allow_truncated: bool = True,
-                   deflections: Mapping[str, float] | None = None) -> FlightLog:
+                   deflections: Mapping[str, float] | None = None,
+                   segment: tuple[float, float] | None = None) -> FlightLog:
     """Reads an ArduPilot DataFlash ``.bin`` log into a FlightLog (canonical channels).
 
     Args:
@@ -278,6 +279,8 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
             warning; False raises instead.
         deflections: surface ("elevator", "aileron", "rudder") -> full deflection
             [rad] at the servo's MAX (or MIN) PWM or full demand; 25 deg by default.
+        segment: (t0, t1) [s since boot] to read, None: the whole log. Optional
+            streams are judged inside it (a GPS fixed before ``t0`` is kept).
 
     Raises:
         FlightLogError: not a DataFlash log, corrupt, a TimeMS log (unsupported
@@ -305,7 +308,7 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
         metadata["gps_origin_lat_lon_alt"] = gps[1]
     streams += _extra_streams(log, extra)
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
-                         max_gap=max_gap, metadata=metadata)
+                         max_gap=max_gap, metadata=metadata, span=segment)
 
 
 def read_ardupilot_metadata(path: str | Path, *, allow_truncated: bool = True,

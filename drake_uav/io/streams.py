@@ -473,10 +473,12 @@ def _describe_pieces(stream: Stream, pieces: np.ndarray) -> str:
 
 
 def _required_segments(base: Stream, required: Sequence[Stream], source: str,
-                       max_gap: float) -> np.ndarray:
-    """Segments [s] where the base and every required stream have valid data without a gap
-    longer than ``max_gap`` or a hole; FlightLogError naming the stream without any."""
-    intervals = np.array([[-math.inf, math.inf]])
+                       max_gap: float, span: tuple[float, float] | None) -> np.ndarray:
+    """Segments [s] inside ``span`` where the base and every required stream have valid
+    data without a gap longer than ``max_gap`` or a hole; FlightLogError naming the
+    stream without any."""
+    intervals = np.array([span if span is not None else (-math.inf, math.inf)], float)
+    inside = "" if span is None else f", span t = {span[0]:g} s to {span[1]:g} s"
     for stream in (base, *required):
         pieces = stream.pieces(max_gap, split_holes=True)
         intervals = _intersect(intervals, pieces)
@@ -484,7 +486,7 @@ def _required_segments(base: Stream, required: Sequence[Stream], source: str,
             raise FlightLogError(
                 f"{source}: no segment of at least 2 samples where every required stream "
                 f"has data: stream '{stream.name}' {_describe_pieces(stream, pieces)} "
-                f"(max_gap = {max_gap:g} s)")
+                f"(max_gap = {max_gap:g} s{inside})")
     return _segments(base.time, intervals)
 
 
@@ -530,7 +532,8 @@ def _stream_info(stream: Stream, base: Stream) -> dict:
 
 
 def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_gap: float = 0.5,
-                  metadata: Mapping[str, object] | None = None) -> FlightLog:
+                  metadata: Mapping[str, object] | None = None,
+                  span: tuple[float, float] | None = None) -> FlightLog:
     """One FlightLog on the time base of ``base`` (the IMU) from several streams.
 
     Invalid samples are removed first. The base and the required streams cut
@@ -541,7 +544,9 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
     a gap longer than ``max_gap`` inside a segment, or misses more than
     ``max_gap`` at a segment's end is dropped with a warning naming ``source``
     and the stream (``metadata["dropped_streams"]``); otherwise the segments
-    are trimmed to its data.
+    are trimmed to its data. ``span`` = (t0, t1) [s] keeps only that part of
+    the log, before optional streams are judged (a GPS fixed after the log's
+    start but before ``t0`` is kept).
 
     Raises:
         FlightLogError (naming ``source`` and the stream): a stream is empty,
@@ -550,10 +555,12 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
     """
     if not max_gap > 0:
         raise ValueError(f"max_gap: must be positive, got {max_gap}")
+    if span is not None and not span[0] < span[1]:
+        raise ValueError(f"span: need t0 < t1, got {span}")
     for stream in (base, *streams):
         stream.check(source)
     segments = _required_segments(base, [s for s in streams if not s.optional], source,
-                                  max_gap)
+                                  max_gap, span)
     kept, dropped = [base], []
     for stream in streams:
         if stream.optional:
