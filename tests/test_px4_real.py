@@ -250,6 +250,14 @@ def test_allocated_servos_and_pusher_motor_of_px4_114(tmp_path):
         read_px4(_allocated_vtol(tmp_path, pusher=False))
 
 
+def test_servos_without_surface_types_are_refused(tmp_path):
+    log = _Log(MAV_TYPE=1, CA_SV_CS_COUNT=2)
+    log.topic("actuator_servos", "float[8] control", 50, control=np.zeros((201, 8)))
+    with pytest.raises(FlightLogError, match=r"untyped\.ulg: no servo of servos \[0, 1\] "
+                                             r"moves a control axis \(CA_SV_CSn_TYPE"):
+        read_px4(log.save(tmp_path / "untyped.ulg"))
+
+
 def test_outputs_through_pwm_functions_and_limits(tmp_path):
     log = _Log(MAV_TYPE=1, PWM_MAIN_FUNC1=201, PWM_MAIN_FUNC2=202, PWM_MAIN_FUNC3=101,
                CA_SV_CS_COUNT=2, CA_SV_CS0_TYPE=15, CA_SV_CS1_TYPE=3, CA_ROTOR_COUNT=1,

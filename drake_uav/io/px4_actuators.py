@@ -157,6 +157,11 @@ def _allocation_terms(log: ULogFile, servos: dict[int, tuple[str, float, float]]
                       if t[axis])
         if terms:
             surfaces[channel] = terms
+    if not surfaces:
+        raise FlightLogError(
+            f"{log.source}: no servo of servos {sorted(servos)} moves a control axis "
+            "(CA_SV_CSn_TYPE 1-8 or 15, or CA_SV_CSn_TRQ_R/P/Y); map the surfaces with an "
+            "ActuatorMapping")
     throttle = ()
     if motors:
         forward = _forward_motors(log, sorted(motors), vtol)
@@ -173,7 +178,7 @@ def _allocated(log: ULogFile, vtol: bool, deflections: Mapping[str, float]) -> l
     servos = controls("actuator_servos", int(log.parameter("CA_SV_CS_COUNT", 8)))
     motors = controls("actuator_motors", int(log.parameter("CA_ROTOR_COUNT", 1)))
     surfaces, throttle = _allocation_terms(log, servos, motors, vtol, deflections)
-    sources = [_Source("actuator_servos", surfaces)] if surfaces else []
+    sources = [_Source("actuator_servos", surfaces)]
     if throttle:
         sources.append(_Source("actuator_motors", {"cmd_throttle": throttle},
                                {"cmd_throttle": (0.0, 1.0)}))
@@ -230,14 +235,16 @@ def _select(log: ULogFile, actuators, mav_type: int, deflections: Mapping[str, f
     if vtol and log.has("actuator_controls_0"):
         raise FlightLogError(
             f"{log.source}: VTOL log (MAV_TYPE {mav_type}) without actuator_controls_1 (the "
-            "fixed-wing control group); actuator_controls_0 drives the hover rotors")
+            "fixed-wing control group); actuator_controls_0 drives the hover rotors: map "
+            "the surfaces with an ActuatorMapping")
     if log.has("actuator_servos") or log.has("actuator_motors"):
         return (_allocated(log, vtol, deflections),
                 "actuator_servos/actuator_motors (CA_* parameters)")
     if actuators is None and log.has("actuator_outputs"):
         return _outputs(log, vtol, deflections), "actuator_outputs (no control topic in the log)"
     raise FlightLogError(f"{log.source}: no actuator topic (actuator_controls_0/1, "
-                         "actuator_servos, actuator_motors or actuator_outputs)")
+                         "actuator_servos, actuator_motors or actuator_outputs); map the "
+                         "commands of another topic with an ActuatorMapping")
 
 
 def _disarmed(log: ULogFile, time: np.ndarray) -> np.ndarray:
