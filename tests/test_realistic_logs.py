@@ -279,6 +279,17 @@ def test_motor_speed_is_logged_as_rpm(flight, tmp_path):
     assert ulog.get_dataset("rpm").data["indicated_frequency_rpm"][-5:] == pytest.approx(3600.0)
 
 
+def test_profile_sets_rates_and_truncation_and_is_checked(flight, tmp_path):
+    with pytest.raises(ValueError, match="profile.imu_rate_hz: must be positive"):
+        write_ardupilot_log(flight, tmp_path / "x.bin", seed=0, profile=LogProfile(imu_rate_hz=0))
+    profile = LogProfile(imu_rate_hz=100.0, truncate=False)
+    path = write_ardupilot_log(flight, tmp_path / "f.bin", seed=0, profile=profile).path
+    assert _rate([x.TimeUS / 1e6 for x in _dataflash(path)["IMU"]]) == pytest.approx(100.0)
+    reader = DFReader.DFReader_binary(str(path))
+    assert max(int(o[-1]) + reader.formats[t].len for t, o in enumerate(reader.offsets)
+               if o) == path.stat().st_size
+
+
 def test_a_flight_without_a_channel_is_refused_by_name(flight):
     measured = {k: flight[k] for k in flight.measured_names if k != "pitot_qbar"}
     log = FlightLog(flight.time, measured, units=flight.units, metadata=flight.metadata)

@@ -94,9 +94,9 @@ class LogProfile:
     """End the file inside a half-written last message (a power loss while logging)."""
 
     def validate(self) -> LogProfile:
-        order = (0.0, self.gps_fix_s, self.ground_s)
-        if not (order[0] <= order[1] and 0.0 <= self.arm_s <= self.ground_s):
-            raise ValueError(f"profile: need 0 <= gps_fix_s, 0 <= arm_s <= ground_s, got "
+        """Checks the timing and rates; returns self."""
+        if not (0.0 <= self.gps_fix_s and 0.0 <= self.arm_s <= self.ground_s):
+            raise ValueError(f"profile: need 0 <= gps_fix_s and 0 <= arm_s <= ground_s, got "
                              f"{self.gps_fix_s}, {self.arm_s}, {self.ground_s}")
         for name in ("roll_s", "climb_s", "imu_rate_hz", "command_rate_hz", "gps_rate_hz",
                      "airspeed_rate_hz", "baro_rate_hz", "position_rate_hz",
