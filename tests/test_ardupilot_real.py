@@ -228,6 +228,33 @@ def test_second_imu_on_every_generation(tmp_path, imu_field):
         read_ardupilot(path, instance=2)
 
 
+def test_second_gps_baro_and_airspeed_as_separate_messages(tmp_path):
+    """ArduPilot 4.0 and earlier: GPS2, BAR2, ASP2 messages without an instance field."""
+    w = DataFlashWriter()
+    _defines(w, imu_field=False)
+    for k, name in enumerate(("GPS", "GPS2")):
+        w.define(name, "QBLLeffff", "TimeUS,Status,Lat,Lng,Alt,Spd,GCrs,VZ,U")
+        w.add(name, TimeUS=_us(0.0, 5, 4.0), Status=3, Lat=47.0, Lng=8.0, Alt=500.0,
+              Spd=10.0 + k, GCrs=0.0, VZ=0.0)
+    for k, (baro, arsp) in enumerate((("BARO", "ARSP"), ("BAR2", "ASP2"))):
+        w.define(baro, "Qf", "TimeUS,Alt")
+        w.define(arsp, "Qff", "TimeUS,Airspeed,DiffPress")
+        w.add(baro, TimeUS=_us(0.0, 10, 4.0), Alt=100.0 + k)
+        w.add(arsp, TimeUS=_us(0.0, 10, 4.0), Airspeed=20.0 + k, DiffPress=240.0)
+    for name in ("IMU", "IMU2"):
+        w.add(name, TimeUS=_us(0.0, 200, 4.0), AccZ=-G)
+    w.add("ATT", TimeUS=_us(0.0, 25, 4.0), Roll=0.0)
+    w.add("RCOU", TimeUS=_us(0.0, 50, 4.0), C1=1500, C2=1500, C3=1100, C4=1500)
+    path = w.save(tmp_path / "legacy.bin")
+    with pytest.warns(UserWarning, match=r"no SERVOn parameters"):
+        first, second = read_ardupilot(path), read_ardupilot(path, instance=1)
+    for log, k in ((first, 0), (second, 1)):
+        np.testing.assert_allclose(log["gps_vn"], 10.0 + k, rtol=1e-6)
+        np.testing.assert_allclose(log["baro_alt"], 100.0 + k, rtol=1e-6)
+        np.testing.assert_allclose(log["pitot_airspeed"], 20.0 + k, rtol=1e-6)
+    assert set(second.metadata["streams"]) >= {"IMU2", "GPS2", "BAR2", "ASP2"}
+
+
 def test_pwm_zero_before_arming_is_invalid_never_a_deflection(tmp_path):
     path = _flight(tmp_path / "arming.bin", arm_s=2.0)
     log = read_ardupilot(path)
