@@ -5,7 +5,8 @@ effect its model lacks (lift bending away at high alpha: C_L -= 30 alpha^3). The
 logs get a ground segment, a take-off run, a late GPS fix, PWM 0 before arming,
 a reversed servo, +-400 us throws, a 50 Hz IMU, 1 Hz optional topics and a
 truncated tail; no vanes, no truth. Reading them back shows what the readers make
-of it; `drake-uav identify FOLDER/flight.bin` runs the main job on one.
+of it; `drake-uav identify FOLDER/flight.bin` runs the main job on one, and
+FOLDER/flight.csv (the same flight with vanes and truth) is the reference to compare with.
 
 Run: python examples/realistic_autopilot_logs.py [folder]
 """
@@ -23,6 +24,7 @@ folder = Path(sys.argv[1] if len(sys.argv) > 1 else "out/realistic_autopilot_log
 folder.mkdir(parents=True, exist_ok=True)
 flight = fly("aerosonde", turbulence="light", seed=3, duration=120.0,
              disturbance=lambda c: (-30.0 * c.alpha**3, 0, 0, 0, 0, 0))
+flight.save(folder / "flight.csv")
 
 for writer, name in ((write_ardupilot_log, "flight.bin"), (write_px4_log, "flight.ulg")):
     written = writer(flight, folder / name, seed=3)
