@@ -242,7 +242,8 @@ def _vehicle_metadata(log: DataFlash, params: Mapping[str, float]) -> dict:
             break
     kind = vehicle_type(firmware, params)
     modes = []
-    got = log.read("MODE", ["ModeNum"]) if log.has("MODE") else None
+    got = (log.read("MODE", ["ModeNum"])
+           if log.has("MODE") and "ModeNum" in log.fields("MODE") else None)
     if got is not None:
         modes = [[float(t), mode_name(firmware, int(m))]
                  for t, m in zip(got[0], got[1]["ModeNum"], strict=True)]
@@ -302,6 +303,9 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
                _airspeed(log, instance), *_optional_streams(log, instance)]
     if mapping is not None:
         streams.append(_actuator_stream(log, mapping))
+        if streams[-1] is None:
+            warnings.warn(f"{log.source}: no {mapping.message} messages: no cmd_* channels",
+                          stacklevel=2)
     gps = _gps(log, instance)
     if gps is not None:
         streams.append(gps[0])
