@@ -18,6 +18,8 @@ and its parts, each usable alone:
 * :mod:`.effects` and :mod:`.discovery`: named effects, :func:`discover`,
   :func:`fit_derivatives`.
 * :mod:`.reconstruction`: output-error :func:`reconstruct`.
+* :mod:`.propulsion`: :func:`identify_thrust`, thrust from the motor speed or the throttle,
+  identified with C_X (:class:`ThrustModel`).
 * :mod:`.crlb`: Cramer-Rao bounds.
 """
 
@@ -48,6 +50,12 @@ from drake_uav.identification.main_job import (
     identify,
     identify_derivatives,
     identify_samples,
+)
+from drake_uav.identification.propulsion import (
+    ThrustDiagnostics,
+    ThrustModel,
+    ThrustPrediction,
+    identify_thrust,
 )
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.identification.recursive import (
@@ -93,6 +101,9 @@ __all__ = [
     "RecursiveTLS",
     "RegressionResult",
     "ResidualDiagnosis",
+    "ThrustDiagnostics",
+    "ThrustModel",
+    "ThrustPrediction",
     "VariableForgetting",
     "baseline_names",
     "bcls",
@@ -108,6 +119,7 @@ __all__ = [
     "identify",
     "identify_derivatives",
     "identify_samples",
+    "identify_thrust",
     "isolate_coefficients",
     "long_run_covariance",
     "monte_carlo_sigma",

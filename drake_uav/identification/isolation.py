@@ -252,6 +252,7 @@ def isolate_coefficients(
     derivative_window: float = 0.2,
     raw_noise_variance: Mapping[str, float] | None = None,
     moment_controls: np.ndarray | None = None,
+    thrust_airspeed_slope: np.ndarray | None = None,
 ) -> AeroSamples:
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
@@ -276,6 +277,9 @@ def isolate_coefficients(
     ``moment_controls`` (N, 4) [elevator, aileron, rudder rad, throttle].
     ``thrust`` [N] defaults to the params' propulsion model at the measured
     airspeed and throttle (then the same for forces and moments).
+    ``thrust_airspeed_slope`` (N,) [N/(m/s)] goes with a ``thrust`` computed from the
+    measured airspeed (an identified thrust model): its dT/dVa, which the
+    errors-in-variables corrections carry; None for a thrust measured directly.
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
@@ -284,7 +288,9 @@ def isolate_coefficients(
     extra = _checked_signals(signals, len(time))
     filters = _Filters(time, derivative_window)
     model = FixedWingModel(params)
-    measured_thrust = None if thrust is None else np.asarray(thrust, dtype=float)
+    measured_thrust = None if thrust is None else (
+        np.asarray(thrust, dtype=float),
+        None if thrust_airspeed_slope is None else np.asarray(thrust_airspeed_slope, float))
     forces = _force_samples(params, model, filters, arrays, measured_thrust)
     moments = _moment_samples(params, model, filters, arrays, measured_thrust)
     coefficients = dict(zip(COEFFICIENTS, forces.coefficients + moments.coefficients,
@@ -388,7 +394,9 @@ def _control_view(model: FixedWingModel, raw_air, raw_controls, filt,
                      / (2 * step))
         thrust = filt(raw_thrust)
     else:
-        slope, thrust = None, filt(raw_measured_thrust)
+        raw_value, raw_slope = raw_measured_thrust
+        slope = None if raw_slope is None else filt(raw_slope)
+        thrust = filt(raw_value)
     torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
     q_bar = dynamic_pressure(air[:, 0], model.params.rho)
     return _ControlView(air, u, q_bar, thrust, slope, torque)
@@ -435,7 +443,9 @@ def _moment_samples(params, model, filters: _Filters, arrays, measured_thrust) -
     step = np.diff(filters.time)[:, None]
     raw_air = arrays["air_data"]
     view = _control_view(model, interval_averages(raw_air), interval_controls, filters.interval,
-                         None if measured_thrust is None else interval_averages(measured_thrust))
+                         None if measured_thrust is None else tuple(
+                             None if v is None else interval_averages(v)
+                             for v in measured_thrust))
     w = filters.interval(interval_averages(arrays["rates"]))
     w_dot = filters.interval(np.diff(arrays["rates"], axis=0) / step)
     coefficients = moment_coefficients(w_dot, w, params.inertia, view.torque, view.q_bar,
@@ -491,8 +501,10 @@ def monte_carlo_sigma(
     w = rng.multivariate_normal(np.zeros(n), corr, size=samples, method="cholesky")
     x = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * norm.cdf(w)
     err_corr = np.eye(n) if error_correlation is None else np.asarray(error_correlation)
-    err_cov = err_corr * np.outer(error_std, error_std)
-    dx = rng.multivariate_normal(np.zeros(n), err_cov, size=samples, method="cholesky")
+    # Scaled after the draw, so that an input without error (std 0) needs no factorisation
+    # of a singular covariance.
+    dx = rng.multivariate_normal(np.zeros(n), err_corr, size=samples,
+                                 method="cholesky") * error_std
     eps = function(*x.T) - function(*(x + dx).T)
     low, high = np.quantile(eps, [0.025, 0.975])
     return float(max(abs(low), abs(high)) / 1.96)

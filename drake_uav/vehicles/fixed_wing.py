@@ -19,6 +19,7 @@ import numpy as np
 from pydrake.math import sqrt
 
 from drake_uav.model.coefficients import validate_derivative_names
+from drake_uav.model.propeller import propeller_thrust, propeller_torque
 
 __all__ = [
     "ControlLimits",
@@ -169,11 +170,8 @@ class MotorPropeller:
         omega = self.propeller_speed(airspeed, throttle, rho)
         D = self.diameter
         n_d = omega * D / (2.0 * math.pi)  # revolutions per second times D [m/s]
-        # rho n^2 D^4 (C0 + C1 J + C2 J^2) with J = Va / (n D), expanded so Omega = 0 is finite.
-        thrust = rho * D**2 * (self.C_T0 * n_d * n_d + self.C_T1 * n_d * airspeed
-                               + self.C_T2 * airspeed * airspeed)
-        torque = rho * D**3 * (self.C_Q0 * n_d * n_d + self.C_Q1 * n_d * airspeed
-                               + self.C_Q2 * airspeed * airspeed)
+        thrust = propeller_thrust(rho, n_d, airspeed, D, (self.C_T0, self.C_T1, self.C_T2))
+        torque = propeller_torque(rho, n_d, airspeed, D, (self.C_Q0, self.C_Q1, self.C_Q2))
         return thrust, -torque
 
 

@@ -1,0 +1,462 @@
+"""Thrust identified from flight data, together with the body-axis force coefficient C_X.
+
+The accelerometer's body-x specific force ``a_x`` [m/s^2] carries the thrust and the
+aerodynamic force (Vaiopoulos 2017, eq. 5.41)::
+
+    m a_x = T + qbar S C_X,   C_X = C_X0 + C_Xa alpha + C_Xa2 alpha^2 + C_Xq q c/(2 Va)
+                                    + C_Xde elevator
+
+Both sides are linear in the unknowns once the thrust is written linear in its own
+coefficients (:mod:`drake_uav.model.propeller`):
+
+* **With a logged motor speed** (channel ``motor_speed``, rad/s):
+  ``T = rho D^2 (C_T0 (nD)^2 + C_T1 (nD) Va + C_T2 Va^2)``, the propeller's
+  ``rho n^2 D^4 C_T(J)``. ``C_T0`` and ``C_T1`` are identified; ``C_T2 Va^2`` has the
+  shape of ``qbar S C_X0`` (both scale with Va^2 alone), so no flight can separate
+  them: ``C_T2`` stays the catalog propeller's, and an error in it moves C_X0 by
+  ``2 D^2 dC_T2 / S`` without changing the total force.
+* **Without it**: the catalog propulsion model plus a correction in throttle and
+  airspeed, ``T = T_catalog(Va, dT) + k1 dT + k2 dT^2 + k3 dT Va``. The terms vanish at
+  zero throttle, where a windmilling propeller's thrust again scales with Va^2 alone
+  (a weaker motor or battery changes only the throttle-driven part).
+
+The subset of thrust terms is the one with the smallest error on held-out blocks of
+the flight (blocked cross-validation, the fewest terms within 1 % of the best). The
+chosen set is fitted by bias-compensated least squares (:func:`~.regression.bcls`):
+airspeed, alpha and motor speed are measured with noise, carried into every column by
+their sensitivities, with a long-run (Newey-West) covariance for the correlated
+residual of smoothed flight data.
+
+**Identifiability.** When the throttle hardly moves, the thrust terms are nearly a
+constant and a multiple of Va, and a narrow airspeed range makes those collinear with
+``qbar S C_X0``: thrust and drag trade against each other. The fit reports the
+condition number of the column-equilibrated regressors, the multiple correlation of
+the thrust columns with the C_X columns and the thrust's standard deviation relative
+to its spread over the flight; past the limits it falls back to the catalog model with
+an :class:`~.regression.InsufficientExcitationWarning` instead of returning a thrust
+the data do not determine.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import numpy as np
+
+from drake_uav.identification.errors_in_variables import PropagatedNoise
+from drake_uav.identification.isolation import smoothed_noise_variance
+from drake_uav.identification.regression import InsufficientExcitationWarning, bcls
+from drake_uav.model.air_data import dynamic_pressure
+from drake_uav.model.coefficients import AeroCondition, signal_values
+from drake_uav.model.isolation import differentiate
+from drake_uav.model.propeller import (
+    THROTTLE_TERMS,
+    revolutions,
+    throttle_thrust_airspeed_slopes,
+    throttle_thrust_regressors,
+    thrust_regressor_airspeed_slopes,
+    thrust_regressors,
+)
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "identify_thrust",
+           "DRAG_TERMS", "PROPELLER_TERMS"]
+
+DRAG_TERMS = ("CX_0", "CX_alpha", "CX_alpha2", "CX_q", "CX_elevator")
+"""The C_X terms fitted with the thrust (signals of :mod:`drake_uav.model.coefficients`)."""
+PROPELLER_TERMS = ("C_T0", "C_T1")
+"""The propeller coefficients identified from a logged motor speed."""
+
+_CANDIDATES = {
+    "motor_speed": (("C_T0",), PROPELLER_TERMS),
+    "throttle": ((), THROTTLE_TERMS[:1], THROTTLE_TERMS[:2], THROTTLE_TERMS[::2],
+                 THROTTLE_TERMS),
+}
+"""Thrust-term subsets compared by held-out error, per source."""
+
+MAX_CONDITION = 1e4
+"""Largest condition number of the column-equilibrated regressors accepted."""
+MAX_CORRELATION = 0.999
+"""Largest multiple correlation of a thrust column with the C_X columns accepted."""
+MAX_RELATIVE_STD = 0.25
+"""Largest median thrust standard deviation, relative to the thrust's spread, accepted."""
+PARSIMONY = 0.01
+"""Relative held-out error within which the subset with fewer terms wins."""
+
+
+class ThrustPrediction(NamedTuple):
+    """Thrust of a :class:`ThrustModel` on arrays of samples."""
+
+    thrust: np.ndarray
+    """T [N]."""
+    std: np.ndarray
+    """Standard deviation of T from the coefficients' covariance [N] (0: catalog)."""
+    airspeed_slope: np.ndarray
+    """dT/dVa at the logged throttle or motor speed [N/(m/s)]."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ThrustDiagnostics:
+    """How well the flight determines the thrust."""
+
+    condition: float
+    """Condition number of the column-equilibrated regressors (C_X and thrust)."""
+    correlation: float
+    """Largest multiple correlation of a thrust column with the C_X columns [-]."""
+    relative_std: float
+    """Median thrust standard deviation over the thrust's spread (std over the flight)."""
+    held_out_rmse: Mapping[tuple[str, ...], float]
+    """Held-out RMS error of m a_x [N] per candidate thrust-term subset."""
+    identifiable: bool
+    message: str
+    """Why the catalog was kept, or empty."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ThrustModel:
+    """An identified (or catalog) thrust model; :meth:`thrust` evaluates it on samples."""
+
+    params: FixedWingParams
+    """The catalog aircraft (its propulsion model is the fallback and the fixed part)."""
+    source: str
+    """"motor_speed" (propeller C_T(J)), "throttle" (catalog plus correction) or "catalog"."""
+    terms: tuple[str, ...]
+    """Names of the identified thrust coefficients."""
+    coefficients: np.ndarray
+    """Their values (C_T0, C_T1 [-]; throttle terms [N], [N], [N s/m])."""
+    covariance: np.ndarray
+    """Their covariance."""
+    drag_terms: tuple[str, ...] = DRAG_TERMS
+    drag_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """C_X coefficients fitted together with the thrust [-] (empty for the catalog)."""
+    drag_sigma: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    """Their standard deviations [-]."""
+    diagnostics: ThrustDiagnostics | None = None
+
+    def thrust(self, airspeed, throttle, motor_speed=None) -> ThrustPrediction:
+        """Thrust [N], its standard deviation [N] and dT/dVa [N/(m/s)] at airspeed [m/s],
+        throttle [0..1] and, for a model identified from it, motor speed [rad/s]."""
+        base = _base_thrust(self.params, self.source, self.terms, airspeed, throttle,
+                            motor_speed)
+        if not self.terms:
+            return ThrustPrediction(base.value, np.zeros_like(base.value), base.slope)
+        columns = _thrust_columns(self.params, self.source, airspeed, throttle, motor_speed,
+                                  self.terms)
+        value = base.value + columns.value @ self.coefficients
+        std = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", columns.value, self.covariance,
+                                           columns.value), 0.0))
+        return ThrustPrediction(value, std, base.slope + columns.slope @ self.coefficients)
+
+
+def catalog_propeller(params: FixedWingParams) -> tuple[float, tuple[float, float, float]]:
+    """Propeller diameter D [m] and ``(C_T0, C_T1, C_T2)`` [-] of the params' propulsion.
+
+    A :class:`~drake_uav.vehicles.fixed_wing.MotorPropeller` gives its own. The momentum
+    model of Beard & McLain (2012, sec. 4.3), ``0.5 rho S_prop C_prop ((k dT)^2 - Va^2)``,
+    is a disc of area S_prop with no ``(nD) Va`` term (C_T1 = 0), whose Va^2 term is
+    ``C_T2 = -S_prop C_prop / (2 D^2)``; it has no shaft speed, so no C_T0 (NaN).
+    Raises ``ValueError`` for a model with neither.
+    """
+    prop = params.propulsion
+    if hasattr(prop, "C_T2") and hasattr(prop, "diameter"):
+        return float(prop.diameter), (float(prop.C_T0), float(prop.C_T1), float(prop.C_T2))
+    if hasattr(prop, "S_prop") and hasattr(prop, "C_prop"):
+        diameter = math.sqrt(4.0 * prop.S_prop / math.pi)
+        return diameter, (math.nan, 0.0, -prop.S_prop * prop.C_prop / (2.0 * diameter**2))
+    raise ValueError(f"identify_thrust: params.propulsion ({type(prop).__name__}) has no "
+                     "propeller diameter (diameter or S_prop) to use with motor_speed")
+
+
+class _Signal(NamedTuple):
+    value: np.ndarray
+    slope: np.ndarray
+    """d(value)/dVa."""
+
+
+def _catalog_thrust(params: FixedWingParams, airspeed, throttle) -> np.ndarray:
+    """The params' propulsion thrust [N] on arrays (per sample for float-only models)."""
+    rho, prop = params.rho, params.propulsion
+    airspeed, throttle = np.broadcast_arrays(np.asarray(airspeed, float),
+                                             np.asarray(throttle, float))
+    try:
+        return np.asarray(prop.thrust_torque(airspeed, throttle, rho)[0], dtype=float)
+    except TypeError:  # scalar-generic models built on pydrake.math take one sample at a time
+        return np.array([prop.thrust_torque(float(v), float(d), rho)[0]
+                         for v, d in zip(airspeed.ravel(), throttle.ravel(), strict=True)]
+                        ).reshape(airspeed.shape)
+
+
+def _base_thrust(params, source: str, terms, airspeed, throttle, motor_speed,
+                 slope: bool = True) -> _Signal:
+    """The fixed part of the thrust: with a motor speed the catalog propeller's terms
+    that are not identified (``terms``), else the catalog model (slope by central
+    differences, 0.01 m/s; None unless ``slope``)."""
+    airspeed = np.asarray(airspeed, float)
+    if source == "motor_speed":
+        diameter, catalog = catalog_propeller(params)
+        n_d = _speed_diameter(motor_speed, diameter)
+        columns = thrust_regressors(params.rho, n_d, airspeed, diameter)
+        slopes = thrust_regressor_airspeed_slopes(params.rho, n_d, airspeed, diameter)
+        fixed = [i for i, name in enumerate(("C_T0",) + PROPELLER_TERMS[1:] + ("C_T2",))
+                 if name not in terms]
+        return _Signal(sum(catalog[i] * columns[i] for i in fixed),
+                       sum(catalog[i] * slopes[i] for i in fixed))
+    value = _catalog_thrust(params, airspeed, throttle)
+    if not slope:
+        return _Signal(value, None)
+    step = 0.01
+    return _Signal(value, (_catalog_thrust(params, airspeed + step, throttle)
+                           - _catalog_thrust(params, airspeed - step, throttle)) / (2.0 * step))
+
+
+def _speed_diameter(motor_speed, diameter: float) -> np.ndarray:
+    if motor_speed is None:
+        raise ValueError("ThrustModel.thrust: this model was identified from motor_speed; "
+                         "pass the logged motor speed [rad/s]")
+    return revolutions(np.asarray(motor_speed, float)) * diameter
+
+
+def _thrust_columns(params, source: str, airspeed, throttle, motor_speed,
+                    terms) -> _Signal:
+    """(N, len(terms)) thrust columns and their airspeed slopes."""
+    airspeed = np.asarray(airspeed, float)
+    if source == "motor_speed":
+        diameter = catalog_propeller(params)[0]
+        n_d = _speed_diameter(motor_speed, diameter)
+        names = ("C_T0", "C_T1", "C_T2")
+        values = thrust_regressors(params.rho, n_d, airspeed, diameter)
+        slopes = thrust_regressor_airspeed_slopes(params.rho, n_d, airspeed, diameter)
+    else:
+        throttle = np.asarray(throttle, float)
+        names = THROTTLE_TERMS
+        values = throttle_thrust_regressors(throttle, airspeed)
+        slopes = throttle_thrust_airspeed_slopes(throttle, airspeed)
+    pick = [names.index(t) for t in terms]
+
+    def stacked(columns):
+        out = np.zeros(airspeed.shape + (len(pick),))
+        for k, i in enumerate(pick):
+            out[..., k] = columns[i]
+        return out
+
+    return _Signal(stacked(values), stacked(slopes))
+
+
+class _Data(NamedTuple):
+    """Smoothed signals of the fit (arrays of N samples)."""
+
+    airspeed: np.ndarray
+    alpha: np.ndarray
+    pitch_rate: np.ndarray
+    elevator: np.ndarray
+    throttle: np.ndarray
+    motor_speed: np.ndarray | None
+    force: np.ndarray
+    """m a_x [N]."""
+
+
+def _drag_columns(params, data: _Data) -> np.ndarray:
+    """(N, 5) columns ``qbar S x`` of :data:`DRAG_TERMS` [N]."""
+    airspeed, alpha = data.airspeed, data.alpha
+    zero = np.zeros_like(airspeed)
+    cond = AeroCondition(airspeed=airspeed, alpha=alpha, beta=zero, p=zero, q=data.pitch_rate,
+                         r=zero, elevator=data.elevator)
+    signals = signal_values(cond, params.b, params.c)
+    q_bar_s = dynamic_pressure(airspeed, params.rho) * params.S
+    return np.column_stack([q_bar_s * np.broadcast_to(signals[t.partition("_")[2]],
+                                                      airspeed.shape) for t in DRAG_TERMS])
+
+
+def _design(params, source: str, data: _Data, terms, base: np.ndarray | None = None):
+    """Regressors ``[qbar S C_X terms | thrust terms]`` and observation ``m a_x - T_fixed``
+    (``base``: the fixed thrust T_fixed [N] when already known)."""
+    if base is None:
+        base = _base_thrust(params, source, terms, data.airspeed, data.throttle,
+                            data.motor_speed, slope=False).value
+    drag = _drag_columns(params, data)
+    thrust = _thrust_columns(params, source, data.airspeed, data.throttle, data.motor_speed,
+                             terms)
+    return np.column_stack([drag, thrust.value]), data.force - base
+
+
+def _held_out_rmse(X: np.ndarray, z: np.ndarray, folds: int) -> float:
+    """RMS error [N] of least squares predicting each of ``folds`` contiguous blocks from
+    the others (blocks, not random samples: neighbouring samples are correlated)."""
+    blocks = np.array_split(np.arange(len(z)), folds)
+    errors = []
+    for block in blocks:
+        train = np.ones(len(z), bool)
+        train[block] = False
+        scale = np.maximum(np.linalg.norm(X[train], axis=0), 1e-300)
+        theta = np.linalg.lstsq(X[train] / scale, z[train], rcond=None)[0] / scale
+        errors.append(z[block] - X[block] @ theta)
+    return float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+
+
+def _select_terms(params, source: str, data: _Data, folds: int):
+    """The thrust-term subset of least held-out error (fewest terms within
+    :data:`PARSIMONY`), and every subset's error."""
+    # Without a motor speed the fixed part (the catalog model) is the same for every subset.
+    base = None if source == "motor_speed" else _base_thrust(
+        params, source, (), data.airspeed, data.throttle, None, slope=False).value
+    rmse = {terms: _held_out_rmse(*_design(params, source, data, terms, base), folds)
+            for terms in _CANDIDATES[source]}
+    best = min(rmse.values())
+    chosen = min((t for t, e in rmse.items() if e <= best * (1.0 + PARSIMONY)),
+                 key=lambda t: (len(t), rmse[t]))
+    return chosen, rmse
+
+
+def _noise(params, source: str, data: _Data, terms, variance: Mapping[str, float]):
+    """Regressor and observation noise of the design, by central differences in each
+    noisy source (airspeed, alpha, motor speed) and the accelerometer."""
+    X, z = _design(params, source, data, terms)
+    base = data.force - z  # the fixed thrust, unchanged by alpha (and, here, motor speed)
+    regressors, observation = {}, {"ax": np.full(len(z), params.mass)}
+    steps = {"airspeed": 0.01, "alpha": 1e-4, "motor_speed": 0.1}
+    for name, step in steps.items():
+        if name not in variance:
+            continue
+        shifted = []
+        for sign in (1.0, -1.0):
+            moved = data._replace(**{name: getattr(data, name) + sign * step})
+            fixed = None if name == "airspeed" or source == "motor_speed" else base
+            shifted.append(_design(params, source, moved, terms, fixed))
+        regressors[name] = (shifted[0][0] - shifted[1][0]) / (2.0 * step)
+        observation[name] = (shifted[0][1] - shifted[1][1]) / (2.0 * step)
+    return X, z, PropagatedNoise(X.shape[1], regressors, observation, dict(variance))
+
+
+def _diagnostics(X: np.ndarray, n_drag: int, thrust_std: np.ndarray, thrust: np.ndarray,
+                 rmse) -> ThrustDiagnostics:
+    """Condition, collinearity of thrust and C_X columns and relative thrust uncertainty."""
+    scaled = X / np.maximum(np.linalg.norm(X, axis=0), 1e-300)
+    s = np.linalg.svd(scaled, compute_uv=False)
+    condition = float(s[0] / max(s[-1], 1e-300))
+    drag, correlation = X[:, :n_drag], 0.0
+    for column in X[:, n_drag:].T:
+        fitted = drag @ np.linalg.lstsq(drag, column, rcond=None)[0]
+        correlation = max(correlation, float(np.linalg.norm(fitted)
+                                             / max(np.linalg.norm(column), 1e-300)))
+    relative = float(np.median(thrust_std) / max(np.std(thrust), 1e-9))
+    problems = []
+    if condition > MAX_CONDITION:
+        problems.append(f"condition number {condition:.3g} > {MAX_CONDITION:g}")
+    if correlation > MAX_CORRELATION:
+        problems.append(f"thrust/C_X correlation {correlation:.6f} > {MAX_CORRELATION}")
+    if relative > MAX_RELATIVE_STD:
+        problems.append(f"thrust std {relative:.3g} of its spread > {MAX_RELATIVE_STD}")
+    message = ("thrust and C_X0 are confounded (" + "; ".join(problems) + "): the throttle "
+               "or motor speed varies too little; the catalog propulsion model is kept"
+               if problems else "")
+    return ThrustDiagnostics(condition, correlation, relative, dict(rmse), not problems,
+                             message)
+
+
+def _smoothed_data(params, time, specific_force, rates, air_data, controls, motor_speed,
+                   window: float) -> _Data:
+    """The fit's signals through the isolation's Savitzky-Golay smoothing of ``window`` [s]."""
+    def smooth(values):
+        return differentiate(time, np.asarray(values, float), window, deriv=0)
+
+    air = smooth(air_data)
+    if np.any(air[:, 0] <= 1.0):
+        raise ValueError("identify_thrust: airspeed below 1 m/s; pass airborne samples only")
+    return _Data(airspeed=air[:, 0], alpha=air[:, 1], pitch_rate=smooth(rates[:, 1]),
+                 elevator=smooth(controls[:, 0]), throttle=smooth(controls[:, 3]),
+                 motor_speed=None if motor_speed is None else smooth(motor_speed),
+                 force=params.mass * smooth(specific_force[:, 0]))
+
+
+def _checked(n: int, **arrays) -> dict[str, np.ndarray]:
+    """The input arrays as floats; ``ValueError`` naming a missing, misshapen or
+    non-finite one."""
+    widths = {"specific_force": 3, "rates": 3, "air_data": 3, "controls": 4, "motor_speed": 0}
+    out = {}
+    for name, value in arrays.items():
+        if value is None:
+            out[name] = None
+            continue
+        value = np.asarray(value, dtype=float)
+        shape = (n,) if widths[name] == 0 else (n, widths[name])
+        if value.shape != shape:
+            raise ValueError(f"identify_thrust: {name} must have shape {shape}, got "
+                             f"{value.shape}")
+        if not np.all(np.isfinite(value)):
+            bad = int(np.argwhere(~np.isfinite(value))[0, 0])
+            raise ValueError(f"identify_thrust: {name} is not finite at sample {bad}")
+        out[name] = value
+    return out
+
+
+def _noise_variance(time, arrays, window: float, raw: Mapping[str, float] | None):
+    """Noise variance of the smoothed airspeed, alpha, motor speed and a_x (declared raw
+    variances through the smoothing's gain, else read from the data)."""
+    channels = {"airspeed": arrays["air_data"][:, 0], "alpha": arrays["air_data"][:, 1],
+                "ax": arrays["specific_force"][:, 0]}
+    if arrays["motor_speed"] is not None:
+        channels["motor_speed"] = arrays["motor_speed"]
+    out = {}
+    for name, values in channels.items():
+        if raw is not None and name in raw:
+            impulse = np.zeros(len(time))
+            impulse[len(time) // 2] = 1.0
+            gain = float(np.sum(differentiate(time, impulse, window, deriv=0) ** 2))
+            out[name] = float(raw[name]) * gain
+        else:
+            out[name] = float(smoothed_noise_variance(time, values[:, None], window)[0])
+    return out
+
+
+def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_data, controls,
+                    motor_speed=None, *, window: float = 0.2, folds: int = 5,
+                    raw_noise_variance: Mapping[str, float] | None = None) -> ThrustModel:
+    """Thrust identified with C_X from airborne, uniformly sampled flight data.
+
+    Shapes as :func:`~.isolation.isolate_coefficients`: ``specific_force`` (N, 3)
+    [m/s^2], ``rates`` (N, 3) [rad/s], ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad],
+    ``controls`` (N, 4) [elevator, aileron, rudder rad, throttle 0..1];
+    ``motor_speed`` (N,) [rad/s] or None. ``window`` [s] is the Savitzky-Golay
+    smoothing, ``folds`` the number of held-out blocks, ``raw_noise_variance`` the raw
+    white-noise variance of ``airspeed, alpha, motor_speed, ax`` where known.
+
+    Returns a :class:`ThrustModel`: the propeller's C_T0, C_T1 with a motor speed, a
+    throttle/airspeed correction of the catalog model without it, or (with an
+    :class:`~.regression.InsufficientExcitationWarning`) the catalog model when the
+    data cannot tell thrust from C_X0 (:class:`ThrustDiagnostics`).
+    """
+    time = np.asarray(time, dtype=float)
+    arrays = _checked(len(time), specific_force=specific_force, rates=rates,
+                      air_data=air_data, controls=controls, motor_speed=motor_speed)
+    if len(time) < 10 * folds:
+        raise ValueError(f"identify_thrust: {len(time)} samples are too few for {folds} "
+                         "held-out blocks")
+    source = "throttle" if motor_speed is None else "motor_speed"
+    if source == "motor_speed":
+        catalog_propeller(params)  # a diameter is needed
+    data = _smoothed_data(params, time, arrays["specific_force"], arrays["rates"],
+                          arrays["air_data"], arrays["controls"], arrays["motor_speed"],
+                          window)
+    terms, rmse = _select_terms(params, source, data, folds)
+    catalog = ThrustModel(params, "catalog", (), np.zeros(0), np.zeros((0, 0)))
+    if not terms:
+        diagnostics = ThrustDiagnostics(math.nan, math.nan, math.nan, rmse, True,
+                                        "the catalog model predicts best on held-out data")
+        return dataclasses.replace(catalog, diagnostics=diagnostics)
+    variance = _noise_variance(time, arrays, window, raw_noise_variance)
+    X, z, noise = _noise(params, source, data, terms, variance)
+    fit = bcls(X, z, noise, names=DRAG_TERMS + tuple(terms))
+    n = len(DRAG_TERMS)
+    model = ThrustModel(params, source, tuple(terms), fit.estimate[n:], fit.covariance[n:, n:],
+                        drag_coefficients=fit.estimate[:n], drag_sigma=fit.sigma[:n])
+    prediction = model.thrust(data.airspeed, data.throttle, data.motor_speed)
+    diagnostics = _diagnostics(X, n, prediction.std, prediction.thrust, rmse)
+    if not diagnostics.identifiable:
+        warnings.warn(f"identify_thrust: {diagnostics.message}", InsufficientExcitationWarning,
+                      stacklevel=2)
+        return dataclasses.replace(catalog, diagnostics=diagnostics)
+    return dataclasses.replace(model, diagnostics=diagnostics)
