@@ -334,9 +334,6 @@ def test_read_log_ulg_modes_and_commands(ulg_log, flight):
         assert np.max(np.abs(error)) < 1e-6
 
 
-@pytest.mark.xfail(strict=False, reason="io.px4: invalid samples of an optional stream on the "
-                   "ground (negative airspeed, xy_valid = 0 before the GPS fix) drop the whole "
-                   "stream instead of only the samples outside the flight")
 def test_read_log_ulg_keeps_airspeed_and_gps_for_the_flight(ulg_log):
     log, _ = _read(ulg_log.path)
     assert {"pitot_airspeed", "gps_pn", "gps_vn"} <= set(log.measured_names)
