@@ -389,9 +389,8 @@ class TrackingNmpc:
             self._update(t, x)
             out = self._solve_ocp(start)
             if out.status == "infeasible" and self.settings.relax_terminal:
-                if self._qp:
-                    self._cone_on = False
-                else:
+                self._cone_on = False
+                if self._program_current:
                     self._set_cone(False)
                 relaxed = self._solve_ocp(start)
                 if relaxed.success:
@@ -459,7 +458,6 @@ class TrackingNmpc:
         if fast is not None:
             return fast
         self._update_program()
-        self._set_cone(self._cone_on)
         for j, binding in enumerate(self._dyn):
             binding.evaluator().UpdateCoefficients(
                 np.hstack([Ax[j], Bu[j], -np.eye(13)]), -c[j])

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from drake_uav.diagrams.tracking import (
+    StateNoise,
     build_terminal_set,
     fly_tracking,
     solve_time_stats,
@@ -56,6 +57,18 @@ def test_wind_gusts_keep_the_loop_stable(params, tset):
     _summary("rti, gusts sigma 1 N", run)
     assert run.rmse(2.0) < 0.25
     assert run.position_error[-40:].max() < 0.5
+    assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
+
+
+@pytest.mark.parametrize("mode", ["rti", "nlp"])
+def test_sensor_noise_keeps_tracking_within_5_cm(params, tset, mode):
+    run = fly_tracking(params, tset, tset.end_time + 2.0, settings=NmpcSettings(mode=mode),
+                       offset=OFFSET, attitude_offset=np.radians(10.0),
+                       sensor_noise=StateNoise(), seed=7)
+    _summary(f"{mode}, 0.5 m / 10 deg offset, state noise {StateNoise()}", run)
+    assert run.rmse(2.0) < 0.05
+    assert np.all(run.status == STATUS_SOLVED)
+    assert np.all(run.terminal_ratio <= 1.0 + 1e-3)
     assert run.thrusts.min() >= 0.0 and run.thrusts.max() <= params.f_max
 
 
