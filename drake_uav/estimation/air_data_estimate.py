@@ -28,6 +28,7 @@ from drake_uav.estimation.vaneless_models import VanelessAirDataModel
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import air_data_from_velocity, dynamic_pressure
 from drake_uav.model.compiled import CompiledFunction
+from drake_uav.model.rotations import euler_to_rotmat, rotate_back
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["AirDataEstimate", "estimate_air_data"]
@@ -75,6 +76,14 @@ class AirDataEstimate:
     without the relation)."""
     rejected: dict[str, int]
     """Measurements rejected by the innovation gate, per sensor group."""
+
+
+@functools.cache
+def _kinematic_alpha() -> CompiledFunction:
+    """Angle of attack [rad] of the air velocity ``R(euler)^T (v_gps - W)`` from
+    ``[roll, pitch, yaw, v_gps - W (NED)]``."""
+    return CompiledFunction(lambda z: np.array(air_data_from_velocity(
+        *rotate_back(euler_to_rotmat(z[0:3]), z[3:6]))[1:2]), (6,), {}, "kinematic_alpha")
 
 
 @functools.cache
@@ -129,7 +138,8 @@ def _first_usable(measurements: np.ndarray, rho: float) -> int | None:
 class _Output:
     """The per-sample arrays of an :class:`AirDataEstimate` as segments fill them."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, period: float):
+        self.period = period
         self.values = {k: np.full(n, np.nan) for k in (
             "airspeed", "alpha", "beta", "airspeed_std", "alpha_std", "beta_std")}
         self.wind, self.wind_std = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
@@ -150,6 +160,33 @@ class _Output:
         self.wind[rows] = state @ S.T
         self.wind_std[rows] = np.sqrt(np.einsum("ij,kjl,il->ki", S, covariance, S))
         self.valid[rows] = True
+
+    def recentre(self, rows: slice, model: VanelessAirDataModel, euler: np.ndarray,
+                 gps: np.ndarray, fresh: np.ndarray) -> None:
+        """Shifts alpha so that the segment's mean vertical wind is zero, and adds the
+        uncertainty of that mean to ``alpha_std``.
+
+        The mean vertical wind is not observable from GPS and pitot in straight flight
+        (it trades with the flow angle); the filter's Gauss-Markov prior does not hold
+        it at zero in turbulence. The kinematic angle of attack of the air velocity
+        ``R^T (v_gps - W)`` with the smoothed horizontal wind and no vertical wind is
+        unbiased when the mean vertical wind is zero; alpha moves by the mean of its
+        difference to the smoothed alpha over the GPS samples. That mean has the
+        uncertainty of the mean of a Gauss-Markov process over the segment,
+        ``sigma_w sqrt(2 tau_w / T) / Va``.
+        """
+        alpha, wind = self.values["alpha"][rows], self.wind[rows]
+        if not fresh.any():
+            return
+        air = gps[fresh] - np.column_stack([wind[fresh, 0:2], np.zeros(fresh.sum())])
+        kinematic = _kinematic_alpha().batch_value(np.column_stack([euler[fresh], air]))[:, 0]
+        alpha += float(np.mean(kinematic - alpha[fresh]))
+        wind[:, 2] -= float(np.mean(wind[:, 2]))
+        duration = max(float(len(alpha)) * self.period, model.gust_tau[2])
+        airspeed = float(np.mean(self.values["airspeed"][rows]))
+        offset_std = model.gust_sigma[2] * np.sqrt(2.0 * model.gust_tau[2] / duration) / airspeed
+        std = self.values["alpha_std"][rows]
+        std[:] = np.hypot(std, offset_std)
 
 
 def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
@@ -201,7 +238,7 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
     period = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 0.01
     ekf = ExtendedKalmanFilter(model, model.default_noise(_filter_std(noise_std),
                                                           period=period))
-    out = _Output(len(data.time))
+    out = _Output(len(data.time), period)
     done, coefficients = [], []
     rejected = dict.fromkeys(ekf.group_names, 0)
     for t0, t1 in _segment_bounds(log, segments):
@@ -214,6 +251,8 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                               data.available[rows])
         smoothed = rts_smooth(forward)
         out.fill(rows, model, smoothed.state, smoothed.covariance)
+        out.recentre(rows, model, forward.inputs[:, 6:9], data.measurements[rows, 0:3],
+                     data.available[rows, 0:3].all(axis=1))
         done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
         names = model.state_names[len(model.state_names) - 6:] if lift_relation else ()
         coefficients.append({n: float(smoothed.state[0, model.state_names.index(n)])

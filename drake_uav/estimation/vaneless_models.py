@@ -49,7 +49,7 @@ __all__ = ["VanelessAirDataModel", "MEAN_WIND_PSD", "LIFT_COEFFICIENT_WALK",
 MEAN_WIND_PSD = 0.01
 """Random-walk density of the mean wind when the gust is a separate state [m^2/s^3]."""
 
-LIFT_COEFFICIENT_WALK = 1e-8
+LIFT_COEFFICIENT_WALK = 0.0
 """Random-walk density of the specific-force coefficients [(m^2/kg)^2 / s]."""
 
 SPECIFIC_FORCE_MODEL_STD = 0.05
