@@ -137,19 +137,25 @@ def test_riccati_qps_are_the_clarabel_qps(params, tset):
     exact._options = SolverOptions()
     for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas", "tol_ktratio"):
         exact._options.SetOption(ClarabelSolver.id(), name, 1e-10)
+    rng = np.random.default_rng(1)
     x, _ = tset.reference.at(0.0)
     x = x.copy()
     x[:3] += (0.3, 0.4, 0.0)
     names = set()
-    for k in range(8):  # the prediction of each step is the next state
-        a, b = fast.solve(0.025 * k, x), exact.solve(0.025 * k, x)
+    for k in range(16):  # from the prediction of each step, jolted in velocity and rates
+        measured = x.copy()
+        if k >= 4:
+            measured[7:13] += np.concatenate([0.3 * rng.normal(size=3), 0.6 * rng.normal(size=3)])
+        a, b = fast.solve(0.025 * k, measured), exact.solve(0.025 * k, measured)
         assert a.status == b.status == "solved"
         names.add(a.solver_status)
         # the interior-point iterate stops ~1e-5 N short of the optimum on an active cone
         np.testing.assert_allclose(a.inputs, b.inputs, atol=1e-4)
         assert a.terminal_ratio <= 1.0 + 1e-6
+        assert a.inputs.min() >= 0.0 and a.inputs.max() <= params.f_max
         x = a.states[1]
     assert "Riccati, cone active" in names
+    assert "Riccati, cone active, bounds active" in names
 
 
 def test_sensor_noise_is_seeded_and_tracked_through(params, tset):

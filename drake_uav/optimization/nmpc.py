@@ -221,6 +221,12 @@ def _error_maps(x_ref) -> tuple[np.ndarray, np.ndarray]:
     return L, l
 
 
+_ACTIVE_SET_ITERATIONS = 12
+"""Riccati solves of one QP before it goes to Clarabel."""
+_KKT_TOLERANCE = 1e-9
+"""A fixed thrust's multiplier of the wrong sign beyond this [cost/N] releases it."""
+
+
 @dataclasses.dataclass(frozen=True)
 class _QpSolution:
     """One QP of the SQP: success, solver name and iterations, states and inputs."""
@@ -466,26 +472,71 @@ class TrackingNmpc:
             result, int(getattr(result.get_solver_details(), "iterations", 0)))
 
     def _riccati(self, Ax, Bu, c) -> _QpSolution | None:
-        """The QP by the Riccati recursion: without inequalities, and with the terminal
-        cone as an equality when the first solution leaves it; ``None`` when the solution
-        leaves a thrust bound or the state box (or the cone cannot be met this way)."""
-        Bu = Bu * (self.f_max > 0)  # failed motors: u = 0 (no gradient, no weight)
-        data = (Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R, self._input_r)
-        sol, name = solve_lq(self._x, *data), "Riccati"
-        if self._cone_on and self._cone_ratio(sol.X[-1]) > 1.0:
-            w = self._cone_multiplier(sol, Ax, Bu)
-            if w is None:
+        """The QP by Riccati recursions with a primal-dual active set on the thrust bounds
+        (Hintermueller, Ito & Kunisch 2002): thrusts at a bound in the working set are
+        fixed, the others free; bounds the solution violates join the set, fixed thrusts
+        whose multiplier has the wrong sign leave it. Failed motors stay fixed at 0.
+
+        Returns the solution once it meets the QP's KKT conditions (every bound and
+        state-box row met, multipliers of the fixed thrusts of the right sign, the cone
+        met or active with ``mu >= 0``), else ``None`` (a state-box row is violated, the
+        cone was not met this way, or no convergence in ``_ACTIVE_SET_ITERATIONS``).
+        """
+        healthy = np.broadcast_to(self.f_max > 0, Bu.shape[::2])
+        upper = np.broadcast_to(self.f_max, healthy.shape)
+        fixed, value = ~healthy, np.zeros(healthy.shape)
+        iteration = 0
+        while True:
+            iteration += 1
+            if iteration > _ACTIVE_SET_ITERATIONS:
                 return None
-            sol, name = solve_lq(self._x, *data, terminal=(0.0, w)), "Riccati, cone active"
-            if self._cone_ratio(sol.X[-1]) > 1.0 + 1e-6:
+            free = Bu * ~fixed[:, None, :]
+            lq = self._lq_with_cone(Ax, free, c + (Bu @ (value * fixed)[:, :, None])[:, :, 0])
+            if lq is None:
                 return None
-        X, U = sol.X, sol.U
-        if not (np.all(U >= 0.0) and np.all(U <= self.f_max)):
-            return None
-        box = (self._box_L @ X[1:, :, None])[:, :, 0] + self._box_offset
+            sol, w = lq
+            U = np.where(fixed, value, sol.U)
+            g = self._input_gradient(Ax, Bu, sol.X, U, w)
+            low, high = ~fixed & (U < 0.0), ~fixed & (U > upper)
+            release = fixed & healthy & (((value == 0.0) & (g < -_KKT_TOLERANCE))
+                                         | ((value == upper) & (g > _KKT_TOLERANCE)))
+            if not (low.any() or high.any() or release.any()):
+                break
+            fixed = (fixed | low | high) & ~release
+            value = np.where(low, 0.0, np.where(high, upper, value))
+        box = (self._box_L @ sol.X[1:, :, None])[:, :, 0] + self._box_offset
         if np.any(np.abs(box) > self.terminal.upper[self._box_rows]):
             return None
-        return _QpSolution(True, name, 1, X, U)
+        name = "Riccati" + (", cone active" if w is not None else "") + \
+            (", bounds active" if (fixed & healthy).any() else "")
+        return _QpSolution(True, name, iteration, sol.X, U)
+
+    def _lq_with_cone(self, Ax, Bu, c):
+        """The equality-constrained QP ``(solution, w)``, with the cone made active by the
+        end-state term ``w`` when the solution without it leaves the cone (``w = None``
+        when it does not); ``None`` when the cone cannot be met."""
+        data = (Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R, self._input_r)
+        sol = solve_lq(self._x, *data)
+        if not self._cone_on or self._cone_ratio(sol.X[-1]) <= 1.0:
+            return sol, None
+        w = self._cone_multiplier(sol, Ax, Bu)
+        if w is None:
+            return None
+        sol = solve_lq(self._x, *data, terminal=(0.0, w))
+        return (sol, w) if self._cone_ratio(sol.X[-1]) <= 1.0 + 1e-6 else None
+
+    def _input_gradient(self, Ax, Bu, X, U, w) -> np.ndarray:
+        """``dL/du_j = R_j u_j + r_j + B_j^T lambda_{j+1}`` (N, n): the Lagrangian's
+        gradient in the thrusts, with the costates of the adjoint recursion
+        ``lambda_j = Q_j x_j + q_j + A_j^T lambda_{j+1}``, ``lambda_N = Q_N x_N + q_N + w``;
+        zero for free thrusts, the bound multiplier for fixed ones."""
+        N, Q, q = self.N, self._stage_Q, self._stage_q
+        lam = np.empty((N + 1, STATE_SIZE))
+        lam[N] = Q[N - 1] @ X[N] + q[N - 1] + (0.0 if w is None else w)
+        for j in range(N - 1, 0, -1):
+            lam[j] = Q[j - 1] @ X[j] + q[j - 1] + Ax[j].T @ lam[j + 1]
+        BtL = (np.swapaxes(Bu, 1, 2) @ lam[1:, :, None])[:, :, 0]
+        return U @ self._input_R[0] + self._input_r + BtL
 
     def _cone_ratio(self, xN) -> float:
         """``e_N^T P~ e_N / pi~^2`` of the end state ``xN``."""
