@@ -11,9 +11,11 @@ coefficients (:mod:`drake_uav.model.propeller`):
 
 * **With a logged motor speed** (channel ``motor_speed``, rad/s):
   ``T = rho D^2 (C_T0 (nD)^2 + C_T1 (nD) Va + C_T2 Va^2)``, the propeller's
-  ``rho n^2 D^4 C_T(J)``. ``C_T0`` and ``C_T1`` are identified; ``C_T2 Va^2`` has the
-  shape of ``qbar S C_X0`` (both scale with Va^2 alone), so no flight can separate
-  them: ``C_T2`` stays the catalog propeller's, and an error in it moves C_X0 by
+  ``rho n^2 D^4 C_T(J)``. ``C_T0`` is identified, ``C_T1`` too where the held-out
+  error asks for it (at one trim point it hardly ever does: with the shaft speed
+  nearly constant its term is nearly a multiple of Va); the others stay the catalog
+  propeller's. ``C_T2 Va^2`` has the shape of ``qbar S C_X0`` (both scale with Va^2
+  alone), so no flight can separate them: an error in it moves C_X0 by
   ``2 D^2 dC_T2 / S`` without changing the total force.
 * **Without it**: the catalog propulsion model plus a correction in throttle and
   airspeed, ``T = T_catalog(Va, dT) + k1 dT + k2 dT^2 + k3 dT Va``. The terms vanish at
@@ -372,25 +374,29 @@ def _smoothed_data(params, time, specific_force, rates, air_data, controls, moto
                  force=params.mass * smooth(specific_force[:, 0]))
 
 
-def _checked(n: int, **arrays) -> dict[str, np.ndarray]:
-    """The input arrays as floats; ``ValueError`` naming a missing, misshapen or
-    non-finite one."""
-    widths = {"specific_force": 3, "rates": 3, "air_data": 3, "controls": 4, "motor_speed": 0}
-    out = {}
-    for name, value in arrays.items():
-        if value is None:
-            out[name] = None
-            continue
-        value = np.asarray(value, dtype=float)
-        shape = (n,) if widths[name] == 0 else (n, widths[name])
-        if value.shape != shape:
-            raise ValueError(f"identify_thrust: {name} must have shape {shape}, got "
-                             f"{value.shape}")
-        if not np.all(np.isfinite(value)):
-            bad = int(np.argwhere(~np.isfinite(value))[0, 0])
-            raise ValueError(f"identify_thrust: {name} is not finite at sample {bad}")
-        out[name] = value
-    return out
+_WIDTHS = {"specific_force": (3,), "rates": (3,), "air_data": (3,), "controls": (4,),
+           "motor_speed": ()}
+
+
+def _checked(n: int, **arrays) -> dict[str, np.ndarray | None]:
+    """The input arrays (None stays None) as floats of shape (n, width) or (n,)."""
+    return {name: None if value is None else _checked_array(name, value, n)
+            for name, value in arrays.items()}
+
+
+def _checked_array(name: str, value, n: int) -> np.ndarray:
+    """``value`` as floats; ``ValueError`` naming the array for a wrong shape or a
+    non-finite sample."""
+    value = np.asarray(value, dtype=float)
+    shape = (n, *_WIDTHS[name])
+    problem = None
+    if value.shape != shape:
+        problem = f"must have shape {shape}, got {value.shape}"
+    elif not np.all(np.isfinite(value)):
+        problem = f"is not finite at sample {int(np.argwhere(~np.isfinite(value))[0, 0])}"
+    if problem is not None:
+        raise ValueError(f"identify_thrust: {name} {problem}")
+    return value
 
 
 def _noise_variance(time, arrays, window: float, raw: Mapping[str, float] | None):
