@@ -94,10 +94,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         options["extra"] = _vane_sources(args.vanes, args.vane_unit)
     if args.max_gap is not None:
         options["max_gap"] = args.max_gap
+    kind = args.format or _LOG_SUFFIXES[path.suffix.lower()]
+    segment = None if args.segment == "auto" else _parse_segment(args.segment)
+    if kind in ("bin", "ulg"):
+        # A servo's full throw is the aircraft's full deflection (docs/flight_logs.md).
+        limits = params.limits
+        options["deflections"] = {"elevator": limits.elevator, "aileron": limits.aileron,
+                                  "rudder": limits.rudder}
+    if kind == "bin" and segment is not None:
+        options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
     run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
-                   air_data=args.air_data, sensor_noise_std=spec,
-                   segment=None if args.segment == "auto" else _parse_segment(args.segment))
+                   air_data=args.air_data, sensor_noise_std=spec, segment=segment)
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()

@@ -23,6 +23,7 @@ import dataclasses
 import numpy as np
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.model.air_data import dynamic_pressure
 
 __all__ = ["AIR_DATA_MODES", "FlowAngles", "flow_angles", "choose_air_data"]
 
@@ -90,16 +91,36 @@ def flow_angles(log: FlightLog, params, mode: str,
     """
     if mode != "estimate":
         return FlowAngles(mode, log, _CHANNELS[mode], None)
-    from drake_uav.estimation import estimate_air_data
+    from drake_uav.estimation.air_data_estimate import estimate_air_data
 
-    estimate = estimate_air_data(log, params, noise_std=noise_std)
-    alpha = np.interp(log.time, estimate.time, estimate.alpha)
-    beta = np.interp(log.time, estimate.time, estimate.beta)
-    measured = {n: log[n] for n in log.measured_names}
-    measured.update({"est_alpha": alpha, "est_beta": beta})
-    truth = {n: log[n] for n in log.truth_names}
-    units = {**log.units, "est_alpha": "rad", "est_beta": "rad"}
-    with_estimate = FlightLog(log.time, measured, truth, units, log.metadata)
-    variance = {"alpha": float(np.mean(estimate.alpha_std ** 2)),
-                "beta": float(np.mean(estimate.beta_std ** 2))}
+    known = {"imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r", "att_roll",
+             "att_pitch", "att_yaw", "gps_vn", "gps_ve", "gps_vd", "pitot_qbar"}
+    declared = {k: v for k, v in (noise_std or {}).items() if k in known} or None
+    estimate = estimate_air_data(_with_dynamic_pressure(log, params.rho), params,
+                                 noise_std=declared,
+                                 segments=[[log.time[0], log.time[-1]]])
+    valid = np.flatnonzero(estimate.valid)
+    if valid.size < 2:
+        raise FlightLogError(
+            f"span {log.time[0]:.1f}-{log.time[-1]:.1f} s: the air data could not be "
+            "estimated (no GPS velocity together with airspeed)")
+    keep = slice(valid[0], valid[-1] + 1)
+    measured = {n: log[n][keep] for n in log.measured_names}
+    measured.update({"est_alpha": estimate.alpha[keep], "est_beta": estimate.beta[keep]})
+    units = {**{n: log.unit(n) for n in log.measured_names}, "est_alpha": "rad",
+             "est_beta": "rad"}
+    with_estimate = FlightLog(log.time[keep], measured, units=units, metadata=log.metadata)
+    variance = {"alpha": float(np.mean(estimate.alpha_std[keep] ** 2)),
+                "beta": float(np.mean(estimate.beta_std[keep] ** 2))}
     return FlowAngles(mode, with_estimate, _CHANNELS[mode], variance)
+
+
+def _with_dynamic_pressure(log: FlightLog, rho: float) -> FlightLog:
+    """``log`` with ``pitot_qbar`` [Pa] from ``pitot_airspeed`` when only the airspeed is
+    logged (PX4 logs the differential pressure at 1 Hz, if at all)."""
+    if "pitot_qbar" in log or "pitot_airspeed" not in log:
+        return log
+    measured = {n: log[n] for n in log.measured_names}
+    measured["pitot_qbar"] = dynamic_pressure(log["pitot_airspeed"], rho)
+    units = {**{n: log.unit(n) for n in log.measured_names}, "pitot_qbar": "Pa"}
+    return FlightLog(log.time, measured, units=units, metadata=log.metadata)

@@ -106,9 +106,10 @@ def usable_spans(log: FlightLog, settings: PhaseSettings = DEFAULT_PHASES,
     with the reason when no span is left ("no airborne segment: ...").
     """
     if "pitot_airspeed" not in log:
-        dropped = [s for s in log.metadata.get("dropped_streams") or [] if "airspeed" in s]
+        dropped = [s for s in log.metadata.get("dropped_streams") or []
+                   if "airspeed" in s.lower() or s.upper().startswith(("ARSP", "ASP"))]
         raise FlightLogError(
-            "no airspeed: the log has no pitot airspeed"
+            "no airspeed: the log has no channel 'pitot_airspeed'"
             + (f" (stream {', '.join(dropped)} left out: no valid sample)" if dropped else "")
             + "; identify needs a pitot-static airspeed sensor")
     t = log.time
