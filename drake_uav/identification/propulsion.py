@@ -149,7 +149,7 @@ class ThrustModel:
         columns = _thrust_columns(self.params, self.source, airspeed, throttle, motor_speed,
                                   self.terms)
         value = base.value + columns.value @ self.coefficients
-        std = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", columns.value, self.covariance,
+        std = np.sqrt(np.maximum(np.einsum("...j,jk,...k->...", columns.value, self.covariance,
                                            columns.value), 0.0))
         return ThrustPrediction(value, std, base.slope + columns.slope @ self.coefficients)
 
