@@ -22,6 +22,7 @@ import numpy as np
 from drake_uav.estimation.air_data_models import MIN_START_AIRSPEED
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, filter_pass
 from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
+from drake_uav.estimation.noise import sensor_std
 from drake_uav.estimation.signals import ATTITUDE, GPS_VELOCITY, IMU, LOG_CHANNELS
 from drake_uav.estimation.smoother import rts_smooth
 from drake_uav.estimation.vaneless_models import VanelessAirDataModel
@@ -145,26 +146,35 @@ class _Output:
         self.wind, self.wind_std = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
         self.valid = np.zeros(n, bool)
 
-    def fill(self, rows: slice, model: VanelessAirDataModel, state, covariance) -> None:
+    def fill(self, rows: slice, time: np.ndarray, steps: np.ndarray,
+             model: VanelessAirDataModel, state, covariance) -> None:
+        """Air data, wind and their stds of the smoothed ``state`` and ``covariance`` at
+        the filter's ``steps`` (log rows), interpolated linearly to every row of ``rows``."""
         air, J = _air_data_function().batch_value_and_jacobian(state[:, 0:3])
         P_air = J @ covariance[:, 0:3, 0:3] @ J.swapaxes(1, 2)
         std = np.sqrt(np.einsum("kii->ki", P_air))
-        for i, name in enumerate(("airspeed", "alpha", "beta")):
-            self.values[name][rows] = air[:, i]
-            self.values[f"{name}_std"][rows] = std[:, i]
         # Total wind = S x with S selecting the mean (and gust) states of each axis.
         S = np.zeros((3, len(model.state_names)))
         S[[0, 1, 2], [3, 4, 5]] = 1.0
         if model.gust:
             S[[0, 1], [6, 7]] = 1.0
-        self.wind[rows] = state @ S.T
-        self.wind_std[rows] = np.sqrt(np.einsum("ij,kjl,il->ki", S, covariance, S))
+        wind_std = np.sqrt(np.einsum("ij,kjl,il->ki", S, covariance, S))
+        t, t_steps = time[rows], time[steps]
+        for i, name in enumerate(("airspeed", "alpha", "beta")):
+            self.values[name][rows] = np.interp(t, t_steps, air[:, i])
+            self.values[f"{name}_std"][rows] = np.interp(t, t_steps, std[:, i])
+        wind = state @ S.T
+        for i in range(3):
+            self.wind[rows, i] = np.interp(t, t_steps, wind[:, i])
+            self.wind_std[rows, i] = np.interp(t, t_steps, wind_std[:, i])
         self.valid[rows] = True
 
-    def recentre(self, rows: slice, model: VanelessAirDataModel, euler: np.ndarray,
-                 gps: np.ndarray, fresh: np.ndarray) -> None:
-        """Shifts alpha so that the segment's mean vertical wind is zero, and adds the
-        uncertainty of that mean to ``alpha_std``.
+    def recentre(self, rows: slice, steps: np.ndarray, model: VanelessAirDataModel,
+                 euler: np.ndarray, gps: np.ndarray, fresh: np.ndarray) -> None:
+        """Shifts alpha over ``rows`` so that the segment's mean vertical wind is zero, and
+        adds the uncertainty of that mean to ``alpha_std``; ``euler`` (the filter's
+        attitude inputs), ``gps`` and ``fresh`` (new GPS samples) are at the filter's
+        ``steps``.
 
         The mean vertical wind is not observable from GPS and pitot in straight flight
         (it trades with the flow angle); the filter's Gauss-Markov prior does not hold
@@ -175,18 +185,41 @@ class _Output:
         uncertainty of the mean of a Gauss-Markov process over the segment,
         ``sigma_w sqrt(2 tau_w / T) / Va``.
         """
-        alpha, wind = self.values["alpha"][rows], self.wind[rows]
         if not fresh.any():
             return
-        air = gps[fresh] - np.column_stack([wind[fresh, 0:2], np.zeros(fresh.sum())])
+        at = steps[fresh]
+        air = gps[fresh] - np.column_stack([self.wind[at, 0:2], np.zeros(len(at))])
         kinematic = _kinematic_alpha().batch_value(np.column_stack([euler[fresh], air]))[:, 0]
-        alpha += float(np.mean(kinematic - alpha[fresh]))
-        wind[:, 2] -= float(np.mean(wind[:, 2]))
-        duration = max(float(len(alpha)) * self.period, model.gust_tau[2])
+        self.values["alpha"][rows] += float(np.mean(kinematic - self.values["alpha"][at]))
+        self.wind[rows, 2] -= float(np.mean(self.wind[rows, 2]))
+        duration = max(float(rows.stop - rows.start) * self.period, model.gust_tau[2])
         airspeed = float(np.mean(self.values["airspeed"][rows]))
         offset_std = model.gust_sigma[2] * np.sqrt(2.0 * model.gust_tau[2] / duration) / airspeed
         std = self.values["alpha_std"][rows]
-        std[:] = np.hypot(std, offset_std)
+        self.values["alpha_std"][rows] = np.hypot(std, offset_std)
+
+
+def _step_inputs(time: np.ndarray, inputs: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Inputs at the filter's ``steps``: the IMU columns averaged over each step (the
+    trapezoid integral of the samples over the step divided by its length), the others
+    sampled."""
+    out = inputs[steps].copy()
+    if len(steps) < 2 or np.all(np.diff(steps) == 1):
+        return out
+    imu = inputs[:, 0:6]
+    areas = np.zeros_like(imu)
+    areas[1:] = np.cumsum(0.5 * (imu[1:] + imu[:-1]) * np.diff(time)[:, None], axis=0)
+    out[1:, 0:6] = np.diff(areas[steps], axis=0) / np.diff(time[steps])[:, None]
+    return out
+
+
+def _steps(available: np.ndarray, decimation: int) -> np.ndarray:
+    """Rows the filter steps on: every ``decimation``-th, every new GPS sample, the last."""
+    keep = np.zeros(len(available), bool)
+    keep[::decimation] = True
+    keep[available[:, 0:3].any(axis=1)] = True
+    keep[-1] = True
+    return np.flatnonzero(keep)
 
 
 def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
@@ -194,7 +227,8 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                       segments: Sequence[Sequence[float]] | None = None,
                       lift_relation: bool = True, gust: bool = False,
                       turbulence: str = "light", altitude: float = 100.0,
-                      gps_latency: float = DEFAULT_GPS_LATENCY) -> AirDataEstimate:
+                      gps_latency: float = DEFAULT_GPS_LATENCY,
+                      decimation: int = 2) -> AirDataEstimate:
     """Airspeed, alpha, beta and wind over a flight without vanes (module docstring).
 
     Args:
@@ -223,21 +257,30 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         gust: Gauss-Markov states for the horizontal gusts.
         turbulence, altitude: the Dryden prior of the gust model (level, m).
         gps_latency: GPS velocity latency removed with the IMU [s].
+        decimation: the filter steps on every ``decimation``-th sample and on every new
+            GPS sample (the others' IMU, pitot and accelerometer samples are left out);
+            the smoothed values are interpolated linearly to every sample. 2 halves the
+            cost for a loss of accuracy far below the errors (docs/estimation.md).
 
     Raises:
         FlightLogError: naming the channel when IMU, attitude, GPS velocity or pitot
             samples are missing, or when no segment ever has both GPS and airspeed.
     """
     _check_channels(log)
+    if not (isinstance(decimation, int) and decimation >= 1):
+        raise ValueError(f"decimation must be an integer >= 1, got {decimation!r}")
     model = VanelessAirDataModel(params, gust=gust, lift_relation=lift_relation,
-                                 turbulence=turbulence, altitude=altitude)
+                                 turbulence=turbulence, altitude=altitude,
+                                 averaged_imu=decimation > 1)
     data = model.log_data(log, gps_latency)
     inputs = data.inputs
-    for i in model.held_inputs:  # commands absent from the log: zero
+    for i in model._commands:  # commands absent from the log: zero
         inputs[:, i] = np.nan_to_num(inputs[:, i])
     period = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 0.01
-    ekf = ExtendedKalmanFilter(model, model.default_noise(_filter_std(noise_std),
-                                                          period=period))
+    std = {**sensor_std(), **_filter_std(noise_std)}
+    for name in IMU:  # the mean of ``decimation`` samples
+        std[name] /= np.sqrt(decimation)
+    ekf = ExtendedKalmanFilter(model, model.default_noise(std, period=period * decimation))
     out = _Output(len(data.time), period)
     done, coefficients = [], []
     rejected = dict.fromkeys(ekf.group_names, 0)
@@ -247,12 +290,13 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         if start is None or inside.size - start < 2:
             continue
         rows = slice(inside[start], inside[-1] + 1)
-        forward = filter_pass(ekf, data.time[rows], inputs[rows], data.measurements[rows],
-                              data.available[rows])
+        steps = rows.start + _steps(data.available[rows], decimation)
+        forward = filter_pass(ekf, data.time[steps], _step_inputs(data.time, inputs, steps),
+                              data.measurements[steps], data.available[steps])
         smoothed = rts_smooth(forward)
-        out.fill(rows, model, smoothed.state, smoothed.covariance)
-        out.recentre(rows, model, forward.inputs[:, 6:9], data.measurements[rows, 0:3],
-                     data.available[rows, 0:3].all(axis=1))
+        out.fill(rows, data.time, steps, model, smoothed.state, smoothed.covariance)
+        out.recentre(rows, steps, model, forward.inputs[:, 6:9], data.measurements[steps, 0:3],
+                     data.available[steps, 0:3].all(axis=1))
         done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
         names = model.state_names[len(model.state_names) - 6:] if lift_relation else ()
         coefficients.append({n: float(smoothed.state[0, model.state_names.index(n)])

@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from drake_uav.estimation.air_data_models import _start_values, _wind_triangle_start
 from drake_uav.estimation.attitude import ATTITUDE_TIME_CONSTANT, SmoothedAttitude
 from drake_uav.estimation.ekf import EkfModel, EkfNoise
 from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
@@ -84,13 +85,18 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         turbulence, altitude: MIL-F-8785C level and altitude [m] of the gust prior
             (Dryden scales; sigma and length per axis).
         airspeed: nominal airspeed [m/s] for the gust time constants ``L / Va``.
+        averaged_imu: the IMU inputs are held over each step (their mean over the step,
+            for a filter that steps on a subset of the IMU samples) instead of
+            interpolated between two samples.
     """
 
     held_inputs: tuple[int, ...] = ()
+    _commands: tuple[int, ...] = ()
 
     def __init__(self, params: FixedWingParams, *, gust: bool = False,
                  lift_relation: bool = True, turbulence: str = "light",
                  altitude: float = 100.0, airspeed: float = 25.0,
+                 averaged_imu: bool = False,
                  attitude_time_constant: float = ATTITUDE_TIME_CONSTANT):
         self.params, self.gust, self.lift_relation = params, gust, lift_relation
         self.rho, self.gravity = params.rho, params.gravity
@@ -111,7 +117,8 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
             inputs += ["elevator", "rudder"]
             measurements += ["ay_meas", "az_meas"]
             groups = {**groups, "accelerometer_y": (4,), "accelerometer_z": (5,)}
-            self.held_inputs = (9, 10)
+            self._commands = (9, 10)
+        self.held_inputs = (tuple(range(6)) if averaged_imu else ()) + self._commands
         self.state_names, self.noise_names = tuple(states), tuple(noises)
         self.input_names, self.measurement_names = tuple(inputs), tuple(measurements)
         self.groups = groups
@@ -159,32 +166,44 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         """Initial values and standard deviations of the specific-force coefficients
         [m^2/kg]: the lift slope of a finite wing ``2 pi AR / (AR + 2)`` (Beard & McLain
         2012, eq. 4.9 with the aspect ratio of the geometry) for ``-c_za``, a side-force
-        slope of a fifth of it for ``-c_yb``, zero for the others; all loose."""
+        slope of a fifth of it for ``-c_yb``, zero for the others; all loose but ``c_y0``,
+        held at zero: a symmetric airframe has no side force at zero sideslip and rudder,
+        and without that the sideslip offset trades with the crosswind, which straight
+        flight does not observe (a lateral accelerometer bias then biases beta by
+        ``bias / (qbar c_yb)``)."""
         p = self.params
         aspect = p.b**2 / p.S
         scale = p.S / p.mass
         slope = 2.0 * math.pi * aspect / (aspect + 2.0) * scale
         value = np.array([0.0, -slope, 0.0, 0.0, -0.2 * slope, 0.0])
-        std = np.array([0.5 * slope, 0.5 * slope, 0.1 * slope, 0.002 * slope, 0.2 * slope,
+        std = np.array([0.5 * slope, 0.5 * slope, 0.1 * slope, 1e-6 * slope, 0.2 * slope,
                         0.05 * slope])
         return value, std
 
     def initial_state(self, u, y, available):
-        """Wind triangle with the pitot airspeed along the ground track (zero flow angles;
-        Vaiopoulos 2017, eq. 5.24-5.25), zero gust, the coefficient prior."""
-        from drake_uav.estimation.air_data_models import _start_values, _wind_triangle_start
-
+        """Wind triangle with the pitot airspeed (Vaiopoulos 2017, eq. 5.24-5.25): along
+        the ground track (zero flow angles), or, with the specific-force relation, at the
+        flow angles the first accelerometer sample gives through the coefficient prior
+        (within +-15 deg); zero gust, the coefficient prior."""
         R = euler_to_rotmat(u[6:9])
         gps, airspeed, _ = _start_values(np.append(y[:4], [np.nan, np.nan]),
                                          np.append(available[:4], [False, False]),
                                          (0, 1, 2), 3, (4, 5), self.rho)
-        v_r, wind = _wind_triangle_start(R, gps, airspeed, None)
+        prior = self.coefficient_prior()[0]
+        angles = None
+        if self.lift_relation and available[3] and available[4] and available[5] and y[3] > 0:
+            limit = math.radians(15.0)
+            alpha = (y[5] / y[3] - prior[0] - prior[2] * u[9]) / prior[1]
+            beta = (y[4] / y[3] - prior[3] - prior[5] * u[10]) / prior[4]
+            angles = np.clip([alpha, beta], -limit, limit)
+        v_r, wind = _wind_triangle_start(R, gps, airspeed, angles)
         x = [*v_r, *wind]
-        x[5] = 0.0  # zero-mean vertical wind
+        if angles is None:
+            x[5] = 0.0  # zero-mean vertical wind
         if self.gust:
             x += [0.0, 0.0]
         if self.lift_relation:
-            x += self.coefficient_prior()[0].tolist()
+            x += prior.tolist()
         return np.array(x, float)
 
     def default_noise(self, std: dict[str, float] | None = None,
@@ -227,9 +246,11 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
 
     def log_data(self, log: FlightLog, gps_latency: float = DEFAULT_GPS_LATENCY) -> FilterData:
         """Filter arrays of a flight log: measured channels only (no truth); the GPS
-        velocity is moved forward by ``gps_latency`` [s]."""
+        velocity is moved forward by ``gps_latency`` [s]. The commands are shifted one
+        sample (the command in effect during the step ending at a sample); the IMU
+        samples are not (with ``averaged_imu`` the caller averages them over its steps)."""
         reader = LogReader(log, gps_latency, self.gravity)
         names = [n.removesuffix("_meas") for n in self.measurement_names]
         y, fresh = reader.sensors(names)
-        return FilterData(reader.time, reader.inputs(self.input_names, self.held_inputs), y,
+        return FilterData(reader.time, reader.inputs(self.input_names, self._commands), y,
                           fresh, None)

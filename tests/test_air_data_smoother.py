@@ -1,0 +1,127 @@
+"""Air data without vanes: forward EKF + RTS smoother over a log (estimate_air_data)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from drake_uav.diagrams import fly
+from drake_uav.estimation import (
+    ExtendedKalmanFilter,
+    VanelessAirDataModel,
+    estimate_air_data,
+    filter_pass,
+    rts_smooth,
+)
+from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.vehicles import aerosonde
+
+SEEDS = (100, 101)
+DURATION = 40.0  # s
+SETTLE = 5.0  # s after the start left out of the error figures
+MAE_BOUND_DEG = 1.0  # alpha and beta, each flight (light turbulence, default sensors)
+AIRSPEED_MAE_BOUND = 0.2  # m/s
+
+
+def _measured_only(log: FlightLog, drop=(), metadata=None, **replace) -> FlightLog:
+    """What a real log holds: measured channels without vanes, no noise metadata."""
+    names = [n for n in log.measured_names
+             if not n.startswith("vane_") and n not in drop]
+    channels = {n: replace.get(n, log[n]) for n in names}
+    meta = {k: v for k, v in log.metadata.items() if k != "sensor_noise_std"}
+    meta.update(metadata or {})
+    return FlightLog(log.time, channels, {}, {n: log.unit(n) for n in names}, meta)
+
+
+@pytest.fixture(scope="module")
+def flights():
+    return {seed: fly(aerosonde(), "light", duration=DURATION, seed=seed) for seed in SEEDS}
+
+
+@pytest.fixture(scope="module")
+def estimates(flights):
+    return {seed: estimate_air_data(_measured_only(log), aerosonde())
+            for seed, log in flights.items()}
+
+
+def _errors(estimate, log):
+    keep = estimate.valid & (estimate.time >= estimate.segments[0][0] + SETTLE)
+    return (keep, estimate.alpha - log["alpha"], estimate.beta - log["beta"],
+            estimate.airspeed - log["airspeed"])
+
+
+def test_alpha_beta_within_bound(flights, estimates):
+    for seed, log in flights.items():
+        keep, alpha, beta, airspeed = _errors(estimates[seed], log)
+        assert math.degrees(np.abs(alpha[keep]).mean()) < MAE_BOUND_DEG, seed
+        assert math.degrees(np.abs(beta[keep]).mean()) < MAE_BOUND_DEG, seed
+        assert np.abs(airspeed[keep]).mean() < AIRSPEED_MAE_BOUND, seed
+
+
+def test_smoothed_std_consistent_with_error(flights, estimates):
+    """Mean normalised squared error of samples 2 s apart (roughly independent errors)
+    within a factor 3 of chi-square(1) on alpha, beta and airspeed."""
+    for seed, log in flights.items():
+        estimate = estimates[seed]
+        keep, alpha, beta, airspeed = _errors(estimate, log)
+        picks = np.flatnonzero(keep)[::200]
+        for error, std in ((alpha, estimate.alpha_std), (beta, estimate.beta_std),
+                           (airspeed, estimate.airspeed_std)):
+            nees = np.mean((error[picks] / std[picks]) ** 2)
+            assert 1.0 / 3.0 < nees < 3.0, (seed, nees)
+
+
+def test_segments_smoothed_separately(flights):
+    log = _measured_only(flights[SEEDS[0]], metadata={"segments": [[0.0, 18.0],
+                                                                    [22.0, DURATION]]})
+    estimate = estimate_air_data(log, aerosonde())
+    assert len(estimate.segments) == 2
+    gap = (estimate.time > 18.0) & (estimate.time < 22.0)
+    assert not estimate.valid[gap].any() and np.isnan(estimate.alpha[gap]).all()
+    # The second segment does not see the first: the same as estimating it alone.
+    alone = estimate_air_data(log, aerosonde(), segments=[[22.0, DURATION]])
+    second = estimate.time >= 22.0
+    np.testing.assert_allclose(estimate.alpha[second], alone.alpha[second], rtol=0, atol=1e-12)
+
+
+def test_late_gps(flights):
+    original = flights[SEEDS[0]]
+    late = original.time < 10.0
+    gps = {n: np.where(late, np.nan, original[n]) for n in ("gps_vn", "gps_ve", "gps_vd")}
+    estimate = estimate_air_data(_measured_only(original, **gps), aerosonde())
+    assert not estimate.valid[late].any()
+    assert estimate.segments[0][0] >= 10.0
+    keep, alpha, beta, _ = _errors(estimate, original)
+    assert math.degrees(np.abs(alpha[keep]).mean()) < MAE_BOUND_DEG
+    assert math.degrees(np.abs(beta[keep]).mean()) < MAE_BOUND_DEG
+
+
+@pytest.mark.parametrize("channel", ["gps_vn", "pitot_qbar"])
+def test_missing_sensor_is_a_clear_error(flights, channel):
+    log = _measured_only(flights[SEEDS[0]], drop=(channel,))
+    with pytest.raises(FlightLogError, match=channel):
+        estimate_air_data(log, aerosonde())
+
+
+def test_noise_std_argument_checked(flights):
+    log = _measured_only(flights[SEEDS[0]])
+    with pytest.raises(ValueError, match="unknown channel 'imu_xx'"):
+        estimate_air_data(log, aerosonde(), noise_std={"imu_xx": 0.1})
+
+
+def test_smoother_beats_forward_filter_on_airspeed(flights):
+    """The backward pass uses the future samples: the smoothed airspeed is closer to the
+    truth than the forward filter's, and its variance is never larger."""
+    log = flights[SEEDS[0]]
+    model = VanelessAirDataModel(aerosonde())
+    data = model.log_data(_measured_only(log))
+    ekf = ExtendedKalmanFilter(model, model.default_noise())
+    forward = filter_pass(ekf, data.time, data.inputs, data.measurements, data.available)
+    smoothed = rts_smooth(forward)
+    truth = log["airspeed"]
+    keep = data.time > SETTLE
+    errors = [np.abs(np.linalg.norm(s[:, :3], axis=1) - truth)[keep].mean()
+              for s in (forward.state, smoothed.state)]
+    assert errors[1] < errors[0]
+    variances = [np.einsum("kii->ki", P) for P in (forward.covariance, smoothed.covariance)]
+    assert np.all(variances[1] <= variances[0] * (1 + 1e-9) + 1e-15)
