@@ -8,7 +8,7 @@ into a report folder.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -21,6 +21,7 @@ from drake_uav.identification.discovery import (
     discover,
     fit_derivatives,
 )
+from drake_uav.identification.effects import Effect, effect_library
 from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
@@ -33,6 +34,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
            "identify_derivatives", "select_samples", "check_fixed_wing",
+           "testable_effects", "ESTIMATE_CONFOUNDED",
            "coefficient_uncertainty"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
@@ -204,8 +206,24 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                                         sensor_noise_std=sensor_noise_std, phases=phases,
                                         progress=say)
     run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
-                           progress=say, source=source, seed=seed)
+                           progress=say, source=source, seed=seed,
+                           effects=testable_effects(selection.air_data))
     return dataclasses.replace(run, data=selection)
+
+
+ESTIMATE_CONFOUNDED = ("ned_force", "steady_wind_in_air_data")
+"""Effects fixed in the NED frame. With air data estimated from GPS and pitot, the wind
+estimate's own error is fixed in the NED frame too and moves the measured coefficients
+the same way (through alpha, beta and the airspeed): the data cannot tell the two
+apart, so these effects are not tested then."""
+
+
+def testable_effects(air_data: str) -> list[Effect]:
+    """The named effects the data of an ``air_data`` mode can tell from its errors."""
+    library = effect_library()
+    if air_data != "estimate":
+        return library
+    return [e for e in library if e.name not in ESTIMATE_CONFOUNDED]
 
 
 def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
@@ -234,7 +252,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                                 sensor_noise_std=sensor_noise_std)
         parts.append(_with_flow_error(part, angles.error_variance))
     selection = LogSelection(tuple(spans), mode, angles.description,
-                             _selection_notes(log, spans, angles.description))
+                             _selection_notes(log, spans, mode, angles.description))
     return concatenate_samples(parts), selection
 
 
@@ -266,11 +284,15 @@ def _with_flow_error(samples: AeroSamples, variance: dict[str, float] | None) ->
     return dataclasses.replace(samples, noise_variance=noise, moment_view=view)
 
 
-def _selection_notes(log: FlightLog, spans, air_data: str) -> tuple[str, ...]:
+def _selection_notes(log: FlightLog, spans, mode: str, air_data: str) -> tuple[str, ...]:
     used = sum(end - start for start, end in spans)
     notes = [f"used {used:.0f} s of {log.time[-1] - log.time[0]:.0f} s: "
              + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in spans),
              f"air data: {air_data}"]
+    if mode == "estimate":
+        notes.append(f"not tested: {', '.join(ESTIMATE_CONFOUNDED)} (fixed in the NED frame "
+                     "like the error of the estimated wind, so the data cannot tell them "
+                     "apart)")
     for stream in log.metadata.get("dropped_streams") or []:
         notes.append(f"stream {stream} left out (sparse or with gaps)")
     return tuple(notes)
@@ -279,16 +301,18 @@ def _selection_notes(log: FlightLog, spans, air_data: str) -> tuple[str, ...]:
 def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
                      rule: EvidenceRule | None = None, reset_interval: float = 5.0,
                      progress: Callable[[str], None] | None = None,
-                     source: str = "flight samples", seed: int = 0) -> IdentificationRun:
+                     source: str = "flight samples", seed: int = 0,
+                     effects: Sequence[Effect] | None = None) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
     :func:`identify` with the measured coefficients already in ``samples``
     (:func:`~drake_uav.identification.flight_data.samples_from_log` or
     :func:`~drake_uav.identification.isolation.isolate_coefficients`); the
-    ``samples.signals`` must hold ``roll`` and ``pitch`` [rad].
+    ``samples.signals`` must hold ``roll`` and ``pitch`` [rad]. ``effects``
+    defaults to the whole :func:`~drake_uav.identification.effects.effect_library`.
     """
     say = progress or (lambda message: None)
-    result = discover(samples, params, rule=rule, progress=say)
+    result = discover(samples, params, effects=effects, rule=rule, progress=say)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)
