@@ -214,12 +214,17 @@ def _step_inputs(time: np.ndarray, inputs: np.ndarray, steps: np.ndarray) -> np.
 
 
 def _steps(available: np.ndarray, decimation: int) -> np.ndarray:
-    """Rows the filter steps on: every ``decimation``-th, every new GPS sample, the last."""
-    keep = np.zeros(len(available), bool)
-    keep[::decimation] = True
-    keep[available[:, 0:3].any(axis=1)] = True
-    keep[-1] = True
-    return np.flatnonzero(keep)
+    """Rows the filter steps on: every new GPS sample, the first and last row, and between
+    them rows spread evenly so that no step spans more than ``decimation`` samples."""
+    anchors = np.union1d(np.flatnonzero(available[:, 0:3].any(axis=1)),
+                         [0, len(available) - 1])
+    gaps = np.diff(anchors)
+    extra = -(-gaps // decimation) - 1  # rows added inside each gap
+    gap = np.repeat(np.arange(len(gaps)), extra)
+    first = np.repeat(np.cumsum(extra) - extra, extra)
+    j = np.arange(len(gap)) - first + 1
+    inside = anchors[gap] + np.round(j * gaps[gap] / (extra[gap] + 1)).astype(int)
+    return np.union1d(anchors, inside)
 
 
 def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
@@ -228,7 +233,7 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                       lift_relation: bool = True, gust: bool = False,
                       turbulence: str = "light", altitude: float = 100.0,
                       gps_latency: float = DEFAULT_GPS_LATENCY,
-                      decimation: int = 2) -> AirDataEstimate:
+                      decimation: int = 3) -> AirDataEstimate:
     """Airspeed, alpha, beta and wind over a flight without vanes (module docstring).
 
     Args:
@@ -257,10 +262,11 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         gust: Gauss-Markov states for the horizontal gusts.
         turbulence, altitude: the Dryden prior of the gust model (level, m).
         gps_latency: GPS velocity latency removed with the IMU [s].
-        decimation: the filter steps on every ``decimation``-th sample and on every new
-            GPS sample (the others' IMU, pitot and accelerometer samples are left out);
-            the smoothed values are interpolated linearly to every sample. 2 halves the
-            cost for a loss of accuracy far below the errors (docs/estimation.md).
+        decimation: the filter steps on every new GPS sample and, between them, on
+            rows spread evenly so that a step spans at most ``decimation`` samples; the
+            IMU is averaged over each step, the pitot and accelerometer samples between
+            steps are left out, and the smoothed values are interpolated linearly to
+            every sample (docs/estimation.md: cost and accuracy against ``decimation``).
 
     Raises:
         FlightLogError: naming the channel when IMU, attitude, GPS velocity or pitot
