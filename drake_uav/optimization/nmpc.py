@@ -490,16 +490,21 @@ class TrackingNmpc:
             iteration += 1
             if iteration > _ACTIVE_SET_ITERATIONS:
                 return None
-            free = Bu * ~fixed[:, None, :]
-            lq = self._lq_with_cone(Ax, free, c + (Bu @ (value * fixed)[:, :, None])[:, :, 0])
+            if fixed.any():
+                lq = self._lq_with_cone(Ax, Bu * ~fixed[:, None, :],
+                                        c + (Bu @ (value * fixed)[:, :, None])[:, :, 0])
+            else:
+                lq = self._lq_with_cone(Ax, Bu, c)
             if lq is None:
                 return None
             sol, w = lq
             U = np.where(fixed, value, sol.U)
-            g = self._input_gradient(Ax, Bu, sol.X, U, w)
             low, high = ~fixed & (U < 0.0), ~fixed & (U > upper)
-            release = fixed & healthy & (((value == 0.0) & (g < -_KKT_TOLERANCE))
-                                         | ((value == upper) & (g > _KKT_TOLERANCE)))
+            release = fixed & healthy
+            if release.any():
+                g = self._input_gradient(Ax, Bu, sol.X, U, w)
+                release &= (((value == 0.0) & (g < -_KKT_TOLERANCE))
+                            | ((value == upper) & (g > _KKT_TOLERANCE)))
             if not (low.any() or high.any() or release.any()):
                 break
             fixed = (fixed | low | high) & ~release
