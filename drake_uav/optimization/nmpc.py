@@ -455,9 +455,9 @@ class TrackingNmpc:
         return lin
 
     def _sqp_step(self, Xg, Ug, lin) -> _QpSolution:
-        """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians): first
-        without its inequalities (:func:`~drake_uav.optimization.riccati_lq.solve_lq`),
-        which is its solution when it meets them all; otherwise Clarabel."""
+        """The QP of the dynamics linearised about ``(Xg, Ug)`` (exact Jacobians): by
+        Riccati recursions (:meth:`_riccati`, KKT conditions checked) when
+        ``qp_solver="riccati"`` and they reach its optimum, otherwise by Clarabel."""
         Xn, Ax, Bu = lin
         c = Xn - (Ax @ Xg[:-1, :, None])[:, :, 0] - (Bu @ Ug[:, :, None])[:, :, 0]
         fast = self._riccati(Ax, Bu, c) if self.settings.qp_solver == "riccati" else None
