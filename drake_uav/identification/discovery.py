@@ -40,10 +40,10 @@ import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-from scipy import stats
 
 from drake_uav.identification.effects import Effect, effect_library, product_candidates
 from drake_uav.identification.errors_in_variables import (
+    BlockMoments,
     PropagatedNoise,
     compensated_normal_equations,
     is_well_posed,
@@ -54,7 +54,7 @@ from drake_uav.identification.errors_in_variables import (
     solve_normal_equations,
 )
 from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.regression import RegressionResult, bcls
+from drake_uav.identification.regression import RegressionResult, bcls, r_factor
 from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -170,15 +170,34 @@ NOISY_SIGNALS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5}
 ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
 
 
-def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples, variance):
+class _Perturbations:
+    """Samples and their copies with one noisy air-data signal moved by +-its step.
+
+    The copies are made once and shared by every column function evaluated on them.
+    """
+
+    def __init__(self, samples: AeroSamples):
+        self.samples = samples
+        self._copies: dict[tuple[str, float], AeroSamples] = {}
+
+    def __call__(self, signal: str, step: float) -> AeroSamples:
+        key = (signal, step)
+        if key not in self._copies:
+            self._copies[key] = self.samples.perturbed(signal, step)
+        return self._copies[key]
+
+
+def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | _Perturbations,
+                           variance):
     """Columns of ``function(samples)`` and their derivatives w.r.t. the noisy signals."""
-    columns = dict(function(samples))
+    variants = samples if isinstance(samples, _Perturbations) else _Perturbations(samples)
+    columns = dict(function(variants.samples))
     jac = {}
     for signal, step in NOISY_SIGNALS.items():
         if variance.get(signal, 0.0) <= 0.0:
             continue
-        up = function(samples.perturbed(signal, step))
-        down = function(samples.perturbed(signal, -step))
+        up = function(variants(signal, step))
+        down = function(variants(signal, -step))
         jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
     return columns, jac
 
@@ -226,16 +245,9 @@ class _Design:
     def solve(self, rows=None) -> np.ndarray:
         return solve_normal_equations(*self.moments(rows))
 
-    def fold_errors(self, folds: Sequence[np.ndarray]) -> np.ndarray:
-        """(2, K): observed and noise-corrected held-out squared error of each blocked fold
-        (fit on the others)."""
-        out = np.empty((2, len(folds)))
-        mask = np.ones(len(self.z), dtype=bool)
-        for i, idx in enumerate(folds):
-            mask[:] = True
-            mask[idx] = False
-            out[:, i] = self.errors(self.solve(mask), idx)
-        return out
+    def block_moments(self, edges: Sequence[int]) -> BlockMoments:
+        """The moments of the design summed over the blocked folds ``edges``."""
+        return BlockMoments.of(self.X, self.z, self.noise, edges)
 
     def scores(self, theta: np.ndarray) -> np.ndarray:
         """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``."""
@@ -330,18 +342,49 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
         covariance=sandwich_covariance(A_inv, S))
 
 
-def _folds(n: int, k: int) -> list[np.ndarray]:
-    edges = np.linspace(0, n, k + 1).astype(int)
-    return [np.arange(edges[i], edges[i + 1]) for i in range(k)]
+def _fold_edges(n: int, k: int) -> tuple[int, ...]:
+    """Boundaries of ``k`` contiguous blocked folds over ``n`` samples."""
+    return tuple(int(e) for e in np.linspace(0, n, k + 1).astype(int))
 
 
-def _is_redundant(X: np.ndarray, column: np.ndarray) -> bool:
-    """True when ``column`` is (nearly) a combination of the columns of X, or zero."""
+def _column_space(X: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the range of X, to the rank ``numpy.linalg.lstsq`` gives X.
+
+    From the SVD of the small R factor of X (:func:`r_factor`): ``X V S^-1``.
+    """
+    _, s, vt = np.linalg.svd(r_factor(X))
+    if s.size == 0 or s[0] == 0.0:
+        return np.zeros((X.shape[0], 0))
+    keep = s > np.finfo(float).eps * max(X.shape) * s[0]
+    return X @ (vt[keep].T / s[keep])
+
+
+def _is_redundant(basis: np.ndarray, column: np.ndarray) -> bool:
+    """True when ``column`` is (nearly) in the span of the orthonormal ``basis``, or zero."""
     norm = np.linalg.norm(column)
     if norm == 0.0 or not np.isfinite(norm):
         return True
-    r = column - X @ np.linalg.lstsq(X, column, rcond=None)[0]
+    r = column - basis @ (basis.T @ column)
     return np.linalg.norm(r) < 1e-3 * norm
+
+
+def _errors(z: np.ndarray, prediction: np.ndarray, theta, C_xx, c_xz) -> tuple[float, float]:
+    """Observed squared error of ``prediction`` and the same without its regressor-noise part
+    (:meth:`_Design.errors`)."""
+    r = z - prediction
+    observed = float(r @ r)
+    return observed, observed - noise_error_energy(theta, C_xx, c_xz)
+
+
+def _held_out_errors(blocks: BlockMoments, z: np.ndarray, predict) -> np.ndarray:
+    """(2, K): observed and noise-corrected held-out squared error of each blocked fold,
+    fitted on the others; ``predict(theta)`` (K, n) -> (N, K) predictions of every fit."""
+    theta = solve_normal_equations(*blocks.held_in())
+    prediction = predict(theta)
+    edges = blocks.edges
+    return np.array([_errors(z[a:b], prediction[a:b, k], theta[k], blocks.noise_xx[k],
+                             blocks.noise_xz[k])
+                     for k, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True))]).T
 
 
 @dataclasses.dataclass
@@ -354,36 +397,65 @@ class _RoundBase:
     """(2, K) observed and noise-corrected held-out errors."""
     sse: tuple[float, float]
     """Observed and noise-corrected training error."""
+    blocks: BlockMoments
+    """The design's moments per fold, which every candidate extends."""
+    basis: np.ndarray
+    """Orthonormal basis of the design's columns (redundancy test of candidate columns)."""
 
 
-def _round_base(design: _Design, folds) -> _RoundBase:
-    theta = design.solve()
-    residual = design.z - design.X @ theta
-    return _RoundBase(design, float(effective_sample_size(residual)),
-                      design.fold_errors(folds), design.errors(theta))
+def _round_base(design: _Design, edges: Sequence[int]) -> _RoundBase:
+    blocks = design.block_moments(edges)
+    A, b, C_xx, c_xz = blocks.total()
+    theta = solve_normal_equations(A, b)
+    prediction = design.X @ theta
+    return _RoundBase(design, float(effective_sample_size(design.z - prediction)),
+                      _held_out_errors(blocks, design.z, lambda t: design.X @ t.T),
+                      _errors(design.z, prediction, theta, C_xx, c_xz), blocks,
+                      _column_space(design.X))
 
 
-def _score(name: str, coefficient: str, base: _RoundBase, function: ColumnFunction,
-           samples: AeroSamples, folds, rule: EvidenceRule, n_tests: int) -> Evidence | None:
-    columns, jac = _columns_and_jacobians(function, samples, base.design.noise.variance)
-    columns = {k: v for k, v in columns.items() if not _is_redundant(base.design.X, v)}
+@dataclasses.dataclass(frozen=True)
+class _Columns:
+    """Candidate columns on the training samples and their air-data sensitivities."""
+
+    columns: Mapping[str, np.ndarray]
+    jacobians: Mapping[str, Mapping[str, np.ndarray]]
+    """Noise source -> column name -> d column / d source."""
+
+    def pick(self, names: Sequence[str]) -> _Columns:
+        return _Columns({k: self.columns[k] for k in names},
+                        {s: {k: j[k] for k in names} for s, j in self.jacobians.items()})
+
+
+def _score(name: str, coefficient: str, base: _RoundBase, candidate: _Columns,
+           rule: EvidenceRule, n_tests: int) -> Evidence | None:
+    columns = [k for k, v in candidate.columns.items() if not _is_redundant(base.basis, v)]
     if not columns:
         return None
-    candidate = base.design.extended(columns, jac)
-    if not candidate.well_posed():
+    design = base.design
+    n, p = design.X.shape
+    q = len(columns)
+    X_new = np.column_stack([candidate.columns[k] for k in columns])
+    J_new = {s: np.column_stack([j[k] for k in columns]) for s, j in candidate.jacobians.items()}
+    blocks = base.blocks.extended(design.X, design.z, design.noise, X_new, J_new)
+    A, b, C_xx, c_xz = blocks.total()
+    if not is_well_posed(A):
         return None
-    errors = candidate.fold_errors(folds)
+
+    def predict(theta):
+        return design.X @ theta[..., :p].T + X_new @ theta[..., p:].T
+
+    errors = _held_out_errors(blocks, design.z, predict)
     # Improvement in the noise-corrected error, relative to the observed error.
     gain = base.fold_errors[1] - errors[1]
     reduction = float(np.mean(gain / base.fold_errors[0]))
     improved = int(np.sum(gain > 0))
-    n, p = base.design.X.shape
-    q = len(columns)
-    observed1, corrected1 = candidate.errors(candidate.solve())
+    theta = solve_normal_equations(A, b)
+    observed1, corrected1 = _errors(design.z, predict(theta), theta, C_xx, c_xz)
     drop = max(base.sse[1] - corrected1, 0.0)
     dof = max(base.n_eff - p - q, 1.0)
     f_stat = drop / q / (observed1 / dof)
-    p_value = float(stats.f.sf(f_stat, q, dof))
+    p_value = _f_survival(f_stat, q, dof)
     delta_bic = base.n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) + q * np.log(
         base.n_eff)
     passed = (p_value < rule.p_value / max(n_tests, 1)
@@ -423,6 +495,35 @@ def _product_name(signals: tuple[str, ...]) -> str:
     return "*".join(signals)
 
 
+class _Candidates:
+    """Candidate columns on the training samples, each computed once per discovery.
+
+    The samples do not change between rounds, only the designs the columns extend; the
+    data-driven products of one coefficient are computed together.
+    """
+
+    def __init__(self, train: AeroSamples, params: FixedWingParams):
+        self.variants = _Perturbations(train)
+        self.params = params
+        self._cache: dict[tuple[str, str], _Columns] = {}
+
+    def _get(self, key: tuple[str, str], function: ColumnFunction, variance) -> _Columns:
+        if key not in self._cache:
+            self._cache[key] = _Columns(*_columns_and_jacobians(function, self.variants,
+                                                                variance))
+        return self._cache[key]
+
+    def named(self, effect: Effect, coefficient: str, variance) -> _Columns:
+        """The columns of ``effect`` for ``coefficient``."""
+        return self._get((effect.name, coefficient),
+                         _effect_function(effect, self.params, coefficient), variance)
+
+    def products(self, coefficient: str, variance) -> _Columns:
+        """Every data-driven product column for ``coefficient``."""
+        return self._get(("data_driven", coefficient),
+                         _product_function(self.params, coefficient), variance)
+
+
 def discover(samples: AeroSamples, params: FixedWingParams,
              effects: Sequence[Effect] | None = None, rule: EvidenceRule | None = None,
              coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
@@ -441,10 +542,11 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     rate = 1.0 / float(np.median(np.diff(samples.time)))
     train = samples.subset(slice(0, n_train))
     test = samples.subset(slice(n_train, n))
-    folds = _folds(n_train, rule.folds)
+    edges = _fold_edges(n_train, rule.folds)
     designs = {k: _baseline_design(train, params, k) for k in coefficients}
     tests = {k: _baseline_design(test, params, k) for k in coefficients}
     baseline = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
+    pool, test_variants = _Candidates(train, params), _Perturbations(test)
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
@@ -452,14 +554,14 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     for round_index in range(rule.max_rounds):
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
-        bases = {k: _round_base(designs[k], folds) for k in coefficients}
+        bases = {k: _round_base(designs[k], edges) for k in coefficients}
         pairs = [(e, k) for e in effects if e.name not in used for k in e.coefficients
                  if k in coefficients]
         evidence = [ev for e, k in pairs if (ev := _score(
-            e.name, k, bases[k], _effect_function(e, params, k), train, folds, rule,
+            e.name, k, bases[k], pool.named(e, k, bases[k].design.noise.variance), rule,
             len(pairs))) is not None]
         if fallback and not any(e.passed for e in evidence):
-            evidence += _score_products(bases, train, params, folds, rule, used)
+            evidence += _score_products(bases, pool, rule, used)
         evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
         rounds.append(tuple(evidence))
         winners = [e for e in evidence if e.passed]
@@ -471,12 +573,20 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         effect = next((e for e in effects if e.name == best), None)
         for ev in accepted:
             k = ev.coefficient
-            function = (_effect_function(effect, params, k) if effect is not None
-                        else _product_function(params, k, ev.columns))
-            for design, smp in ((designs, train), (tests, test)):
-                columns, jac = _columns_and_jacobians(function, smp, design[k].noise.variance)
-                design[k] = design[k].extended({c: columns[c] for c in ev.columns}, jac,
-                                               prefix=f"{best}:")
+            variance = designs[k].noise.variance
+            if effect is not None:
+                function, columns = (_effect_function(effect, params, k),
+                                     pool.named(effect, k, variance))
+            else:
+                function, columns = (_product_function(params, k, ev.columns),
+                                     pool.products(k, variance))
+            columns = columns.pick(ev.columns)
+            designs[k] = designs[k].extended(columns.columns, columns.jacobians,
+                                             prefix=f"{best}:")
+            columns, jac = _columns_and_jacobians(function, test_variants,
+                                                  tests[k].noise.variance)
+            tests[k] = tests[k].extended({c: columns[c] for c in ev.columns}, jac,
+                                         prefix=f"{best}:")
         found.append(_found(best, effect, accepted))
 
     final = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
@@ -485,20 +595,27 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                            rounds=tuple(rounds), holdout_start=float(test.time[0]))
 
 
-def _score_products(bases, train, params, folds, rule, used) -> list[Evidence]:
-    names = [_product_name(k) for k in product_candidates(train, params)]
+def _score_products(bases, pool: _Candidates, rule, used) -> list[Evidence]:
+    names = [_product_name(k) for k in product_candidates(pool.variants.samples, pool.params)]
     n_tests = len(names) * len(bases)
     out = []
     for k, base in bases.items():
+        products = pool.products(k, base.design.noise.variance)
         for name in names:
             effect_name = f"data_driven:{name}"
             if effect_name in used:
                 continue
-            ev = _score(effect_name, k, base, _product_function(params, k, [name]), train,
-                        folds, rule, n_tests)
+            ev = _score(effect_name, k, base, products.pick([name]), rule, n_tests)
             if ev is not None:
                 out.append(ev)
     return out
+
+
+def _f_survival(f_stat: float, dfn: float, dfd: float) -> float:
+    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom."""
+    from scipy.special import fdtrc
+
+    return float(fdtrc(dfn, dfd, f_stat))
 
 
 def _found(name: str, effect: Effect | None, accepted: list[Evidence]) -> FoundEffect:

@@ -39,6 +39,7 @@ import numpy as np
 from drake_uav.identification.residuals import long_run_covariance
 
 __all__ = [
+    "BlockMoments",
     "PropagatedNoise",
     "compensated_gram",
     "compensated_normal_equations",
@@ -147,12 +148,98 @@ def compensated_normal_equations(X, z, noise: PropagatedNoise, rows=None):
     return X.T @ X - C_xx, X.T @ z - c_xz
 
 
+@dataclasses.dataclass(frozen=True)
+class BlockMoments:
+    """Measured and expected-noise moments of a design, summed over contiguous row blocks.
+
+    Blocked K-fold cross-validation fits on every block but one and predicts the one left
+    out. With the sums per block, the normal equations of every training set are the
+    totals minus one block, so the K fits need one pass over the data, not K; a design
+    extended by a few columns needs only the products of the new columns
+    (:meth:`extended`).
+    """
+
+    edges: tuple[int, ...]
+    """Block boundaries: block k holds rows ``edges[k]:edges[k + 1]``."""
+    xx: np.ndarray
+    """(K, n, n) ``X_k^T X_k``."""
+    xz: np.ndarray
+    """(K, n) ``X_k^T z_k``."""
+    noise_xx: np.ndarray
+    """(K, n, n) expected ``dX_k^T dX_k`` (:meth:`PropagatedNoise.moments` on block k)."""
+    noise_xz: np.ndarray
+    """(K, n) expected ``dX_k^T dz_k``."""
+
+    @classmethod
+    def of(cls, X: np.ndarray, z: np.ndarray, noise: PropagatedNoise,
+           edges) -> BlockMoments:
+        """The block sums of the design ``(X, z)`` with regressor noise ``noise``."""
+        edges = tuple(int(e) for e in edges)
+        blocks = [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        xx = np.stack([X[b].T @ X[b] for b in blocks])
+        xz = np.stack([X[b].T @ z[b] for b in blocks])
+        noise_moments = [noise.moments(b) for b in blocks]
+        return cls(edges, xx, xz, np.stack([m[0] for m in noise_moments]),
+                   np.stack([m[1] for m in noise_moments]))
+
+    def extended(self, X: np.ndarray, z: np.ndarray, noise: PropagatedNoise,
+                 X_new: np.ndarray, J_new: Mapping[str, np.ndarray]) -> BlockMoments:
+        """The block sums of ``[X | X_new]``, with the noise of :meth:`PropagatedNoise.extended`.
+
+        ``(X, z, noise)`` is the design these sums were built from; ``X_new`` (N, q) the
+        added columns, ``J_new`` their (N, q) sensitivities to each noise source (a source
+        missing: the columns do not depend on it). Only the new rows of the moments are
+        computed.
+        """
+        p, q = X.shape[1], X_new.shape[1]
+        K = len(self.edges) - 1
+        xx = np.zeros((K, p + q, p + q))
+        noise_xx = np.zeros_like(xx)
+        xx[:, :p, :p], noise_xx[:, :p, :p] = self.xx, self.noise_xx
+        xz = np.concatenate([self.xz, np.zeros((K, q))], axis=1)
+        noise_xz = np.concatenate([self.noise_xz, np.zeros((K, q))], axis=1)
+        for k, (a, b) in enumerate(zip(self.edges[:-1], self.edges[1:], strict=True)):
+            new = X_new[a:b].T
+            xx[k, p:, :p], xx[k, p:, p:] = new @ X[a:b], new @ X_new[a:b]
+            xz[k, p:] = new @ z[a:b]
+            for source, J in noise.regressors.items():
+                added = J_new.get(source)
+                if added is None:
+                    continue
+                var, new_j = noise.variance[source], added[a:b].T
+                noise_xx[k, p:, :p] += var * (new_j @ J[a:b])
+                noise_xx[k, p:, p:] += var * (new_j @ added[a:b])
+                jz = noise.observation.get(source)
+                if jz is not None:
+                    noise_xz[k, p:] += var * (new_j @ jz[a:b])
+        for m in (xx, noise_xx):
+            m[:, :p, p:] = np.swapaxes(m[:, p:, :p], 1, 2)
+        return BlockMoments(self.edges, xx, xz, noise_xx, noise_xz)
+
+    def total(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Over all rows: the compensated normal equations ``(A, b)`` and the noise
+        moments ``(C_xx, c_xz)``."""
+        C_xx, c_xz = self.noise_xx.sum(axis=0), self.noise_xz.sum(axis=0)
+        return self.xx.sum(axis=0) - C_xx, self.xz.sum(axis=0) - c_xz, C_xx, c_xz
+
+    def held_in(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K, n, n) and (K, n): the compensated normal equations without block k."""
+        A, b, _, _ = self.total()
+        return A - (self.xx - self.noise_xx), b - (self.xz - self.noise_xz)
+
+
 def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``A^-1 b`` with A equilibrated to a unit diagonal (least squares if A is singular)."""
-    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    """``A^-1 b`` with A equilibrated to a unit diagonal (least squares if A is singular).
+
+    ``A`` (n, n) and ``b`` (n,), or stacks of them, (K, n, n) and (K, n), solved together.
+    """
+    scale = np.sqrt(np.maximum(np.diagonal(A, axis1=-2, axis2=-1), 1e-300))
     try:
-        return np.linalg.solve(A / np.outer(scale, scale), b / scale) / scale
+        equilibrated = A / (scale[..., :, None] * scale[..., None, :])
+        return np.linalg.solve(equilibrated, (b / scale)[..., None])[..., 0] / scale
     except np.linalg.LinAlgError:
+        if A.ndim > 2:
+            return np.stack([solve_normal_equations(a, c) for a, c in zip(A, b, strict=True)])
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
