@@ -304,9 +304,10 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         out.recentre(rows, steps, model, forward.inputs[:, 6:9], data.measurements[steps, 0:3],
                      data.available[steps, 0:3].all(axis=1))
         done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
-        names = model.state_names[len(model.state_names) - 6:] if lift_relation else ()
-        coefficients.append({n: float(smoothed.state[0, model.state_names.index(n)])
-                             for n in names})
+        coefficients.append(dict(zip(
+            ("c_z0", "c_za", "c_ze", "c_y0", "c_yb", "c_yr"),
+            (float(c) for c in model.coefficients(smoothed.state[0, -6:])),
+            strict=True)) if lift_relation else {})
         for g, count in zip(ekf.group_names, forward.rejected.tolist(), strict=True):
             rejected[g] += count
     if not done:

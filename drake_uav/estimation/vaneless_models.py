@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydrake.math import exp
 
 from drake_uav.estimation.air_data_models import _start_values, _wind_triangle_start
 from drake_uav.estimation.attitude import ATTITUDE_TIME_CONSTANT, SmoothedAttitude
@@ -57,7 +58,10 @@ SPECIFIC_FORCE_MODEL_STD = 0.05
 """Error of the linear specific-force relation per sample [m/s^2] (unmodelled rate,
 thrust and nonlinear terms), added to the accelerometer noise."""
 
-_SPECIFIC_FORCE_COEFFICIENTS = ("c_z0", "c_za", "c_ze", "c_y0", "c_yb", "c_yr")
+_SPECIFIC_FORCE_COEFFICIENTS = ("c_z0", "log_c_za", "c_ze", "c_y0", "log_c_yb", "c_yr")
+"""The coefficient states; the slopes as ``log(-c_za)`` and ``log(-c_yb)``: lift grows with
+alpha and the side force opposes sideslip on any conventional airframe, and the slopes,
+weakly observed in straight flight, must not change sign."""
 
 
 class VanelessAirDataModel(SmoothedAttitude, EkfModel):
@@ -157,16 +161,23 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         qbar = dynamic_pressure(airspeed, self.rho)
         rows = [air[0] + wind[0], air[1] + wind[1], air[2] + wind[2], qbar]
         if self.lift_relation:
-            c = x[len(self.state_names) - 6:]
+            c = self.coefficients(x[len(self.state_names) - 6:])
             rows += [qbar * (c[3] + c[4] * beta + c[5] * u[10]),
                      qbar * (c[0] + c[1] * alpha + c[2] * u[9])]
         return np.array(rows)
 
+    @staticmethod
+    def coefficients(states) -> list:
+        """``c_z0, c_za, c_ze, c_y0, c_yb, c_yr`` [m^2/kg] of the six coefficient states
+        (scalar-generic)."""
+        return [states[0], -exp(states[1]), states[2], states[3], -exp(states[4]), states[5]]
+
     def coefficient_prior(self) -> tuple[np.ndarray, np.ndarray]:
-        """Initial values and standard deviations of the specific-force coefficients
-        [m^2/kg]: the lift slope of a finite wing ``2 pi AR / (AR + 2)`` (Beard & McLain
-        2012, eq. 4.9 with the aspect ratio of the geometry) for ``-c_za``, a side-force
-        slope of a fifth of it for ``-c_yb``, zero for the others; all loose but ``c_y0``,
+        """Initial values and standard deviations of the coefficient states (m^2/kg; the
+        slopes' logarithms, std in ln units): the lift slope of a finite wing
+        ``2 pi AR / (AR + 2)`` (Beard & McLain 2012, eq. 4.9 with the aspect ratio of the
+        geometry) for ``-c_za`` (a factor e^0.5 loose), a side-force slope of a fifth of
+        it for ``-c_yb`` (a factor e loose), zero for the others; all loose but ``c_y0``,
         held at zero: a symmetric airframe has no side force at zero sideslip and rudder,
         and without that the sideslip offset trades with the crosswind, which straight
         flight does not observe (a lateral accelerometer bias then biases beta by
@@ -175,9 +186,8 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         aspect = p.b**2 / p.S
         scale = p.S / p.mass
         slope = 2.0 * math.pi * aspect / (aspect + 2.0) * scale
-        value = np.array([0.0, -slope, 0.0, 0.0, -0.2 * slope, 0.0])
-        std = np.array([0.5 * slope, 0.5 * slope, 0.1 * slope, 1e-6 * slope, 0.2 * slope,
-                        0.05 * slope])
+        value = np.array([0.0, math.log(slope), 0.0, 0.0, math.log(0.2 * slope), 0.0])
+        std = np.array([0.5 * slope, 0.5, 0.1 * slope, 1e-6 * slope, 1.0, 0.05 * slope])
         return value, std
 
     def initial_state(self, u, y, available):
@@ -193,8 +203,9 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         angles = None
         if self.lift_relation and available[3] and available[4] and available[5] and y[3] > 0:
             limit = math.radians(15.0)
-            alpha = (y[5] / y[3] - prior[0] - prior[2] * u[9]) / prior[1]
-            beta = (y[4] / y[3] - prior[3] - prior[5] * u[10]) / prior[4]
+            c = self.coefficients(prior)
+            alpha = (y[5] / y[3] - c[0] - c[2] * u[9]) / c[1]
+            beta = (y[4] / y[3] - c[3] - c[5] * u[10]) / c[4]
             angles = np.clip([alpha, beta], -limit, limit)
         v_r, wind = _wind_triangle_start(R, gps, airspeed, angles)
         x = [*v_r, *wind]
