@@ -12,8 +12,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 import numpy as np
+from matplotlib import rcParams
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
+from matplotlib.textpath import text_to_path
 
 from drake_uav.identification.residuals import ResidualDiagnosis
 
@@ -36,6 +39,58 @@ _BEFORE = dict(color="0.55", lw=0.8)
 _AFTER = dict(color="C0", lw=0.8)
 
 
+#: Space [in] around the panels that holds no tick label: outer border, gap between stacked
+#: panels whose x tick labels are hidden, and the room of a panel title.
+_BORDER, _GAP, _TITLE = 0.08, 0.14, 0.3
+
+
+def _text_size(text: str, size) -> tuple[float, float]:
+    """Width and height [in] of ``text`` at font ``size``, from the font metrics alone."""
+    width, height, _ = text_to_path.get_text_width_height_descent(
+        text, FontProperties(size=size), ismath="$" in text)
+    return width / 72.0, height / 72.0
+
+
+def _y_label_room(ax: Axes) -> float:
+    """Width [in] left of ``ax`` taken by its y tick labels, ticks and y label."""
+    axis = ax.yaxis
+    labels = [t for t in axis.get_major_formatter().format_ticks(axis.get_majorticklocs()) if t]
+    ticks = max((_text_size(t, rcParams["ytick.labelsize"])[0] for t in labels), default=0.0)
+    pads = (rcParams["ytick.major.size"] + rcParams["ytick.major.pad"]
+            + rcParams["axes.labelpad"]) / 72.0
+    label = _text_size("Ay", rcParams["axes.labelsize"])[1] * 1.3 if ax.get_ylabel() else 0.0
+    return ticks + pads + label
+
+
+def _x_label_room(ax: Axes) -> float:
+    """Height [in] below ``ax`` taken by its x tick labels, ticks and x label."""
+    tick = _text_size("0", rcParams["xtick.labelsize"])[1] * 1.3
+    pads = (rcParams["xtick.major.size"] + rcParams["xtick.major.pad"]
+            + rcParams["axes.labelpad"]) / 72.0
+    return tick + pads + _text_size("Ay", rcParams["axes.labelsize"])[1] * 1.3
+
+
+def _fixed_layout(fig: Figure, axes: np.ndarray, *, title: bool = False) -> None:
+    """Places the (rows, cols) ``axes`` with margins measured from their tick labels.
+
+    A layout engine finds the same margins by drawing every text of the figure, twice;
+    the tick labels' font metrics give them without drawing. Stacked panels share their
+    x axis (labels on the bottom row only); side-by-side panels each have y labels.
+    """
+    rows, cols = axes.shape
+    width, height = fig.get_size_inches()
+    left = max(_y_label_room(ax) for ax in axes.ravel()) + _BORDER
+    offset = any(ax.yaxis.get_major_formatter().get_offset() for ax in axes.ravel())
+    top = _BORDER + (_TITLE if title else 0.08) + (0.15 if offset else 0.0)
+    bottom = _x_label_room(axes[-1, 0]) + _BORDER
+    right = 0.2
+    panel_w = (width - left - right - (cols - 1) * (left + 0.1)) / cols
+    panel_h = (height - top - bottom - (rows - 1) * (_GAP + (_TITLE if title else 0.0))) / rows
+    fig.subplots_adjust(left=left / width, right=1.0 - right / width, bottom=bottom / height,
+                        top=1.0 - top / height, wspace=(left + 0.1) / panel_w,
+                        hspace=(_GAP + (_TITLE if title else 0.0)) / panel_h)
+
+
 def _diagnoses(diagnoses) -> dict[str, ResidualDiagnosis]:
     if isinstance(diagnoses, ResidualDiagnosis):
         return {"residual": diagnoses}
@@ -51,7 +106,7 @@ def _diagnoses(diagnoses) -> dict[str, ResidualDiagnosis]:
 def _one_panel(diagnoses) -> tuple[Figure, Axes, list[tuple[str, str, ResidualDiagnosis]]]:
     """A one-panel figure for several diagnoses: (figure, axes, [(colour, label, diagnosis)])."""
     items = _diagnoses(diagnoses).items()
-    fig = Figure(figsize=(8.0, 3.6), layout="constrained")
+    fig = Figure(figsize=(8.0, 3.6))
     return fig, fig.subplots(), [(f"C{i}", label, d) for i, (label, d) in enumerate(items)]
 
 
@@ -104,8 +159,9 @@ def residual_time_series(
             raise ValueError(f"after has series missing from before: {sorted(missing)}")
     if not before:
         raise ValueError("no residual to plot")
-    fig = Figure(figsize=(8.0, 1.2 + 1.9 * len(before)), layout="constrained")
-    axes = fig.subplots(len(before), 1, sharex=True, squeeze=False)[:, 0]
+    fig = Figure(figsize=(8.0, 1.2 + 1.9 * len(before)))
+    grid = fig.subplots(len(before), 1, sharex=True, squeeze=False)
+    axes = grid[:, 0]
     for ax, (name, values) in zip(axes, before.items(), strict=True):
         v = _series(f"before[{name!r}]", values, t.size)
         ax.plot(*_envelope(t, v), label=f"before (rms {np.sqrt(np.mean(v**2)):.3g})", **_BEFORE)
@@ -117,6 +173,7 @@ def residual_time_series(
         ax.legend(loc="upper right", fontsize="small")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s]")
+    _fixed_layout(fig, grid)
     return fig
 
 
@@ -138,6 +195,7 @@ def autocorrelation_plot(
     ax.set_title(f"autocorrelation, dashed: {level:.0f} % bounds")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
+    _fixed_layout(fig, np.array([[ax]]), title=True)
     return fig
 
 
@@ -156,8 +214,9 @@ def normal_probability_plot(
     diagnoses = _diagnoses(diagnoses)
     if max_points < 2:
         raise ValueError(f"max_points must be >= 2, got {max_points}")
-    fig = Figure(figsize=(4.0 * len(diagnoses) + 0.5, 4.0), layout="constrained")
-    axes = fig.subplots(1, len(diagnoses), squeeze=False)[0]
+    fig = Figure(figsize=(4.0 * len(diagnoses) + 0.5, 4.0))
+    grid = fig.subplots(1, len(diagnoses), squeeze=False)
+    axes = grid[0]
     for i, (ax, (label, d)) in enumerate(zip(axes, diagnoses.items(), strict=True)):
         idx = np.unique(np.linspace(0, d.n - 1, min(max_points, d.n)).round().astype(int))
         q = d.normal_quantiles[idx]
@@ -170,6 +229,7 @@ def normal_probability_plot(
         ax.set_ylabel(f"ordered residual [{unit}]")
         ax.legend(fontsize="small", loc="upper left")
         ax.grid(alpha=0.3)
+    _fixed_layout(fig, grid, title=True)
     return fig
 
 
@@ -193,6 +253,7 @@ def spectral_density_plot(
     ax.set_title("residual spectral density (dotted: median background, v: peaks)")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3, which="both")
+    _fixed_layout(fig, np.array([[ax]]), title=True)
     return fig
 
 
@@ -228,8 +289,9 @@ def reconstruction_plot(
         missing = set(series) - set(measured)
         if missing:
             raise ValueError(f"{label} has channels not in measured: {sorted(missing)}")
-    fig = Figure(figsize=(8.0, 1.2 + 2.0 * len(measured)), layout="constrained")
-    axes = fig.subplots(len(measured), 1, sharex=True, squeeze=False)[:, 0]
+    fig = Figure(figsize=(8.0, 1.2 + 2.0 * len(measured)))
+    grid = fig.subplots(len(measured), 1, sharex=True, squeeze=False)
+    axes = grid[:, 0]
     for ax, (name, values) in zip(axes, measured.items(), strict=True):
         scale = np.degrees(1.0) if name in degrees else 1.0
         unit = units.get(name, DEGREE_UNITS.get(name, "deg") if name in degrees else "m/s")
@@ -245,4 +307,5 @@ def reconstruction_plot(
         ax.legend(loc="upper right", fontsize="small")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s]")
+    _fixed_layout(fig, grid)
     return fig
