@@ -3,8 +3,9 @@
 An Aerosonde identification flight (orthogonal multisines, light Dryden turbulence,
 the sensor suite of Vaiopoulos 2017, Table 7) with one effect its catalog model does not
 have: propeller slipstream drag, C_D += 0.1 T_c (Vaiopoulos 2017 found such a C_D_Tc term in
-its flight data). Only the measured channels are kept, at 50 Hz, as an autopilot log would
-have them; the metadata records how the flight was made.
+its flight data). Only the measured channels are kept, at the 100 Hz at which the autopilot
+issues its commands (a log thinned after the flight loses the commands in between, and the
+main job would see them late); the metadata records how the flight was made.
 
 Run: python examples/generate_sample_flight.py [out.parquet]   (default out/sample_flight.parquet)
      python examples/generate_sample_flight.py --bundle   (replaces the bundled file)
@@ -30,7 +31,7 @@ args = parser.parse_args()
 
 log = fly("aerosonde", turbulence="light", seed=2026, duration=150.0,
           disturbance=lambda c: (0.0, PROPWASH_DRAG * c.thrust_coefficient, 0, 0, 0, 0))
-sample = log.select(log.measured_names).resample(rate_hz=50.0)
+sample = log.select(log.measured_names)
 sample.metadata.update(
     injected_effect=f"C_D += {PROPWASH_DRAG} T_c (propwash drag)",
     generator=f"examples/generate_sample_flight.py, drake_uav {drake_uav.__version__}")

@@ -23,22 +23,25 @@ them differently for forces and moments (:func:`held_commands`): a sensor
 sample sees the command in effect at its instant, the last one issued strictly
 before it (a command stamped with the same time acts only after the sample);
 the angular accelerations come from rate increments, which integrate the held
-commands over the sample intervals. A log's metadata ``sample_rate_hz`` (the
-simulator's tick, at which it issues commands) gives the hold period when the
-log was thinned after the flight; otherwise every command is taken as logged.
+commands over the sample intervals. Every issued command is taken as logged
+(held until the next logged one): a log thinned after the flight has lost the
+commands in between, and nothing in it tells when they were issued.
 
 Sensor noise matters to the errors-in-variables corrections of the discovery
-loop. A log's metadata ``sensor_noise_std`` (channel -> standard deviation,
-written by the simulator or by the user from the sensor data sheets) is used
-when present; otherwise the white-noise floor of each raw channel is read from
-the top fifth of its spectrum, where flight dynamics and turbulence have faded.
+loop. It is read from the data (:func:`raw_noise_variance`: the white floor of
+each raw channel's spectrum, :mod:`drake_uav.estimation.sensor_noise`), or taken
+from the sensor specs the caller declares (``sensor_noise_std``). Nothing else
+of the log's metadata is read: a simulated flight records its true sensor noise
+and command rate there, which a real log never holds.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from scipy.signal import welch
+from collections.abc import Mapping
 
+import numpy as np
+
+from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.identification.isolation import AeroSamples, isolate_coefficients
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -62,25 +65,53 @@ _NOISE_SOURCES = dict(zip(
     AIR_DATA + RATES + SPECIFIC_FORCE, strict=True))
 
 
-def white_noise_variance(values: np.ndarray, rate_hz: float) -> float:
-    """Variance of the white-noise floor of a uniformly sampled signal.
+def white_noise_variance(values: np.ndarray, rate_hz: float,
+                         commands: np.ndarray | None = None) -> float:
+    """Variance of the white-noise floor of a uniformly sampled signal [unit^2].
 
-    The median Welch PSD over the top fifth of the band, where a flight
-    signal has faded, times the Nyquist bandwidth.
+    ``values`` sampled at ``rate_hz`` [Hz]; ``commands`` (n, m) the logged commands
+    on the same samples, whose coherent part is set aside
+    (:func:`~drake_uav.estimation.sensor_noise.noise_floor_variance`).
     """
-    frequency, psd = welch(values - np.mean(values), fs=rate_hz,
-                           nperseg=min(256, len(values)))
-    band = frequency >= 0.8 * frequency[-1]
-    return float(np.median(psd[band]) * rate_hz / 2.0)
+    return noise_floor_variance(values, rate_hz, commands)
 
 
-def raw_noise_variance(log: FlightLog) -> dict[str, float]:
-    """Noise variance of the raw channels the isolation needs (metadata or spectrum)."""
-    declared = log.metadata.get("sensor_noise_std") or {}
+def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = None,
+                       air_density: float | None = None) -> dict[str, float]:
+    """Noise variance of the raw channels the isolation needs, by isolation name.
+
+    ``declared`` (log channel -> standard deviation [channel unit], the user's
+    sensor specs) wins where it names a channel; the airspeed's may also come
+    from a declared ``pitot_qbar`` [Pa], carried through ``Va = sqrt(2 q / rho)``
+    at the log's median airspeed with ``air_density`` [kg/m^3]. The other
+    channels' noise is read from the data (:func:`white_noise_variance`, the
+    log's commands set aside).
+    """
+    std = _declared_std(log, declared or {}, air_density)
     rate = 1.0 / float(np.median(np.diff(log.time)))
-    return {name: (float(declared[channel]) ** 2 if channel in declared
-                   else white_noise_variance(log[channel], rate))
+    commands = log.stack(CONTROLS)
+    return {name: (std[channel] ** 2 if channel in std
+                   else white_noise_variance(log[channel], rate, commands))
             for name, channel in _NOISE_SOURCES.items()}
+
+
+def _specs_for(declared: Mapping[str, float] | None,
+               flow_channels: tuple[str, str]) -> Mapping[str, float] | None:
+    """The declared specs that apply: the vanes' only when the flow angles are the vanes'."""
+    if declared is None or tuple(flow_channels) == AIR_DATA[1:]:
+        return declared
+    return {k: v for k, v in declared.items() if k not in AIR_DATA[1:]}
+
+
+def _declared_std(log: FlightLog, declared: Mapping[str, float],
+                  air_density: float | None) -> dict[str, float]:
+    """Declared standard deviations of the isolation's channels (see :func:`raw_noise_variance`)."""
+    std = {channel: float(declared[channel]) for channel in _NOISE_SOURCES.values()
+           if channel in declared}
+    if "pitot_airspeed" not in std and "pitot_qbar" in declared and air_density:
+        airspeed = float(np.median(log["pitot_airspeed"]))
+        std["pitot_airspeed"] = float(declared["pitot_qbar"]) / (air_density * airspeed)
+    return std
 
 
 def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
@@ -150,14 +181,17 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
 
     Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
     take-off roll) are cut from the ends of the log. ``flow_channels`` hold the
-    angle of attack and sideslip [rad] (vanes, or an estimate). Raises
-    :class:`FlightLogError` naming a missing channel, a non-finite sample or a gap.
+    angle of attack and sideslip [rad] (vanes, or an estimate). ``sensor_noise_std``
+    (log channel -> standard deviation [channel unit]) are the sensor specs the
+    user declares; the noise of the channels they leave out is read from the data
+    (:func:`raw_noise_variance`). Raises :class:`FlightLogError` naming a missing
+    channel, a non-finite sample or a gap.
     """
     if tuple(flow_channels) != ("vane_alpha", "vane_beta"):
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
-    noise = raw_noise_variance(log)
+    noise = raw_noise_variance(log, _specs_for(sensor_noise_std, flow_channels), params.rho)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
@@ -166,9 +200,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     uniform = log.resample(rate_hz=rate_hz)
     # Misplacing held commands by half a hold period would leave a spurious actuator
     # delay (or lead) in the residual: forces and moments each get their own alignment.
-    rate = log.metadata.get("sample_rate_hz")
-    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time,
-                                              None if rate is None else 1.0 / float(rate))
+    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time)
     yaw = np.unwrap(log["att_yaw"])
     yaw_uniform = np.interp(uniform.time, log.time, yaw)
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
