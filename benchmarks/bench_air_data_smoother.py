@@ -15,7 +15,10 @@ Real-time factor = flight duration / wall time; target >= 200x (a 300 s flight i
 (after the first 5 s), for the smoothed estimate and for the forward filter alone, and
 the mean normalised squared error of the smoothed alpha and beta (samples 2 s apart).
 
+``--decimation`` sets the filter steps of ``estimate_air_data`` (default: its own).
+
 Run: python benchmarks/bench_air_data_smoother.py [--seeds 0 1 2 3 4] [--repeat 3]
+     [--decimation 3]
 """
 
 import argparse
@@ -77,7 +80,7 @@ def nees(log: FlightLog, estimate) -> tuple[float, float]:
         estimate, f"{n}_std"))[picks] ** 2)) for n in ("alpha", "beta"))
 
 
-def run_seed(seed: int, repeat: int) -> dict[str, float]:
+def run_seed(seed: int, repeat: int, options: dict) -> dict[str, float]:
     aircraft = aerosonde()
     truth = fly(aircraft, "light", duration=DURATION, seed=seed)
     log = measured_only(truth)
@@ -85,7 +88,7 @@ def run_seed(seed: int, repeat: int) -> dict[str, float]:
     out = {}
     for label, lift in (("lift", True), ("kinematic", False)):
         estimate, wall, cpu = best_of(repeat, lambda lift=lift: estimate_air_data(
-            log, aircraft, lift_relation=lift))
+            log, aircraft, lift_relation=lift, **options))
         a, b, v = errors(truth, estimate.time, estimate.airspeed, estimate.alpha,
                          estimate.beta, estimate.valid)
         na, nb = nees(truth, estimate)
@@ -116,10 +119,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--decimation", type=int, default=None)
     args = parser.parse_args()
+    options = {} if args.decimation is None else {"decimation": args.decimation}
     print(f"Air data without vanes: {DURATION:.0f} s flights at 100 Hz, light turbulence, "
-          f"seeds {args.seeds}, best of {args.repeat}")
-    results = [run_seed(seed, args.repeat) for seed in args.seeds]
+          f"seeds {args.seeds}, best of {args.repeat}, options {options}")
+    results = [run_seed(seed, args.repeat, options) for seed in args.seeds]
     mean = {k: float(np.mean([r[k] for r in results])) for k in results[0]}
     rtf = DURATION / mean["lift_wall"]
     print(f"Mean over seeds: estimate_air_data {mean['lift_wall']:.3f} s ({rtf:.1f}x real "

@@ -20,7 +20,7 @@ from drake_uav.vehicles import aerosonde
 SEEDS = (100, 101)
 DURATION = 40.0  # s
 SETTLE = 5.0  # s after the start left out of the error figures
-MAE_BOUND_DEG = 1.0  # alpha and beta, each flight (light turbulence, default sensors)
+MAE_BOUND_DEG = 0.75  # alpha and beta, each flight (light turbulence, default sensors)
 AIRSPEED_MAE_BOUND = 0.2  # m/s
 
 

@@ -233,7 +233,7 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                       lift_relation: bool = True, gust: bool = False,
                       turbulence: str = "light", altitude: float = 100.0,
                       gps_latency: float = DEFAULT_GPS_LATENCY,
-                      decimation: int = 3) -> AirDataEstimate:
+                      decimation: int = 5) -> AirDataEstimate:
     """Airspeed, alpha, beta and wind over a flight without vanes (module docstring).
 
     Args:
