@@ -66,7 +66,7 @@ def test_bin_messages_rates_and_events_as_arduplane_writes_them(bin_log):
                       "ARSP", "BARO", "RCOU", "AETR", "XKF2"}  # no vanes, no truth
     rates = {k: _rate([x.TimeUS / 1e6 for x in m[k]]) for k in
              ("IMU", "ATT", "GPS", "ARSP", "RCOU", "XKF2")}
-    assert rates == pytest.approx({"IMU": 50, "ATT": 50, "GPS": 5, "ARSP": 10, "RCOU": 50,
+    assert rates == pytest.approx({"IMU": 50, "ATT": 50, "GPS": 5, "ARSP": 10, "RCOU": 100,
                                    "XKF2": 1}, rel=1e-3)
     assert {x.I for x in m["IMU"]} == {0}
     assert m["MSG"][0].Message == FIRMWARE
@@ -183,7 +183,7 @@ def test_ulg_topics_parameters_and_info_as_px4_writes_them(ulg_log):
     assert rates == pytest.approx({"sensor_combined": 50, "vehicle_attitude": 50,
                                    "vehicle_gps_position": 5, "airspeed": 10,
                                    "differential_pressure": 1, "wind": 1,
-                                   "actuator_servos": 50}, rel=1e-3)
+                                   "actuator_servos": 100}, rel=1e-3)
     assert ulog.msg_info_dict["ver_sw_release"] == VER_SW_RELEASE
     p = ulog.initial_parameters
     assert p["MAV_TYPE"] == 1 and p["CA_SV_CS_COUNT"] == 4

@@ -81,8 +81,11 @@ class LogProfile:
     rotate_fraction: float = 0.75
     imu_rate_hz: float = 50.0
     """IMU and attitude logging rate (ArduPilot's default 50 Hz fast loop logging)."""
-    command_rate_hz: float = 50.0
-    """Servo outputs and demands."""
+    command_rate_hz: float = 100.0
+    """Servo outputs and demands. An autopilot logs its outputs once per control loop,
+    the rate at which they change; the simulated flight's loop runs at its sensor base
+    rate (100 Hz by default), so every command it flew is in the log. A lower rate
+    drops commands the aircraft flew, which no reader can restore."""
     gps_rate_hz: float = 5.0
     airspeed_rate_hz: float = 10.0
     baro_rate_hz: float = 10.0
