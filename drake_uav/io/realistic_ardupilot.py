@@ -17,8 +17,8 @@ GPS        5 Hz      Status 1 (no fix, Lat = Lng = 0) until the fix, then 3; Lat
 ORGN       once      EKF origin (Type 0) and home (Type 1) after the fix
 ARSP       10 Hz     Airspeed >= 0 (ArduPilot takes the root of abs(pressure)), DiffPress
 BARO       10 Hz     Alt above the boot altitude
-RCOU       50 Hz     PWM of every output through the SERVOn parameters; 0 before arming
-AETR       50 Hz     demands: Ail, Elev, Rudd -4500..4500 (roll right, pitch up, yaw right),
+RCOU       100 Hz    PWM of every output through the SERVOn parameters; 0 before arming
+AETR       100 Hz    demands: Ail, Elev, Rudd -4500..4500 (roll right, pitch up, yaw right),
                      Thr 0..100
 XKF2       1 Hz      wind estimate VWN, VWE (sparse on purpose: an optional stream)
 RPM        10 Hz     only when the flight has ``motor_speed``

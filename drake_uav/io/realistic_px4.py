@@ -16,9 +16,9 @@ airspeed                10 Hz     indicated/true airspeed (negative on the groun
 differential_pressure   1 Hz      differential_pressure_pa (sparse on purpose: optional)
 wind                    1 Hz      windspeed_north/east estimate (sparse on purpose)
 vehicle_air_data        10 Hz     baro_alt_meter (above mean sea level)
-actuator_servos         50 Hz     control[0..3] left aileron, right aileron, elevator,
+actuator_servos         100 Hz    control[0..3] left aileron, right aileron, elevator,
                                   rudder, -1..1 (PX4: trailing edge up / right positive)
-actuator_motors         50 Hz     control[0] throttle 0..1, unused motors NaN
+actuator_motors         100 Hz    control[0] throttle 0..1, unused motors NaN
 actuator_outputs        10 Hz     PWM [us] through PWM_MAIN_*; 0 on every output before
                                   arming
 vehicle_status          1 Hz      nav_state MANUAL (0) on the ground, AUTO_TAKEOFF (17),
