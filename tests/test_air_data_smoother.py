@@ -134,3 +134,49 @@ def test_smoother_beats_forward_filter_on_airspeed(flights):
     assert errors[1] < errors[0]
     variances = [np.einsum("kii->ki", P) for P in (forward.covariance, smoothed.covariance)]
     assert np.all(variances[1] <= variances[0] * (1 + 1e-9) + 1e-15)
+
+
+def test_rts_smooth_equals_the_batch_posterior():
+    """On a linear-Gaussian model the smoothed means and covariances are those of the
+    posterior of all states given all measurements (one dense solve)."""
+    from drake_uav.estimation import FilterPass
+
+    rng = np.random.default_rng(3)
+    n, nx = 30, 2
+    Phi = np.array([[1.0, 0.1], [0.0, 0.95]])
+    Q, H, R = np.diag([1e-3, 1e-2]), np.array([[1.0, 0.0]]), np.array([[0.04]])
+    P0, y = np.eye(nx), rng.standard_normal(n)
+    x, P = np.zeros(nx), P0
+    arrays = {k: [] for k in ("prior_x", "prior_P", "x", "P", "Phi")}
+    for k in range(n):
+        if k:
+            x, P = Phi @ x, Phi @ P @ Phi.T + Q
+        arrays["prior_x"].append(x)
+        arrays["prior_P"].append(P)
+        arrays["Phi"].append(Phi if k else np.eye(nx))
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+        x, P = x + K @ (y[k:k + 1] - H @ x), (np.eye(nx) - K @ H) @ P
+        arrays["x"].append(x)
+        arrays["P"].append(P)
+    forward = FilterPass(np.arange(n) * 0.1, *(np.array(arrays[k]) for k in (
+        "prior_x", "prior_P", "x", "P", "Phi")), np.zeros((n, 1)), np.zeros(1))
+    smoothed = rts_smooth(forward)
+    # Information matrix of the stacked states: prior, dynamics and measurements.
+    info, vector = np.zeros((n * nx, n * nx)), np.zeros(n * nx)
+    info[:nx, :nx] += np.linalg.inv(P0)
+    Qi, Ri = np.linalg.inv(Q), np.linalg.inv(R)
+    for k in range(n):
+        i = slice(k * nx, (k + 1) * nx)
+        info[i, i] += H.T @ Ri @ H
+        vector[i] += (H.T @ Ri)[:, 0] * y[k]
+        if k:
+            j = slice((k - 1) * nx, k * nx)
+            info[i, i] += Qi
+            info[j, j] += Phi.T @ Qi @ Phi
+            info[i, j] -= Qi @ Phi
+            info[j, i] -= Phi.T @ Qi
+    covariance = np.linalg.inv(info)
+    mean = covariance @ vector
+    np.testing.assert_allclose(smoothed.state.ravel(), mean, atol=1e-10)
+    blocks = [covariance[k * nx:(k + 1) * nx, k * nx:(k + 1) * nx] for k in range(n)]
+    np.testing.assert_allclose(smoothed.covariance, np.array(blocks), atol=1e-10)

@@ -25,7 +25,7 @@ from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
 from drake_uav.estimation.noise import sensor_std
 from drake_uav.estimation.signals import ATTITUDE, GPS_VELOCITY, IMU, LOG_CHANNELS
 from drake_uav.estimation.smoother import rts_smooth
-from drake_uav.estimation.vaneless_models import VanelessAirDataModel
+from drake_uav.estimation.vaneless_models import COEFFICIENT_NAMES, VanelessAirDataModel
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import air_data_from_velocity, dynamic_pressure
 from drake_uav.model.compiled import CompiledFunction
@@ -227,6 +227,27 @@ def _steps(available: np.ndarray, decimation: int) -> np.ndarray:
     return np.union1d(anchors, inside)
 
 
+def _smooth_segment(ekf: ExtendedKalmanFilter, data, inputs: np.ndarray, rows: slice,
+                    decimation: int, out: _Output, rejected: dict[str, int]) -> dict:
+    """Forward pass, backward pass and output of the log ``rows`` of one segment; adds
+    the gate rejections to ``rejected``; returns the smoothed specific-force
+    coefficients (empty without the relation)."""
+    model = ekf.model
+    steps = rows.start + _steps(data.available[rows], decimation)
+    forward = filter_pass(ekf, data.time[steps], _step_inputs(data.time, inputs, steps),
+                          data.measurements[steps], data.available[steps])
+    smoothed = rts_smooth(forward)
+    out.fill(rows, data.time, steps, model, smoothed.state, smoothed.covariance)
+    out.recentre(rows, steps, model, forward.inputs[:, 6:9], data.measurements[steps, 0:3],
+                 data.available[steps, 0:3].all(axis=1))
+    for group, count in zip(ekf.group_names, forward.rejected.tolist(), strict=True):
+        rejected[group] += count
+    if not model.lift_relation:
+        return {}
+    values = model.coefficients(smoothed.state[0, -6:])
+    return {n: float(c) for n, c in zip(COEFFICIENT_NAMES, values, strict=True)}
+
+
 def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                       noise_std: Mapping[str, float] | None = None,
                       segments: Sequence[Sequence[float]] | None = None,
@@ -280,7 +301,7 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
                                  averaged_imu=decimation > 1)
     data = model.log_data(log, gps_latency)
     inputs = data.inputs
-    for i in model._commands:  # commands absent from the log: zero
+    for i in model.command_inputs:  # commands absent from the log: zero
         inputs[:, i] = np.nan_to_num(inputs[:, i])
     period = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 0.01
     std = {**sensor_std(), **_filter_std(noise_std)}
@@ -296,20 +317,9 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         if start is None or inside.size - start < 2:
             continue
         rows = slice(inside[start], inside[-1] + 1)
-        steps = rows.start + _steps(data.available[rows], decimation)
-        forward = filter_pass(ekf, data.time[steps], _step_inputs(data.time, inputs, steps),
-                              data.measurements[steps], data.available[steps])
-        smoothed = rts_smooth(forward)
-        out.fill(rows, data.time, steps, model, smoothed.state, smoothed.covariance)
-        out.recentre(rows, steps, model, forward.inputs[:, 6:9], data.measurements[steps, 0:3],
-                     data.available[steps, 0:3].all(axis=1))
+        coefficients.append(_smooth_segment(ekf, data, inputs, rows, decimation, out,
+                                            rejected))
         done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
-        coefficients.append(dict(zip(
-            ("c_z0", "c_za", "c_ze", "c_y0", "c_yb", "c_yr"),
-            (float(c) for c in model.coefficients(smoothed.state[0, -6:])),
-            strict=True)) if lift_relation else {})
-        for g, count in zip(ekf.group_names, forward.rejected.tolist(), strict=True):
-            rejected[g] += count
     if not done:
         raise FlightLogError("estimate_air_data: no segment has both GPS velocity and a pitot "
                              f"airspeed of at least {MIN_START_AIRSPEED} m/s (channels "

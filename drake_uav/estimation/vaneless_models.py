@@ -46,7 +46,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["VanelessAirDataModel", "MEAN_WIND_PSD", "LIFT_COEFFICIENT_WALK",
-           "SPECIFIC_FORCE_MODEL_STD"]
+           "SPECIFIC_FORCE_MODEL_STD", "COEFFICIENT_NAMES"]
 
 MEAN_WIND_PSD = 0.01
 """Random-walk density of the mean wind when the gust is a separate state [m^2/s^3]."""
@@ -57,6 +57,9 @@ LIFT_COEFFICIENT_WALK = 0.0
 SPECIFIC_FORCE_MODEL_STD = 0.05
 """Error of the linear specific-force relation per sample [m/s^2] (unmodelled rate,
 thrust and nonlinear terms), added to the accelerometer noise."""
+
+COEFFICIENT_NAMES = ("c_z0", "c_za", "c_ze", "c_y0", "c_yb", "c_yr")
+"""The specific-force coefficients [m^2/kg] (:meth:`VanelessAirDataModel.coefficients`)."""
 
 _SPECIFIC_FORCE_COEFFICIENTS = ("c_z0", "log_c_za", "c_ze", "c_y0", "log_c_yb", "c_yr")
 """The coefficient states; the slopes as ``log(-c_za)`` and ``log(-c_yb)``: lift grows with
@@ -95,7 +98,8 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
     """
 
     held_inputs: tuple[int, ...] = ()
-    _commands: tuple[int, ...] = ()
+    command_inputs: tuple[int, ...] = ()
+    """Indices of the commands among the inputs (elevator, rudder)."""
 
     def __init__(self, params: FixedWingParams, *, gust: bool = False,
                  lift_relation: bool = True, turbulence: str = "light",
@@ -121,8 +125,8 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
             inputs += ["elevator", "rudder"]
             measurements += ["ay_meas", "az_meas"]
             groups = {**groups, "accelerometer_y": (4,), "accelerometer_z": (5,)}
-            self._commands = (9, 10)
-        self.held_inputs = (tuple(range(6)) if averaged_imu else ()) + self._commands
+            self.command_inputs = (9, 10)
+        self.held_inputs = (tuple(range(6)) if averaged_imu else ()) + self.command_inputs
         self.state_names, self.noise_names = tuple(states), tuple(noises)
         self.input_names, self.measurement_names = tuple(inputs), tuple(measurements)
         self.groups = groups
@@ -263,5 +267,5 @@ class VanelessAirDataModel(SmoothedAttitude, EkfModel):
         reader = LogReader(log, gps_latency, self.gravity)
         names = [n.removesuffix("_meas") for n in self.measurement_names]
         y, fresh = reader.sensors(names)
-        return FilterData(reader.time, reader.inputs(self.input_names, self._commands), y,
+        return FilterData(reader.time, reader.inputs(self.input_names, self.command_inputs), y,
                           fresh, None)
