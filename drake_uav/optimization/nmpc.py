@@ -328,7 +328,7 @@ class TrackingNmpc:
         if x[3:7] @ xr[0, 3:7] < 0:
             x = np.concatenate([x[:3], -x[3:7], x[7:]])
         L, l = _error_maps(xr)
-        LQ = 2 * h * np.swapaxes(L[1:], 1, 2) @ self.Q
+        LQ = np.swapaxes(L[1:], 1, 2) @ (2 * h * self.Q)
         self._stage_Q = LQ @ L[1:] + 1e-9 * np.eye(13)  # nodes 1..N
         self._stage_q = (LQ @ l[1:, :, None])[:, :, 0]
         self._input_r = -2 * h * (ur[:-1] * (self.f_max > 0)) @ self.R
@@ -379,8 +379,7 @@ class TrackingNmpc:
             return X, self._ur[:-1] * (self.f_max > 0)
         X, U = self._guess
         U = np.vstack([U[1:], U[-1:]])
-        Xn, _, _ = _rk4_batch(self._fn, X[-1:], U[-1:], self.h)
-        X = np.vstack([X[1:], Xn])
+        X = np.vstack([X[1:], rk4_step(X[-1], U[-1], self.h, self.params)])
         X[0] = self._x
         return X, U
 
