@@ -52,7 +52,8 @@ MEAN_WIND_PSD = 0.01
 """Random-walk density of the mean wind when the gust is a separate state [m^2/s^3]."""
 
 LIFT_COEFFICIENT_WALK = 0.0
-"""Random-walk density of the specific-force coefficients [(m^2/kg)^2 / s]."""
+"""Random-walk density of the specific-force coefficient states [(state unit)^2 / s]:
+constant coefficients (with a walk the offset of alpha drifted with ``c_z0``)."""
 
 SPECIFIC_FORCE_MODEL_STD = 0.05
 """Error of the linear specific-force relation per sample [m/s^2] (unmodelled rate,
