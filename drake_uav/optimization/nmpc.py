@@ -459,7 +459,12 @@ class TrackingNmpc:
         ``qp_solver="riccati"`` and they reach its optimum, otherwise by Clarabel."""
         Xn, Ax, Bu = lin
         c = Xn - (Ax @ Xg[:-1, :, None])[:, :, 0] - (Bu @ Ug[:, :, None])[:, :, 0]
-        fast = self._riccati(Ax, Bu, c) if self.settings.qp_solver == "riccati" else None
+        fast = None
+        if self.settings.qp_solver == "riccati":
+            try:
+                fast = self._riccati(Ax, Bu, c)
+            except (np.linalg.LinAlgError, ValueError):  # a singular stage: Clarabel decides
+                fast = None
         if fast is not None:
             return fast
         self._update_program()
@@ -569,10 +574,12 @@ class TrackingNmpc:
             return self._cone_ratio(end(mu)) - 1.0
 
         high = 1.0
-        while excess(high) > 0.0:
+        while (value := excess(high)) > 0.0:
             high *= 8.0
             if high > 1e15:
                 return None
+        if not np.isfinite(value):
+            return None
         mu = brentq(excess, 0.0, high, xtol=1e-12 * high, rtol=1e-14, maxiter=200)
         return 2.0 * mu * L.T @ Pt @ (L @ end(mu) + l)
 
