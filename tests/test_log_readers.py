@@ -617,3 +617,22 @@ def test_round_trip_of_canonical_channels(tmp_path, suffix):
         else:
             limit = max(tolerance.get(log.unit(name), 0.0), 1e-6 * np.abs(log[name]).max())
         assert np.abs(error).max() <= limit, (name, np.abs(error).max(), limit)
+
+
+def test_commands_logged_faster_than_the_imu_are_the_time_base():
+    """A 100 Hz servo stream next to a 50 Hz IMU: no command is lost to the hold."""
+    from drake_uav.io.streams import Stream, align_streams
+
+    imu_t = np.arange(0.0, 2.0, 0.02)
+    cmd_t = np.arange(0.0, 2.0, 0.01) + 0.003
+    imu = Stream("IMU", imu_t, {"imu_ax": np.sin(imu_t)}, {"imu_ax": "m/s^2"})
+    commands = Stream("RCOU", cmd_t, {"cmd_elevator": 0.01 * np.arange(cmd_t.size)},
+                      {"cmd_elevator": "rad"}, hold=True)
+    log = align_streams(imu, [commands], source="test")
+    assert log.metadata["time_base"] == "RCOU"
+    np.testing.assert_array_equal(log.time, cmd_t[cmd_t <= imu_t[-1]])
+    np.testing.assert_array_equal(log["cmd_elevator"], 0.01 * np.arange(log.time.size))
+    np.testing.assert_allclose(log["imu_ax"], np.interp(log.time, imu_t, np.sin(imu_t)))
+    slow = Stream("RCOU", cmd_t[::4], {"cmd_elevator": np.zeros(cmd_t[::4].size)},
+                  {"cmd_elevator": "rad"}, hold=True)
+    assert align_streams(imu, [slow], source="test").metadata["time_base"] == "IMU"

@@ -523,7 +523,7 @@ def _stream_info(stream: Stream, base: Stream) -> dict:
     time = stream.time[stream.mask()]
     rate = 1.0 / float(np.median(np.diff(time))) if time.size > 1 else 0.0
     info = {"messages": int(time.size), "rate_hz": round(rate, 6),
-            "method": "time base" if stream is base
+            "method": "time base" if stream.name == base.name
             else "previous-sample hold" if stream.hold else "linear",
             "channels": list(stream.channels)}
     if stream.valid is not None:
@@ -535,6 +535,10 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
                   metadata: Mapping[str, object] | None = None,
                   span: tuple[float, float] | None = None) -> FlightLog:
     """One FlightLog on the time base of ``base`` (the IMU) from several streams.
+
+    When the commands (a ``hold`` stream) are logged faster than ``base``, their
+    samples are the time base instead, and ``base`` is interpolated: every command
+    the aircraft flew stays in the log.
 
     Invalid samples are removed first. The base and the required streams cut
     the log into segments at every interval longer than ``max_gap`` [s]
@@ -576,25 +580,43 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
                         dropped)
 
 
+def _rate(stream: Stream) -> float:
+    """Median rate of a stream's valid samples [Hz] (0 for fewer than two)."""
+    time = stream.time[stream.mask()]
+    return 1.0 / float(np.median(np.diff(time))) if time.size > 1 else 0.0
+
+
+def _clock(base: Stream, kept: Sequence[Stream]) -> Stream:
+    """The stream whose samples are the log's times: ``base`` (the IMU), or a command
+    stream logged at least 1.5 times faster, so that no command the aircraft flew is
+    lost to the previous-sample hold (the IMU is then interpolated)."""
+    faster = [s for s in kept if s.hold and _rate(s) > 1.5 * _rate(base)]
+    return max(faster, key=_rate) if faster else base
+
+
 def _aligned_log(base: Stream, kept: Sequence[Stream], segments: np.ndarray, source: str,
                  max_gap: float, meta: dict, dropped: list[str]) -> FlightLog:
-    """The FlightLog of the base samples inside ``segments`` with every kept stream."""
-    lo = np.searchsorted(base.time, segments[:, 0], side="left")
-    hi = np.searchsorted(base.time, segments[:, 1], side="right")
+    """The FlightLog of the clock's samples inside ``segments`` with every kept stream."""
+    clock = _clock(base, kept).valid_only()
+    if clock.name != base.name:  # the IMU is interpolated, never extrapolated
+        covered = base.valid_only().time
+        segments = np.clip(segments, covered[0], covered[-1])
+    lo = np.searchsorted(clock.time, segments[:, 0], side="left")
+    hi = np.searchsorted(clock.time, segments[:, 1], side="right")
     index = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
-    time = base.time[index]
+    time = clock.time[index]
     measured, units, info = {}, {}, {}
     for stream in kept:
-        values = ({n: v[index] for n, v in stream.channels.items()} if stream is base
-                  else stream.valid_only().on(time))
+        values = ({n: v[index] for n, v in clock.channels.items()}
+                  if stream.name == clock.name else stream.valid_only().on(time))
         for name in values:
             if name in measured:
                 raise FlightLogError(f"{source}: channel '{name}' mapped twice "
                                      f"(again from stream '{stream.name}')")
         measured.update(values)
         units.update(stream.units)
-        info[stream.name] = _stream_info(stream, base)
-    meta.update({"source": source, "time_base": base.name, "max_gap_s": max_gap,
+        info[stream.name] = _stream_info(stream, clock)
+    meta.update({"source": source, "time_base": clock.name, "max_gap_s": max_gap,
                  "trimmed_s": [float(segments[0, 0] - base.time[0]),
                                float(base.time[-1] - segments[-1, 1])],
                  "segments": segments.tolist(), "dropped_streams": dropped,
