@@ -66,3 +66,23 @@ def test_declared_specs_are_used_only_when_given(flight):
     assert specs.noise_variance["az"] / plain.noise_variance["az"] == \
         pytest.approx(0.04 / from_data["az"])
     assert specs.noise_variance["ax"] == plain.noise_variance["ax"]
+
+
+def test_a_channel_logged_slower_than_the_log_keeps_its_noise():
+    """A 10 Hz pitot interpolated onto a 100 Hz log: its noise is read at 10 Hz."""
+    from drake_uav.identification.flight_data import native_noise_variance
+
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 120.0, 0.01)
+    logged = t[::10] + 0.004
+    airspeed = 25.0 + np.sin(0.3 * logged) + rng.normal(0.0, 0.3, logged.size)
+    channels = {"pitot_airspeed": np.interp(t, logged, airspeed)}
+    for name in ("cmd_elevator", "cmd_aileron", "cmd_rudder", "cmd_throttle"):
+        channels[name] = np.zeros(t.size)
+    units = {"pitot_airspeed": "m/s", "cmd_elevator": "rad", "cmd_aileron": "rad",
+             "cmd_rudder": "rad", "cmd_throttle": "1"}
+    streams = {"ARSP": {"rate_hz": 10.0, "channels": ["pitot_airspeed"]}}
+    log = FlightLog(t, channels, units=units, metadata={"streams": streams})
+    assert np.sqrt(native_noise_variance(log, "pitot_airspeed")) == pytest.approx(0.3, rel=0.15)
+    plain = FlightLog(t, channels, units=units)  # without the reader's stream rates
+    assert np.sqrt(native_noise_variance(plain, "pitot_airspeed")) < 0.05

@@ -47,7 +47,7 @@ from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
-           "white_noise_variance", "held_commands"]
+           "native_noise_variance", "white_noise_variance", "held_commands"]
 
 SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
 RATES = ("imu_p", "imu_q", "imu_r")
@@ -85,14 +85,39 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
     from a declared ``pitot_qbar`` [Pa], carried through ``Va = sqrt(2 q / rho)``
     at the log's median airspeed with ``air_density`` [kg/m^3]. The other
     channels' noise is read from the data (:func:`white_noise_variance`, the
-    log's commands set aside).
+    log's commands set aside) at the rate the channel was logged
+    (:func:`native_noise_variance`).
     """
     std = _declared_std(log, declared or {}, air_density)
-    rate = 1.0 / float(np.median(np.diff(log.time)))
-    commands = log.stack(CONTROLS)
     return {name: (std[channel] ** 2 if channel in std
-                   else white_noise_variance(log[channel], rate, commands))
+                   else native_noise_variance(log, channel))
             for name, channel in _NOISE_SOURCES.items()}
+
+
+def _logged_rate(log: FlightLog, channel: str) -> float | None:
+    """Rate [Hz] of the stream ``channel`` was read from (reader metadata), or None."""
+    for info in (log.metadata.get("streams") or {}).values():
+        if channel in info.get("channels", ()):
+            return float(info["rate_hz"])
+    return None
+
+
+def native_noise_variance(log: FlightLog, channel: str) -> float:
+    """White-noise variance of ``channel`` at the rate it was logged [unit^2].
+
+    A channel logged slower than the log's time base was interpolated onto it,
+    which averages neighbouring samples and hides their noise. It is taken back to
+    its own rate (every k-th sample); of the k phases, the one with the highest
+    floor lies closest to the logged samples and gives the estimate.
+    """
+    rate = 1.0 / float(np.median(np.diff(log.time)))
+    logged = _logged_rate(log, channel)
+    step = 1 if logged is None else max(1, int(round(rate / logged)))
+    values, commands = log[channel], log.stack(CONTROLS)
+    if step == 1:
+        return white_noise_variance(values, rate, commands)
+    return max(white_noise_variance(values[j::step], rate / step, commands[j::step])
+               for j in range(step))
 
 
 def _specs_for(declared: Mapping[str, float] | None,
