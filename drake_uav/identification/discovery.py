@@ -225,23 +225,6 @@ class _Design:
         """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
         return compensated_normal_equations(self.X, self.z, self.noise, rows)
 
-    def errors(self, theta: np.ndarray, rows=None) -> tuple[float, float]:
-        """Observed squared error over ``rows`` and the same without its regressor-noise part.
-
-        Comparing models by the error without it scores how well they predict the true
-        coefficient, so a column that merely stands in for a noisy regressor (a cleaner
-        proxy) gains nothing.
-        """
-        X = self.X if rows is None else self.X[rows]
-        z = self.z if rows is None else self.z[rows]
-        r = z - X @ theta
-        observed = float(r @ r)
-        return observed, observed - noise_error_energy(theta, *self.noise.moments(rows))
-
-    def well_posed(self) -> bool:
-        """True when the noise-corrected normal matrix is safely positive definite."""
-        return is_well_posed(self.moments()[0])
-
     def solve(self, rows=None) -> np.ndarray:
         return solve_normal_equations(*self.moments(rows))
 
@@ -370,7 +353,12 @@ def _is_redundant(basis: np.ndarray, column: np.ndarray) -> bool:
 
 def _errors(z: np.ndarray, prediction: np.ndarray, theta, C_xx, c_xz) -> tuple[float, float]:
     """Observed squared error of ``prediction`` and the same without its regressor-noise part
-    (:meth:`_Design.errors`)."""
+    (the noise moments ``C_xx, c_xz`` of the same rows).
+
+    Comparing models by the error without it scores how well they predict the true
+    coefficient, so a column that merely stands in for a noisy regressor (a cleaner proxy)
+    gains nothing.
+    """
     r = z - prediction
     observed = float(r @ r)
     return observed, observed - noise_error_energy(theta, C_xx, c_xz)
@@ -573,26 +561,31 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         effect = next((e for e in effects if e.name == best), None)
         for ev in accepted:
             k = ev.coefficient
-            variance = designs[k].noise.variance
-            if effect is not None:
-                function, columns = (_effect_function(effect, params, k),
-                                     pool.named(effect, k, variance))
-            else:
-                function, columns = (_product_function(params, k, ev.columns),
-                                     pool.products(k, variance))
-            columns = columns.pick(ev.columns)
-            designs[k] = designs[k].extended(columns.columns, columns.jacobians,
-                                             prefix=f"{best}:")
-            columns, jac = _columns_and_jacobians(function, test_variants,
-                                                  tests[k].noise.variance)
-            tests[k] = tests[k].extended({c: columns[c] for c in ev.columns}, jac,
-                                         prefix=f"{best}:")
+            designs[k], tests[k] = _with_effect(designs[k], tests[k], ev, effect, pool,
+                                                test_variants)
         found.append(_found(best, effect, accepted))
 
     final = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
     found = [_with_parameters(f, final) for f in found]
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
                            rounds=tuple(rounds), holdout_start=float(test.time[0]))
+
+
+def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effect | None,
+                 pool: _Candidates, test_variants: _Perturbations) -> tuple[_Design, _Design]:
+    """The training and held-out designs of one coefficient with an accepted effect's columns
+    (``effect`` None: a data-driven product)."""
+    k, prefix = evidence.coefficient, f"{evidence.effect}:"
+    if effect is not None:
+        function = _effect_function(effect, pool.params, k)
+        columns = pool.named(effect, k, train.noise.variance)
+    else:
+        function = _product_function(pool.params, k, evidence.columns)
+        columns = pool.products(k, train.noise.variance)
+    held_out = _Columns(*_columns_and_jacobians(function, test_variants, test.noise.variance))
+    columns, held_out = columns.pick(evidence.columns), held_out.pick(evidence.columns)
+    return (train.extended(columns.columns, columns.jacobians, prefix=prefix),
+            test.extended(held_out.columns, held_out.jacobians, prefix=prefix))
 
 
 def _score_products(bases, pool: _Candidates, rule, used) -> list[Evidence]:

@@ -43,6 +43,10 @@ _AFTER = dict(color="C0", lw=0.8)
 #: panels whose x tick labels are hidden, and the room of a panel title.
 _BORDER, _GAP, _TITLE = 0.08, 0.14, 0.3
 
+#: Titles sit on the top of their axes (no tick labels there). Given, the height spares the
+#: search for the top axis' tick labels that an automatic title position makes at each draw.
+_TITLE_Y = 1.0
+
 
 def _text_size(text: str, size) -> tuple[float, float]:
     """Width and height [in] of ``text`` at font ``size``, from the font metrics alone."""
@@ -192,7 +196,7 @@ def autocorrelation_plot(
     ax.set_xlabel("lag [s]")
     ax.set_ylabel("autocorrelation [-]")
     level = 100 * (1 - series[0][2].alpha)
-    ax.set_title(f"autocorrelation, dashed: {level:.0f} % bounds")
+    ax.set_title(f"autocorrelation, dashed: {level:.0f} % bounds", y=_TITLE_Y)
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
     _fixed_layout(fig, np.array([[ax]]), title=True)
@@ -224,7 +228,8 @@ def normal_probability_plot(
         ends = np.array([q[0], q[-1]])
         ax.plot(ends, d.mean + d.std * ends, "k-", lw=0.8, label="Gaussian, same mean/std")
         verdict = "normal" if d.is_normal else "not normal"
-        ax.set_title(f"{label}: r = {d.probability_plot_r:.4f} ({verdict})", fontsize="medium")
+        ax.set_title(f"{label}: r = {d.probability_plot_r:.4f} ({verdict})", fontsize="medium",
+                     y=_TITLE_Y)
         ax.set_xlabel("standard normal quantile [-]")
         ax.set_ylabel(f"ordered residual [{unit}]")
         ax.legend(fontsize="small", loc="upper left")
@@ -250,7 +255,7 @@ def spectral_density_plot(
                         xytext=(3, 4), textcoords="offset points", color=color)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("PSD [1/Hz]" if unit in ("-", "1", "") else f"PSD [{unit}^2/Hz]")
-    ax.set_title("residual spectral density (dotted: median background, v: peaks)")
+    ax.set_title("residual spectral density (dotted: median background, v: peaks)", y=_TITLE_Y)
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3, which="both")
     _fixed_layout(fig, np.array([[ax]]), title=True)
