@@ -267,7 +267,7 @@ def check_fixed_wing(log: FlightLog, source: str) -> None:
     """Raises FlightLogError for a log whose vehicle type is not a fixed wing or VTOL."""
     vehicle = log.metadata.get("vehicle_type") or {}
     kind = vehicle.get("mav_type")
-    if kind is not None and int(kind) not in _FIXED_WING_TYPES:
+    if kind is not None and int(kind) not in _FIXED_WING_TYPES | {0}:  # 0: generic
         name = vehicle.get("name", "")
         raise FlightLogError(f"{source}: not a fixed-wing log (MAV_TYPE {int(kind)}"
                              f"{f', {name}' if name else ''}); identify works on fixed-wing "
