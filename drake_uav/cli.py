@@ -235,6 +235,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     )
     from drake_uav.optimization.nmpc import NmpcSettings
     from drake_uav.reporting.tracking_figures import write_tracking_plots
+    from drake_uav.systems.state_sensor import StateNoise
     from drake_uav.vehicles.multirotor import hexacopter
 
     params = hexacopter()
@@ -245,7 +246,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
     run = fly_tracking(params, terminal, duration, settings=NmpcSettings(mode=args.mode),
                        offset=(args.offset, 0.0, 0.0),
                        attitude_offset=np.radians(args.roll_offset),
-                       gust_sigma=args.gust, seed=args.seed)
+                       gust_sigma=args.gust, seed=args.seed,
+                       sensor_noise=StateNoise() if args.noise else None)
     stats = solve_time_stats(run)
     print(f"position RMSE after 2 s: {100 * run.rmse(2.0):.2f} cm "
           f"(max error after 2 s {100 * run.position_error[run.time >= 2].max():.2f} cm)")
@@ -326,7 +328,10 @@ def _track_parser(sub) -> None:
     track.add_argument("--offset", type=float, default=0.5, help="initial north offset [m]")
     track.add_argument("--roll-offset", type=float, default=10.0, help="initial roll [deg]")
     track.add_argument("--gust", type=float, default=0.0, help="gust force std [N]")
-    track.add_argument("--seed", type=int, default=0, help="seed of the gusts")
+    track.add_argument("--noise", action="store_true",
+                       help="the controller reads a noisy state (2 cm, 0.01 rad, 5 cm/s, "
+                            "0.02 rad/s std)")
+    track.add_argument("--seed", type=int, default=0, help="seed of the gusts and the noise")
     track.add_argument("--out", default="drake_uav_track", help="plot folder")
     track.set_defaults(handler=_cmd_track)
 

@@ -10,7 +10,9 @@
   :func:`orthogonal_multisines`; :class:`AerodynamicIncrement` (an effect the
   model lacks, injected as an external wrench).
 * Control: :class:`SafetyPilot` (the identification flight's weak hold loops,
-  :class:`SafetyPilotGains`).
+  :class:`SafetyPilotGains`), :class:`NmpcController` (the multirotor's tracking
+  NMPC), :class:`NoisyStateSensor` (:class:`StateNoise`: a noisy state measurement
+  for the controller).
 * On-line estimation and identification: :class:`AirDataEkf`,
   :class:`ModelBasedAirDataEkf`, :class:`ParameterEkf`,
   :class:`RecursiveIdentifier` and :class:`AeroRegressors`.
@@ -48,10 +50,14 @@ from drake_uav.systems.multirotor import MultirotorPlant, MultirotorPlant_
 from drake_uav.systems.nmpc_controller import NmpcController
 from drake_uav.systems.safety_pilot import SafetyPilot, SafetyPilotGains
 from drake_uav.systems.sensors import SampledSensors, SensorSuite
+from drake_uav.systems.state_sensor import NoisyStateSensor, StateNoise, add_noisy_state_sensor
 from drake_uav.systems.wind import DrydenFilter, DrydenParams, DrydenWind
 
 __all__ = [
     "SURFACES",
+    "NoisyStateSensor",
+    "StateNoise",
+    "add_noisy_state_sensor",
     "AeroRegressors",
     "AerodynamicIncrement",
     "AirDataEkf",
