@@ -39,6 +39,12 @@ def _wrap(angle):
     return (np.asarray(angle) + math.pi) % (2 * math.pi) - math.pi
 
 
+def _last_stamp(t, stamps):
+    """Stamp [s] of the last sample at or before each time ``t`` [s] (previous-sample hold)."""
+    index = np.searchsorted(stamps, t, side="right") - 1
+    return np.asarray(stamps)[np.clip(index, 0, len(stamps) - 1)]
+
+
 def _canonical_log(n: int = 401, seed: int = 0) -> FlightLog:
     """Smooth random signals on the 24 channels the simulator's sensors produce."""
     rng = np.random.default_rng(seed)
@@ -260,13 +266,17 @@ def test_dataflash_channels_units_and_alignment_exact(tmp_path):
     e2 = 6.69437999014e-3
     r_north = 6378137.0 * (1 - e2) / (1 - e2 * math.sin(lat0) ** 2) ** 1.5
     r_east = 6378137.0 * math.cos(lat0) / math.sqrt(1 - e2 * math.sin(lat0) ** 2)
-    np.testing.assert_allclose(log["gps_pn"], 5e-5 * (t - 1.4) * DEG * r_north, atol=1e-6)
-    np.testing.assert_allclose(log["gps_pe"], -1e-4 * (t - 1.4) * DEG * r_east, atol=1e-6)
-    np.testing.assert_allclose(log["gps_pd"], -2.5 * (t - 1.4), atol=1e-9)
-    # ARSP, BARO, RPM (10 Hz) interpolated; XKF2 core 0 only.
-    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (t - 1.0), atol=1e-12)
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(t, _us(1.0, 5, 21) / 1e6)
+    np.testing.assert_allclose(log["gps_pn"], 5e-5 * (s - 1.4) * DEG * r_north, atol=1e-6)
+    np.testing.assert_allclose(log["gps_pe"], -1e-4 * (s - 1.4) * DEG * r_east, atol=1e-6)
+    np.testing.assert_allclose(log["gps_pd"], -2.5 * (s - 1.4), atol=1e-9)
+    # ARSP, BARO, RPM (10 Hz); XKF2 core 0 only.
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(t, _us(1.0, 10, 41) / 1e6)
+    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (s - 1.0), atol=1e-12)
     np.testing.assert_array_equal(log["pitot_qbar"], np.full(t.size, 240.0))
-    np.testing.assert_allclose(log["baro_alt"], 100 + 10 * (t - 1.0), atol=1e-12)
+    np.testing.assert_allclose(log["baro_alt"], 100 + 10 * (s - 1.0), atol=1e-12)
     np.testing.assert_allclose(log["motor_speed"], 6000 * 2 * math.pi / 60, rtol=1e-15)
     np.testing.assert_array_equal(log["est_wind_n"], np.full(t.size, 3.0))
     np.testing.assert_array_equal(log["est_wind_e"], np.full(t.size, -1.0))
@@ -352,7 +362,9 @@ def test_dataflash_gap_in_a_stream_cuts_segments(tmp_path):
     np.testing.assert_allclose(log.metadata["segments"], [[1.4, 2.005], [4.205, 4.905]])
     assert log.time[0] == 1.4 and log.time[-1] == 4.9
     assert not np.any((log.time > 2.005) & (log.time < 4.205))
-    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (log.time - 1.0), atol=1e-12)
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(log.time, _us(1.0, 10, 41) / 1e6)
+    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (s - 1.0), atol=1e-12)
     k = np.floor((log.time - 1.005) / 0.1 + 1e-9)
     np.testing.assert_allclose(log["cmd_elevator"], -(10 * k / 500) * 25 * DEG, atol=1e-15)
     path = _multirate_bin(tmp_path / "arsp_gap.bin", gap_in_arsp=True)  # optional: dropped
@@ -366,7 +378,10 @@ def test_dataflash_gap_in_a_stream_cuts_segments(tmp_path):
 def test_dataflash_gap_tolerance_is_configurable(tmp_path):
     path = _multirate_bin(tmp_path / "gap.bin", gap_in_arsp=True)
     log = read_log(path, max_gap=2.5)
-    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (log.time - 1.0), atol=1e-12)
+    # held: logged slower than 0.45 of the time base (the last sample before the gap on)
+    k = np.arange(41)
+    s = _last_stamp(log.time, _us(1.0, 10, 41)[~((k > 10) & (k < 32))] / 1e6)
+    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (s - 1.0), atol=1e-12)
 
 
 def test_dataflash_truncated_file(tmp_path):
@@ -437,7 +452,8 @@ def test_align_streams_segments_holes_and_optional_streams():
                                [[0.5, 1.98], [3.2, 7.45], [7.55, 10.0]])
     assert log.metadata["dropped_streams"] == ["arsp"] and "arsp_x" not in log
     np.testing.assert_allclose(log["att_x"], 2 * log.time, atol=1e-12)
-    np.testing.assert_allclose(log["baro_x"], 2 * log.time, atol=1e-12)
+    # held: logged slower than 0.45 of the time base
+    np.testing.assert_allclose(log["baro_x"], 2 * _last_stamp(log.time, baro.time), atol=1e-12)
     assert log.metadata["streams"]["out"]["invalid"] == 11
     k = np.arange(101)
     gappy = _stream("baro", 10, 0.0, 10.0, optional=True, valid=(k < 50) | (k > 59))
@@ -528,14 +544,16 @@ def test_ulog_channels_units_and_alignment(tmp_path):
     np.testing.assert_allclose(log["att_roll"], 0.1 + 0.5 * (t - 1.0), atol=2e-7)
     np.testing.assert_allclose(log["att_pitch"], -0.05 + 0.1 * (t - 1.0), atol=2e-7)
     np.testing.assert_allclose(_wrap(log["att_yaw"] - (3.0 + 0.5 * (t - 1.0))), 0, atol=2e-7)
-    np.testing.assert_allclose(log["gps_pn"], 20 * (t - 1.0), atol=1e-5)
-    np.testing.assert_allclose(log["gps_pe"], -10 * (t - 1.0), atol=1e-5)
-    np.testing.assert_allclose(log["gps_pd"], -50 + 2.5 * (t - 1.0), atol=1e-5)
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(t, _us(1.0, 10, 31) / 1e6)
+    np.testing.assert_allclose(log["gps_pn"], 20 * (s - 1.0), atol=1e-5)
+    np.testing.assert_allclose(log["gps_pe"], -10 * (s - 1.0), atol=1e-5)
+    np.testing.assert_allclose(log["gps_pd"], -50 + 2.5 * (s - 1.0), atol=1e-5)
     np.testing.assert_array_equal(log["gps_vn"], np.full(301, 20.0))
     np.testing.assert_array_equal(log["gps_vd"], np.full(301, 2.5))
-    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (t - 1.0), atol=1e-12)
-    np.testing.assert_allclose(log["pitot_qbar"], 240 + 10 * (t - 1.0), atol=1e-10)
-    np.testing.assert_allclose(log["baro_alt"], 50 + 2.5 * (t - 1.0), atol=1e-12)
+    np.testing.assert_allclose(log["pitot_airspeed"], 20 + 5 * (s - 1.0), atol=1e-12)
+    np.testing.assert_allclose(log["pitot_qbar"], 240 + 10 * (s - 1.0), atol=1e-10)
+    np.testing.assert_allclose(log["baro_alt"], 50 + 2.5 * (s - 1.0), atol=1e-12)
     np.testing.assert_array_equal(log["est_wind_n"], np.full(301, 4.0))
     # actuator_controls_0 (50 Hz) held: pitch-up demand 0.1 -> elevator -2.5 deg.
     k = np.floor((t - 1.0) / 0.02 + 1e-9)
@@ -558,8 +576,10 @@ def test_ulog_outputs_older_topics_and_options(tmp_path):
     np.testing.assert_allclose(log["cmd_elevator"], -((100 - 2 * k) / 500) * 25 * DEG,
                                atol=1e-15)
     np.testing.assert_allclose(log["cmd_throttle"], 0.5)
-    np.testing.assert_allclose(log["pitot_airspeed"], 18 + 5 * (t - 1.0), atol=1e-12)
-    np.testing.assert_allclose(log["pitot_qbar"], 240 + 10 * (t - 1.0), atol=1e-10)
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(t, _us(1.0, 10, 31) / 1e6)
+    np.testing.assert_allclose(log["pitot_airspeed"], 18 + 5 * (s - 1.0), atol=1e-12)
+    np.testing.assert_allclose(log["pitot_qbar"], 240 + 10 * (s - 1.0), atol=1e-10)
     np.testing.assert_array_equal(log["est_wind_e"], np.full(t.size, -2.0))
     with pytest.raises(ValueError, match="airspeed: 'true' or 'indicated'"):
         read_px4(path, airspeed="calibrated")

@@ -130,6 +130,12 @@ def _us(t0, rate, n):
     return np.round((t0 + np.arange(n) / rate) * 1e6).astype(np.uint64)
 
 
+def _last_stamp(t, stamps):
+    """Stamp [s] of the last sample at or before each time ``t`` [s] (previous-sample hold)."""
+    index = np.searchsorted(stamps, t, side="right") - 1
+    return np.asarray(stamps)[np.clip(index, 0, len(stamps) - 1)]
+
+
 class _Log:
     """A 4 s synthetic ULog: sensor_combined 200 Hz and vehicle_attitude 50 Hz, plus
     whatever a test adds (:meth:`topic`); times from 1 s."""
@@ -188,7 +194,9 @@ def test_sparse_optional_topics_dropped_and_invalid_samples_are_holes(tmp_path):
         assert any(m.startswith(f"{path}: optional stream '{topic}' dropped: sparse: logged "
                                 "at 1 Hz") for m in messages)
     assert "gps_pn" not in flight and "gps_vn" not in flight
-    np.testing.assert_allclose(flight["gps_pd"], -50 - 10 * (flight.time - 1.0), atol=1e-4)
+    # held: logged slower than 0.45 of the time base
+    s = _last_stamp(flight.time, _us(1.0, 10, 41) / 1e6)
+    np.testing.assert_allclose(flight["gps_pd"], -50 - 10 * (s - 1.0), atol=1e-4)
     # The pitot of a plane is required: its negative samples are a hole between segments.
     assert meta["streams"]["airspeed"]["invalid"] == 3
     np.testing.assert_allclose(meta["segments"], [[1.0, 2.95], [3.15, 5.0]])

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "HELD_FRACTION",
+    "unheld",
     "IMU",
     "ATTITUDE",
     "CONTROLS",
@@ -62,3 +64,21 @@ def fresh_samples(values: np.ndarray) -> np.ndarray:
     fresh = np.ones(len(values), bool)
     fresh[1:] = is_new_sample(values[1:], values[:-1])
     return fresh
+
+
+HELD_FRACTION = 0.6
+"""A channel with new values at fewer than this fraction of its samples is taken as held."""
+
+
+def unheld(time: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """A held channel as straight lines between the samples it delivered.
+
+    Each new value is placed at the sample where it arrived. A channel with a new
+    value at most samples (:data:`HELD_FRACTION`) is returned unchanged.
+    """
+    values = np.asarray(values, float)
+    fresh = np.flatnonzero(fresh_samples(values))
+    if fresh.size < 2 or fresh.size > HELD_FRACTION * values.size:
+        return values
+    return np.interp(time, np.asarray(time, float)[fresh], values[fresh])
+

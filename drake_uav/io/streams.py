@@ -42,6 +42,7 @@ __all__ = [
     "FieldSource",
     "Stream",
     "align_streams",
+    "logged_rate",
     "require_channels",
 ]
 
@@ -538,7 +539,8 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
 
     When the commands (a ``hold`` stream) are logged faster than ``base``, their
     samples are the time base instead, and ``base`` is interpolated: every command
-    the aircraft flew stays in the log.
+    the aircraft flew stays in the log. Streams slower than
+    :data:`SLOW_SENSOR_FRACTION` of the time base are held, the others interpolated.
 
     Invalid samples are removed first. The base and the required streams cut
     the log into segments at every interval longer than ``max_gap`` [s]
@@ -586,6 +588,20 @@ def _rate(stream: Stream) -> float:
     return 1.0 / float(np.median(np.diff(time))) if time.size > 1 else 0.0
 
 
+SLOW_SENSOR_FRACTION = 0.45
+"""A sensor stream logged below this fraction of the time base's rate (GPS, airspeed,
+baro) is aligned by previous-sample hold, as the simulated sensors log it: a new value
+marks when a sample arrived, which the filters need
+(:func:`drake_uav.estimation.signals.fresh_samples`); the identification draws straight
+lines between the samples again (:func:`drake_uav.estimation.signals.unheld`)."""
+
+
+def _held_as_logged(stream: Stream, base: Stream, clock_rate: float) -> bool:
+    """A slow sensor stream (not the IMU) that is aligned by hold."""
+    return (not stream.hold and stream.name != base.name
+            and _rate(stream) < SLOW_SENSOR_FRACTION * clock_rate)
+
+
 def _clock(base: Stream, kept: Sequence[Stream]) -> Stream:
     """The stream whose samples are the log's times: ``base`` (the IMU), or a command
     stream logged at least 1.5 times faster, so that no command the aircraft flew is
@@ -606,7 +622,10 @@ def _aligned_log(base: Stream, kept: Sequence[Stream], segments: np.ndarray, sou
     index = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi, strict=True)])
     time = clock.time[index]
     measured, units, info = {}, {}, {}
+    rate = _rate(clock)
     for stream in kept:
+        if _held_as_logged(stream, base, rate):
+            stream = dataclasses.replace(stream, hold=True)
         values = ({n: v[index] for n, v in clock.channels.items()}
                   if stream.name == clock.name else stream.valid_only().on(time))
         for name in values:
@@ -622,6 +641,15 @@ def _aligned_log(base: Stream, kept: Sequence[Stream], segments: np.ndarray, sou
                  "segments": segments.tolist(), "dropped_streams": dropped,
                  "streams": info})
     return FlightLog(time, measured, units=units, metadata=meta)
+
+
+def logged_rate(log: FlightLog, channel: str) -> float | None:
+    """Rate [Hz] of the stream ``channel`` was read from (``metadata["streams"]`` of the
+    autopilot readers), or None when the log does not say (CSV, simulated logs)."""
+    for info in (log.metadata.get("streams") or {}).values():
+        if channel in info.get("channels", ()):
+            return float(info["rate_hz"])
+    return None
 
 
 def require_channels(log: FlightLog, required: Iterable[str], source: str) -> FlightLog:
