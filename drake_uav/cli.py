@@ -105,7 +105,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
     run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
-                   air_data=args.air_data, sensor_noise_std=spec, segment=segment)
+                   air_data=args.air_data, sensor_noise_std=spec, segment=segment,
+                   propulsion=args.propulsion)
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()
@@ -303,6 +304,10 @@ def _identify_parser(sub) -> None:
                        help="alpha and beta from the vanes, estimated from IMU, attitude, GPS "
                             "and pitot (smoother), or the autopilot's own AHRS estimate "
                             "(ArduPlane AOA/SSA); auto: vanes when logged, else estimate")
+    ident.add_argument("--propulsion", choices=("data", "catalog"), default="data",
+                       help="thrust identified with the drag from the data (from the RPM when "
+                            "logged; the catalog model when the throttle hardly varies, with a "
+                            "warning), or the aircraft's propulsion model")
     ident.add_argument("--max-gap", type=float, metavar="SECONDS",
                        help="longest gap inside a stream before the log is cut into segments "
                             "(default 0.5 s)")

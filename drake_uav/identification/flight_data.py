@@ -42,8 +42,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from drake_uav.estimation.sensor_noise import noise_floor_variance
+from drake_uav.estimation.signals import unheld
 from drake_uav.identification.isolation import AeroSamples, isolate_coefficients
+from drake_uav.identification.propulsion import identify_thrust
 from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.io.streams import logged_rate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
@@ -94,14 +97,6 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
             for name, channel in _NOISE_SOURCES.items()}
 
 
-def _logged_rate(log: FlightLog, channel: str) -> float | None:
-    """Rate [Hz] of the stream ``channel`` was read from (reader metadata), or None."""
-    for info in (log.metadata.get("streams") or {}).values():
-        if channel in info.get("channels", ()):
-            return float(info["rate_hz"])
-    return None
-
-
 def native_noise_variance(log: FlightLog, channel: str) -> float:
     """White-noise variance of ``channel`` at the rate it was logged [unit^2].
 
@@ -111,7 +106,7 @@ def native_noise_variance(log: FlightLog, channel: str) -> float:
     floor lies closest to the logged samples and gives the estimate.
     """
     rate = 1.0 / float(np.median(np.diff(log.time)))
-    logged = _logged_rate(log, channel)
+    logged = logged_rate(log, channel)
     step = 1 if logged is None else max(1, int(round(rate / logged)))
     values, commands = log[channel], log.stack(CONTROLS)
     if step == 1:
@@ -137,6 +132,16 @@ def _declared_std(log: FlightLog, declared: Mapping[str, float],
         airspeed = float(np.median(log["pitot_airspeed"]))
         std["pitot_airspeed"] = float(declared["pitot_qbar"]) / (air_density * airspeed)
     return std
+
+
+def _air_data_unheld(log: FlightLog) -> FlightLog:
+    """``log`` with held air data and height (a 10 Hz pitot held on a faster log) drawn
+    as straight lines between their samples, as they were measured."""
+    names = [n for n in (*AIR_DATA, HEIGHT) if n in log]
+    measured = {n: log[n] for n in log.measured_names}
+    measured.update({n: unheld(log.time, log[n]) for n in names})
+    return FlightLog(log.time, measured, units={n: log.unit(n) for n in log.measured_names},
+                     metadata=log.metadata)
 
 
 def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
@@ -201,7 +206,8 @@ def check_gaps(log: FlightLog, max_gap: float) -> None:
 def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
                      max_gap: float = 0.5, min_airspeed: float = 5.0,
                      flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
-                     sensor_noise_std: dict[str, float] | None = None) -> AeroSamples:
+                     sensor_noise_std: dict[str, float] | None = None,
+                     propulsion: str = "catalog") -> AeroSamples:
     """Regression samples (measured coefficients and regressors) from a flight log.
 
     Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
@@ -209,9 +215,16 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     angle of attack and sideslip [rad] (vanes, or an estimate). ``sensor_noise_std``
     (log channel -> standard deviation [channel unit]) are the sensor specs the
     user declares; the noise of the channels they leave out is read from the data
-    (:func:`raw_noise_variance`). Raises :class:`FlightLogError` naming a missing
-    channel, a non-finite sample or a gap.
+    (:func:`raw_noise_variance`). ``propulsion`` "catalog" takes the thrust from
+    the aircraft's propulsion model; "data" identifies it with C_X
+    (:func:`~drake_uav.identification.propulsion.identify_thrust`: from the motor
+    speed when logged, else a throttle and airspeed correction), which falls back to
+    the catalog model with a warning when the flight cannot tell thrust from drag.
+    Raises :class:`FlightLogError` naming a missing channel, a non-finite sample or
+    a gap.
     """
+    if propulsion not in ("catalog", "data"):
+        raise ValueError(f"propulsion: 'catalog' or 'data', got {propulsion!r}")
     if tuple(flow_channels) != ("vane_alpha", "vane_beta"):
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
@@ -221,7 +234,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     if airborne.size < 2:
         raise FlightLogError(
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
-    log = log.slice(log.time[airborne[0]], log.time[airborne[-1]])
+    log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]))
     uniform = log.resample(rate_hz=rate_hz)
     # Misplacing held commands by half a hold period would leave a spurious actuator
     # delay (or lead) in the residual: forces and moments each get their own alignment.
@@ -231,10 +244,19 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
     if HEIGHT in uniform:
         signals["height"] = uniform[HEIGHT]
+    thrust = {}
+    if propulsion == "data":
+        speed = uniform["motor_speed"] if "motor_speed" in uniform else None
+        model = identify_thrust(params, uniform.time, uniform.stack(SPECIFIC_FORCE),
+                                uniform.stack(RATES), uniform.stack(AIR_DATA), controls, speed,
+                                raw_noise_variance=noise)
+        if model.terms:  # else the catalog model predicts best, or the data cannot tell
+            value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
+            thrust = {"thrust": value, "thrust_airspeed_slope": slope}
     try:
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), controls, signals=signals,
-            raw_noise_variance=noise, moment_controls=moment_controls)
+            raw_noise_variance=noise, moment_controls=moment_controls, **thrust)
     except ValueError as err:
         raise FlightLogError(str(err)) from None

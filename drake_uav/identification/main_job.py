@@ -186,6 +186,7 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
              source: str = "flight log", seed: int = 0, air_data: str = "auto",
              segment: tuple[float, float] | None = None,
              sensor_noise_std: dict[str, float] | None = None,
+             propulsion: str = "data",
              phases: PhaseSettings = DEFAULT_PHASES) -> IdentificationRun:
     """Runs the main job on ``log`` for the aircraft ``params``.
 
@@ -194,7 +195,9 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     ``segment`` [s] when given) are isolated one by one and joined; ``air_data``
     picks the flow angles (:mod:`~drake_uav.identification.air_data_source`);
     ``sensor_noise_std`` (channel -> std, SI) are declared sensor specs, else the
-    noise comes from the data. ``seed`` drives the Monte-Carlo uncertainty of the
+    noise comes from the data; ``propulsion`` "data" identifies the thrust with C_X
+    where the flight allows it (else the catalog model, with a warning), "catalog"
+    keeps the aircraft's propulsion model. ``seed`` drives the Monte-Carlo uncertainty of the
     measured coefficients; everything else is deterministic.
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
@@ -204,7 +207,7 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
                                         air_data=air_data, segment=segment,
                                         sensor_noise_std=sensor_noise_std, phases=phases,
-                                        progress=say)
+                                        propulsion=propulsion, progress=say)
     run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
                            progress=say, source=source, seed=seed,
                            effects=testable_effects(selection.air_data))
@@ -231,6 +234,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                    segment: tuple[float, float] | None = None,
                    sensor_noise_std: dict[str, float] | None = None,
                    phases: PhaseSettings = DEFAULT_PHASES,
+                   propulsion: str = "data",
                    progress: Callable[[str], None] | None = None,
                    ) -> tuple[AeroSamples, LogSelection]:
     """Regression samples of the usable spans of ``log`` and what was used (see
@@ -249,7 +253,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
         angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
         part = samples_from_log(angles.log, params, rate_hz=rate_hz,
                                 flow_channels=angles.channels,
-                                sensor_noise_std=sensor_noise_std)
+                                sensor_noise_std=sensor_noise_std, propulsion=propulsion)
         parts.append(_with_flow_error(part, angles.error_variance))
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description))
