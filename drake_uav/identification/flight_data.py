@@ -97,6 +97,22 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
             for name, channel in _NOISE_SOURCES.items()}
 
 
+def _at_rate(noise: dict[str, float], log: FlightLog, rate_hz: float) -> dict[str, float]:
+    """Noise variances as white noise on the ``rate_hz`` grid the isolation smooths.
+
+    A channel logged at r < ``rate_hz`` [Hz] has independent errors only every 1/r s:
+    over the smoothing window its error averages down r/``rate_hz`` times less than
+    white noise on the grid would. White noise on the grid with the same density
+    below r/2 has the variance scaled by ``rate_hz``/r.
+    """
+    out = dict(noise)
+    for name, channel in _NOISE_SOURCES.items():
+        logged = logged_rate(log, channel)
+        if logged is not None and 0 < logged < rate_hz:
+            out[name] = noise[name] * rate_hz / logged
+    return out
+
+
 def native_noise_variance(log: FlightLog, channel: str) -> float:
     """White-noise variance of ``channel`` at the rate it was logged [unit^2].
 
@@ -229,7 +245,8 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
-    noise = raw_noise_variance(log, _specs_for(sensor_noise_std, flow_channels), params.rho)
+    noise = _at_rate(raw_noise_variance(log, _specs_for(sensor_noise_std, flow_channels),
+                                        params.rho), log, rate_hz)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
