@@ -17,7 +17,7 @@ __all__ = ["Scenario", "register_scenario", "scenario", "scenario_names"]
 Scenario = Callable[[int, dict], Mapping[str, Any]]
 
 _SCENARIOS: dict[str, Scenario] = {}
-_BUILT_IN = "drake_uav.campaigns.scenarios"
+_BUILT_IN = ("drake_uav.campaigns.scenarios", "drake_uav.campaigns.realistic_logs")
 
 
 def register_scenario(name: str, function: Scenario | None = None):
@@ -38,7 +38,7 @@ def register_scenario(name: str, function: Scenario | None = None):
 
 def scenario_names() -> list[str]:
     """Registered names (the built-in scenarios included)."""
-    importlib.import_module(_BUILT_IN)
+    _import_built_in()
     return sorted(_SCENARIOS)
 
 
@@ -56,8 +56,14 @@ def scenario(name: str | Scenario) -> Scenario:
             raise ValueError(f"scenario {name!r}: cannot import it ({err})") from None
         return target
     if name not in _SCENARIOS:
-        importlib.import_module(_BUILT_IN)
+        _import_built_in()
     if name not in _SCENARIOS:
         raise ValueError(f"scenario {name!r}: unknown (registered: {', '.join(sorted(_SCENARIOS))};"
                          f" or give module:function)")
     return _SCENARIOS[name]
+
+
+def _import_built_in() -> None:
+    """Imports the modules of the built-in scenarios (they register themselves)."""
+    for module in _BUILT_IN:
+        importlib.import_module(module)

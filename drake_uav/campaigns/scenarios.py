@@ -48,11 +48,14 @@ EFFECTS: dict[str, tuple[Callable[[float], Callable] | None, str | None, str, st
                       "thrust_propwash", "CD", "airspeed"),
     "stall_onset": (lambda k: lambda c: (-60.0 * k * c.alpha**3, 0, 0, 0, 0, 0),
                     "stall_onset", "CL", "alpha"),
+    "elevator_roll": (lambda k: lambda c: (0, 0, 0, 0.02 * k * c.elevator, 0, 0),
+                      "control_cross_coupling", "Cl", "p"),
     "none": (None, None, "CD", "airspeed"),
 }
 """Effect put into the physics: name -> (disturbance of a strength k, the effect the main
 job should name, the coefficient it acts on, the reconstructed output it moves). At
-k = 1: propeller slipstream drag C_D += 0.1 T_c, stall onset C_L -= 60 alpha^3."""
+k = 1: propeller slipstream drag C_D += 0.1 T_c, stall onset C_L -= 60 alpha^3, an
+elevator rolling moment C_l += 0.02 delta_e."""
 
 _OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 
