@@ -19,14 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from drake_uav.campaigns.registry import register_scenario
-from drake_uav.campaigns.scenarios import EFFECTS
-from drake_uav.diagrams import fly
+from drake_uav.campaigns.scenarios import effect_flight
 from drake_uav.estimation.air_data_estimate import estimate_air_data
 from drake_uav.identification.main_job import IdentificationRun, identify
 from drake_uav.io import read_log
 from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_px4 import write_px4_log
-from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["identify_file", "realistic_logs"]
 
@@ -71,7 +69,7 @@ def realistic_logs(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``aircraft`` ("aerosonde"), ``turbulence`` ("light"),
     ``duration`` [s] (180), ``effect`` (a key of
-    :data:`~drake_uav.campaigns.scenarios.EFFECTS`, "stall_onset"), ``strength`` (1.0).
+    :data:`~drake_uav.campaigns.scenarios.EFFECTS`, "elevator_roll"), ``strength`` (1.0).
 
     Metrics per format F in bin, ulg, csv: ``found_F`` (the effects found, comma
     separated), ``exact_F`` (exactly the expected effect, nothing else; for effect
@@ -79,16 +77,8 @@ def realistic_logs(seed: int, params: dict) -> dict:
     the vane CSV); ``alpha_mae_deg`` / ``beta_mae_deg`` (the estimate from the .bin
     against the truth over the spans the job used).
     """
-    effect = params.get("effect", "stall_onset")
-    if effect not in EFFECTS:
-        raise ValueError(f"realistic_logs: effect {effect!r} unknown "
-                         f"(known: {', '.join(EFFECTS)})")
-    disturbance, expected, _, _ = EFFECTS[effect]
-    aircraft = load_fixed_wing(params.get("aircraft", "aerosonde"))
-    options = {} if disturbance is None else {
-        "disturbance": disturbance(float(params.get("strength", 1.0)))}
-    flight = fly(aircraft, turbulence=params.get("turbulence", "light"), seed=seed,
-                 duration=float(params.get("duration", 180.0)), **options)
+    flight, aircraft, (_, expected, _, _) = effect_flight("realistic_logs", seed, params,
+                                                          "elevator_roll", 180.0)
     metrics: dict = {}
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)

@@ -41,7 +41,8 @@ from drake_uav.optimization.nmpc import NmpcSettings
 from drake_uav.vehicles import hexacopter, quadrotor_x
 from drake_uav.vehicles.loading import load_fixed_wing
 
-__all__ = ["EFFECTS", "TRACKING_TIMING_METRICS", "main_job", "air_data_ekf", "tracking_nmpc"]
+__all__ = ["EFFECTS", "TRACKING_TIMING_METRICS", "effect_flight", "main_job", "air_data_ekf",
+           "tracking_nmpc"]
 
 EFFECTS: dict[str, tuple[Callable[[float], Callable] | None, str | None, str, str]] = {
     "propwash_drag": (lambda k: lambda c: (0.0, 0.1 * k * c.thrust_coefficient, 0, 0, 0, 0),
@@ -60,6 +61,22 @@ elevator rolling moment C_l += 0.02 delta_e."""
 _OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 
 
+def effect_flight(scenario: str, seed: int, params: dict, effect: str, duration: float):
+    """(log, aircraft, EFFECTS entry) of an identification flight with the effect of
+    ``params`` (``effect``, ``strength``, ``aircraft``, ``turbulence``, ``duration``;
+    ``effect`` and ``duration`` [s] are the scenario's defaults)."""
+    effect = params.get("effect", effect)
+    if effect not in EFFECTS:
+        raise ValueError(f"{scenario}: effect {effect!r} unknown (known: {', '.join(EFFECTS)})")
+    disturbance = EFFECTS[effect][0]
+    aircraft = load_fixed_wing(params.get("aircraft", "aerosonde"))
+    options = {} if disturbance is None else {
+        "disturbance": disturbance(float(params.get("strength", 1.0)))}
+    log = fly(aircraft, turbulence=params.get("turbulence", "light"), seed=seed,
+              duration=float(params.get("duration", duration)), **options)
+    return log, aircraft, EFFECTS[effect]
+
+
 @register_scenario("main_job")
 def main_job(seed: int, params: dict) -> dict:
     """Identification flight with an undeclared effect, then the main job.
@@ -74,15 +91,8 @@ def main_job(seed: int, params: dict) -> dict:
     the coefficient the effect acts on) and ``mae_before`` / ``mae_after``
     (reconstruction mean absolute error of the output it moves, SI units).
     """
-    effect = params.get("effect", "propwash_drag")
-    if effect not in EFFECTS:
-        raise ValueError(f"main_job: effect {effect!r} unknown (known: {', '.join(EFFECTS)})")
-    disturbance, expected, coefficient, output = EFFECTS[effect]
-    aircraft = load_fixed_wing(params.get("aircraft", "aerosonde"))
-    options = {} if disturbance is None else {
-        "disturbance": disturbance(float(params.get("strength", 1.0)))}
-    log = fly(aircraft, turbulence=params.get("turbulence", "light"), seed=seed,
-              duration=float(params.get("duration", 60.0)), **options)
+    log, aircraft, (_, expected, coefficient, output) = effect_flight(
+        "main_job", seed, params, "propwash_drag", 60.0)
     run = identify(log, aircraft, seed=seed)
     found = [f.name for f in run.discovery.found]
     before, after = run.discovery.rms_change()[coefficient]
