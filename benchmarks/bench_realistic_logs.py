@@ -49,7 +49,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "realistic.parquet"
         run_campaign(campaign, out, workers=args.workers, progress=True)
-        rows = read_results(out).to_pylist()
+        rows = [{k.removeprefix("metric."): v for k, v in row.items()}
+                for row in read_results(out).to_pylist()]
     wall = time.perf_counter() - start
     ok = [r for r in rows if r["status"] == "ok"]
     print(f"{len(ok)} of {len(rows)} runs finished, effect {args.effect}, {args.duration:g} s "
