@@ -23,10 +23,10 @@ Run: python benchmarks/bench_air_data_smoother.py [--seeds 0 1 2 3 4] [--repeat 
 
 import argparse
 import math
-import time
 
 import numpy as np
 from figures import figure
+from timing import best_of
 
 from drake_uav.diagrams import fly
 from drake_uav.estimation import (
@@ -52,17 +52,6 @@ def measured_only(log: FlightLog) -> FlightLog:
     meta = {k: v for k, v in log.metadata.items() if k != "sensor_noise_std"}
     return FlightLog(log.time, {n: log[n] for n in names}, {},
                      {n: log.unit(n) for n in names}, meta)
-
-
-def best_of(repeat: int, fn):
-    """(result, best wall time [s], best CPU time [s])."""
-    walls, cpus, result = [], [], None
-    for _ in range(repeat):
-        wall, cpu = time.perf_counter(), time.process_time()
-        result = fn()
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    return result, min(walls), min(cpus)
 
 
 def errors(log: FlightLog, time_, airspeed, alpha, beta, keep) -> tuple[float, float, float]:

@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 from figures import figure
+from timing import best_of
 
 from drake_uav.io.ardupilot import read_ardupilot
 from drake_uav.io.px4 import read_px4
@@ -166,17 +167,6 @@ def write_ulg(path: Path, duration: float, rate: float) -> Path:
     w.data("vehicle_status", ids["vehicle_status"], timestamp=t, arming_state=2, nav_state=15,
            vehicle_type=2, system_type=1)
     return w.save(path)
-
-
-def best_of(repeat: int, fn):
-    """(result of the last run, best wall time [s], best CPU time [s])."""
-    walls, cpus, result = [], [], None
-    for _ in range(repeat):
-        wall, cpu = time.perf_counter(), time.process_time()
-        result = fn()
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    return result, min(walls), min(cpus)
 
 
 def pymavlink_imu(path: Path, messages: int, total: int) -> tuple[float, float, int, float]:
