@@ -101,9 +101,8 @@ def flow_angles(log: FlightLog, params, mode: str,
                                  segments=[[log.time[0], log.time[-1]]])
     valid = np.flatnonzero(estimate.valid)
     if valid.size < 2:
-        raise FlightLogError(
-            f"span {log.time[0]:.1f}-{log.time[-1]:.1f} s: the air data could not be "
-            "estimated (no GPS velocity together with airspeed)")
+        raise FlightLogError("the air data could not be estimated (no GPS velocity "
+                             "together with airspeed); log vanes and use --air-data vanes")
     keep = slice(valid[0], valid[-1] + 1)
     measured = {n: log[n][keep] for n in log.measured_names}
     measured.update({"est_alpha": estimate.alpha[keep], "est_beta": estimate.beta[keep]})

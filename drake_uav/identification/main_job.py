@@ -250,10 +250,13 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                  f"{'s' if len(spans) > 1 else ''}, {_AIR_DATA_STEP[mode]})")
     parts = []
     for start, end in spans:
-        angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
-        part = samples_from_log(angles.log, params, rate_hz=rate_hz,
-                                flow_channels=angles.channels,
-                                sensor_noise_std=sensor_noise_std, propulsion=propulsion)
+        try:
+            angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
+            part = samples_from_log(angles.log, params, rate_hz=rate_hz,
+                                    flow_channels=angles.channels,
+                                    sensor_noise_std=sensor_noise_std, propulsion=propulsion)
+        except FlightLogError as err:
+            raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
         parts.append(_with_flow_error(part, angles.error_variance))
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description))
