@@ -104,9 +104,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     segment = None if args.segment == "auto" else _parse_segment(args.segment)
     if kind in ("bin", "ulg"):
         # A servo's full throw is the aircraft's full deflection (docs/flight_logs.md).
-        limits = params.limits
-        options["deflections"] = {"elevator": limits.elevator, "aileron": limits.aileron,
-                                  "rudder": limits.rudder}
+        options["deflections"] = params.limits.deflections()
     if kind == "bin" and segment is not None:
         options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
@@ -320,8 +318,8 @@ def _identify_parser(sub) -> None:
     ident.add_argument("--segment", default="auto", metavar="auto|START:END",
                        help="log time span to use [s]; auto: the airborne segments")
     ident.add_argument("--sensor-spec", metavar="FILE",
-                       help="declared sensor noise (TOML: channel = std in SI units); default: "
-                            "estimated from the data")
+                       help="declared sensor noise (TOML table [noise_std]: channel = { std = "
+                            "..., unit = \"...\" }); default: estimated from the data")
     ident.set_defaults(handler=_cmd_identify)
 
 

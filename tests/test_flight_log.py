@@ -130,3 +130,13 @@ def test_csv_from_other_tools_and_bad_files(tmp_path):
         FlightLog.load(path)
     with pytest.raises(ValueError, match="path: unsupported suffix"):
         _log().save(tmp_path / "flight.txt")
+
+
+def test_with_measured_adds_and_replaces_channels_and_keeps_the_rest():
+    log = FlightLog([0.0, 1.0], {"imu_ax": [1.0, 2.0]}, {"alpha": [0.1, 0.2]},
+                    units={"imu_ax": "m/s^2", "alpha": "rad"}, metadata={"source": "x"})
+    out = log.with_measured({"imu_ax": [3.0, 4.0], "est_alpha": [0.3, 0.4]},
+                            {"est_alpha": "rad"})
+    np.testing.assert_array_equal(out["imu_ax"], [3.0, 4.0])
+    assert out.unit("est_alpha") == "rad" and out.is_truth("alpha")
+    assert out.metadata == {"source": "x"} and log["imu_ax"][0] == 1.0

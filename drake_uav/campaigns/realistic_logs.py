@@ -36,9 +36,7 @@ def identify_file(path: Path, params, seed: int = 0) -> IdentificationRun:
     silenced: the scenario's logs raise them on purpose)."""
     options = {}
     if path.suffix in (".bin", ".ulg"):
-        limits = params.limits
-        options["deflections"] = {"elevator": limits.elevator, "aileron": limits.aileron,
-                                  "rudder": limits.rudder}
+        options["deflections"] = params.limits.deflections()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         log = read_log(path, **options)

@@ -32,11 +32,13 @@ from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.rotations import euler_to_rotmat, rotate_back
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["AirDataEstimate", "estimate_air_data"]
+__all__ = ["NOISE_CHANNELS", "AirDataEstimate", "estimate_air_data"]
 
 _REQUIRED = {"gps_vn": "GPS velocity", "gps_ve": "GPS velocity", "gps_vd": "GPS velocity",
              "pitot": "pitot"}
 _SENSOR_SIGNALS = (*IMU, *ATTITUDE, *GPS_VELOCITY, "pitot")
+NOISE_CHANNELS = tuple(LOG_CHANNELS[n] for n in _SENSOR_SIGNALS)
+"""Log channels whose noise ``estimate_air_data(noise_std=...)`` accepts."""
 
 
 @dataclasses.dataclass(frozen=True)

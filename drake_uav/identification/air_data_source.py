@@ -91,11 +91,9 @@ def flow_angles(log: FlightLog, params, mode: str,
     """
     if mode != "estimate":
         return FlowAngles(mode, log, _CHANNELS[mode], None)
-    from drake_uav.estimation.air_data_estimate import estimate_air_data
+    from drake_uav.estimation.air_data_estimate import NOISE_CHANNELS, estimate_air_data
 
-    known = {"imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r", "att_roll",
-             "att_pitch", "att_yaw", "gps_vn", "gps_ve", "gps_vd", "pitot_qbar"}
-    declared = {k: v for k, v in (noise_std or {}).items() if k in known} or None
+    declared = {k: v for k, v in (noise_std or {}).items() if k in NOISE_CHANNELS} or None
     estimate = estimate_air_data(_with_dynamic_pressure(log, params.rho), params,
                                  noise_std=declared,
                                  segments=[[log.time[0], log.time[-1]]])
@@ -104,11 +102,9 @@ def flow_angles(log: FlightLog, params, mode: str,
         raise FlightLogError("the air data could not be estimated (no GPS velocity "
                              "together with airspeed); log vanes and use --air-data vanes")
     keep = slice(valid[0], valid[-1] + 1)
-    measured = {n: log[n][keep] for n in log.measured_names}
-    measured.update({"est_alpha": estimate.alpha[keep], "est_beta": estimate.beta[keep]})
-    units = {**{n: log.unit(n) for n in log.measured_names}, "est_alpha": "rad",
-             "est_beta": "rad"}
-    with_estimate = FlightLog(log.time[keep], measured, units=units, metadata=log.metadata)
+    with_estimate = log.slice(log.time[valid[0]], log.time[valid[-1]]).with_measured(
+        {"est_alpha": estimate.alpha[keep], "est_beta": estimate.beta[keep]},
+        {"est_alpha": "rad", "est_beta": "rad"})
     variance = {"alpha": float(np.mean(estimate.alpha_std[keep] ** 2)),
                 "beta": float(np.mean(estimate.beta_std[keep] ** 2))}
     return FlowAngles(mode, with_estimate, _CHANNELS[mode], variance)
@@ -119,7 +115,5 @@ def _with_dynamic_pressure(log: FlightLog, rho: float) -> FlightLog:
     logged (PX4 logs the differential pressure at 1 Hz, if at all)."""
     if "pitot_qbar" in log or "pitot_airspeed" not in log:
         return log
-    measured = {n: log[n] for n in log.measured_names}
-    measured["pitot_qbar"] = dynamic_pressure(log["pitot_airspeed"], rho)
-    units = {**{n: log.unit(n) for n in log.measured_names}, "pitot_qbar": "Pa"}
-    return FlightLog(log.time, measured, units=units, metadata=log.metadata)
+    return log.with_measured({"pitot_qbar": dynamic_pressure(log["pitot_airspeed"], rho)},
+                             {"pitot_qbar": "Pa"})

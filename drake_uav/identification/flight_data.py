@@ -153,20 +153,15 @@ def _declared_std(log: FlightLog, declared: Mapping[str, float],
 def _air_data_unheld(log: FlightLog) -> FlightLog:
     """``log`` with held air data and height (a 10 Hz pitot held on a faster log) drawn
     as straight lines between their samples, as they were measured."""
-    names = [n for n in (*AIR_DATA, HEIGHT) if n in log]
-    measured = {n: log[n] for n in log.measured_names}
-    measured.update({n: unheld(log.time, log[n]) for n in names})
-    return FlightLog(log.time, measured, units={n: log.unit(n) for n in log.measured_names},
-                     metadata=log.metadata)
+    return log.with_measured({n: unheld(log.time, log[n]) for n in (*AIR_DATA, HEIGHT)
+                              if n in log})
 
 
 def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
     """``log`` with channels ``sources`` values copied under their keys' names."""
     log.require(*sources.values())
-    measured = {n: log[n] for n in log.measured_names if n not in sources}
-    measured.update({name: log[source] for name, source in sources.items()})
-    units = {**log.units, **{name: log.unit(source) for name, source in sources.items()}}
-    return FlightLog(log.time, measured, units=units, metadata=log.metadata)
+    return log.with_measured({name: log[source] for name, source in sources.items()},
+                             {name: log.unit(source) for name, source in sources.items()})
 
 
 def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,

@@ -274,6 +274,13 @@ class FlightLog:
             )
         return self._replace(self._time[keep], lambda v: v[keep])
 
+    def with_measured(self, values: Mapping[str, Iterable[float]],
+                      units: Mapping[str, str] | None = None) -> FlightLog:
+        """A log with the measured channels ``values`` added or replaced (``units`` for
+        new channels); the other channels, truth and metadata are kept."""
+        return FlightLog(self._time, {**self._measured, **values}, self._truth,
+                         {**self._units, **(units or {})}, self.metadata)
+
     def select(self, names: Iterable[str]) -> FlightLog:
         """A log with only the channels ``names`` (kinds kept)."""
         names = list(names)

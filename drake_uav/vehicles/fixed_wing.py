@@ -46,6 +46,11 @@ class ControlLimits:
     throttle_min: float = 0.0
     throttle_max: float = 1.0
 
+    def deflections(self) -> dict[str, float]:
+        """Full deflection of each surface [rad], as the log readers take it (a servo's
+        full throw is the surface's limit)."""
+        return {"elevator": self.elevator, "aileron": self.aileron, "rudder": self.rudder}
+
     def lower(self) -> np.ndarray:
         """Lower bounds of ``[elevator, aileron, rudder, throttle]``."""
         return np.array([-self.elevator, -self.aileron, -self.rudder, self.throttle_min])
