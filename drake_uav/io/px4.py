@@ -105,9 +105,9 @@ def _attitude(log: ULogFile) -> Stream:
     time, f = log.get("vehicle_attitude", q_fields)
     q = np.column_stack([f[k] for k in q_fields])
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    euler = np.array([quat_to_euler(row) for row in q]).reshape(-1, 3)
+    euler = np.asarray(quat_to_euler(q.T), float).reshape(3, -1)  # all samples at once
     names = ("att_roll", "att_pitch", "att_yaw")
-    return channel_stream("vehicle_attitude", time, dict(zip(names, euler.T, strict=True)),
+    return channel_stream("vehicle_attitude", time, dict(zip(names, euler, strict=True)),
                           dict.fromkeys(names, "q"), angles=("att_roll", "att_yaw"))
 
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.air_data import airspeed_from_dynamic_pressure, dynamic_pressure
+from drake_uav.model.fixed_wing import body_gravity
 from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
@@ -259,8 +260,8 @@ def _synthesised(channels, params: FixedWingParams, profile: LogProfile, dt: flo
     velocity = np.gradient(position, dt, axis=1)
     attitude = np.array([np.zeros(n), pitch, np.full(n, first["yaw"])])
     rotation = euler_to_rotmat(attitude)  # body -> NED, (3, 3, n)
-    accel = np.gradient(velocity, dt, axis=1) - np.array([[0.0], [0.0], [params.gravity]])
-    force = np.einsum("jin,jn->in", rotation, accel)
+    accel = np.einsum("jin,jn->in", rotation, np.gradient(velocity, dt, axis=1))
+    force = accel - np.array(body_gravity(rotation, params.gravity))  # f = R^T a - g_B
     airspeed = np.linalg.norm(velocity - wind[:, None], axis=0)
     takeoff = np.arange(n) * dt >= profile.ground_s
     out = {f"imu_a{axis}": force[i] for i, axis in enumerate("xyz")}
