@@ -65,6 +65,8 @@ __all__ = [
     "FoundEffect",
     "CoefficientFit",
     "DiscoveryResult",
+    "HeldOutCheck",
+    "check_coefficients",
     "discover",
     "baseline_names",
     "IdentifiedDerivatives",
@@ -82,6 +84,16 @@ class EvidenceRule:
     candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
     smallest held-out prediction-error reduction worth a new term (fraction of
     the baseline PSE); ``min_folds`` how many of the ``folds`` must improve.
+
+    A candidate that passes is then checked, per coefficient, on the held-out tail
+    (``holdout_fraction`` of the flight, which no test above saw;
+    :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
+    equation-error RMS does not rise with it and its contribution there (RMS of the
+    change it makes to the prediction) reaches both ``min_share_of_variation`` of the
+    coefficient's standard deviation over the flight and ``min_share_of_error`` of
+    the held-out error left with it. A coefficient whose standard deviation over the
+    training or the held-out part is at most ``constant_tolerance`` times
+    ``1 + |mean|`` does not vary and is not fitted.
     """
 
     p_value: float = 1e-3
@@ -90,6 +102,9 @@ class EvidenceRule:
     min_folds: int = 5
     holdout_fraction: float = 0.3
     max_rounds: int = 6
+    min_share_of_variation: float = 0.01
+    min_share_of_error: float = 0.1
+    constant_tolerance: float = 1e-9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,6 +139,40 @@ class FoundEffect:
 
 
 @dataclasses.dataclass(frozen=True)
+class HeldOutCheck:
+    """The held-out decision on one effect for one coefficient (:class:`EvidenceRule`).
+
+    Both fits are made on the training part; the errors and the contribution are read
+    on the held-out tail.
+    """
+
+    effect: str
+    coefficient: str
+    stage: str
+    """"round": when the effect won a round; "final": against the final fit without it."""
+    rms_without: float
+    """Held-out equation-error RMS of the fit without the effect [-]."""
+    rms_with: float
+    """The same with the effect [-]."""
+    contribution: float
+    """RMS over the held-out samples of the change the effect makes to the prediction [-]."""
+    threshold: float
+    """Smallest contribution that matters [-]: the larger of the two shares of the rule."""
+    kept: bool
+
+    @property
+    def reason(self) -> str:
+        """Why the effect was not kept on the coefficient ("" when it was)."""
+        if self.rms_with > self.rms_without:
+            return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
+                    f"{self.rms_with:.4g})")
+        if self.contribution < self.threshold:
+            return (f"its held-out contribution {self.contribution:.2g} is below "
+                    f"{self.threshold:.2g}")
+        return ""
+
+
+@dataclasses.dataclass(frozen=True)
 class CoefficientFit:
     """A fitted coefficient model: structure, OLS result and held-out error."""
 
@@ -149,6 +198,19 @@ class DiscoveryResult:
     """Ranked evidence of every round."""
     holdout_start: float
     """Time [s] where the held-out tail begins."""
+    checks: tuple[HeldOutCheck, ...] = ()
+    """Every held-out decision on a passing candidate, in the order made."""
+    skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """One line per skipped coefficient and per effect not kept on a coefficient where
+        it passed the evidence tests."""
+        notes = [f"{k} skipped: {why}" for k, why in self.skipped.items()]
+        notes += [f"{c.effect} not kept on {c.coefficient}: {c.reason}"
+                  for c in self.checks if not c.kept]
+        return tuple(notes)
 
     @property
     def message(self) -> str:
@@ -220,6 +282,14 @@ class _Design:
         X = np.column_stack([self.X, *columns.values()])
         added = {s: np.column_stack([jac[s][k] for k in columns]) for s in jac}
         return _Design(self.names + names, X, self.z, self.noise.extended(added, len(columns)))
+
+    def without(self, prefix: str) -> _Design:
+        """The design without the columns whose names start with ``prefix``."""
+        keep = [i for i, name in enumerate(self.names) if not name.startswith(prefix)]
+        noise = PropagatedNoise(len(keep), {s: J[:, keep] for s, J in
+                                            self.noise.regressors.items()},
+                                self.noise.observation, self.noise.variance)
+        return _Design([self.names[i] for i in keep], self.X[:, keep], self.z, noise)
 
     def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
@@ -518,8 +588,11 @@ def discover(samples: AeroSamples, params: FixedWingParams,
              progress=None) -> DiscoveryResult:
     """Runs the residual -> effect -> refit loop on ``samples``.
 
-    ``effects`` defaults to :func:`effect_library`; ``progress(message)`` is
-    called at each round. Raises ``ValueError`` when the samples are too few.
+    ``effects`` defaults to :func:`effect_library`; ``coefficients`` are fitted in
+    the order of :data:`~drake_uav.model.coefficients.COEFFICIENTS`, except those that
+    do not vary (:attr:`DiscoveryResult.skipped`); ``progress(message)`` is called at
+    each round. Raises ``ValueError`` for an unknown coefficient, samples too few for
+    the evidence tests, or when no coefficient varies.
     """
     rule = rule or EvidenceRule()
     effects = [e for e in (effects or effect_library()) if e.available(samples)]
@@ -527,14 +600,20 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     n_train = int(round(n * (1.0 - rule.holdout_fraction)))
     if n_train < 20 * rule.folds or n - n_train < 20:
         raise ValueError(f"discover: {n} samples are too few for the evidence tests")
+    skipped = _constant_coefficients(samples, coefficients, n_train, rule)
+    fitted = [k for k in COEFFICIENTS if k in coefficients and k not in skipped]
+    if not fitted:
+        raise ValueError(f"discover: none of {', '.join(skipped)} varies in the samples: "
+                         "nothing to identify")
     rate = 1.0 / float(np.median(np.diff(samples.time)))
     train = samples.subset(slice(0, n_train))
     test = samples.subset(slice(n_train, n))
     edges = _fold_edges(n_train, rule.folds)
-    designs = {k: _baseline_design(train, params, k) for k in coefficients}
-    tests = {k: _baseline_design(test, params, k) for k in coefficients}
-    baseline = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
-    pool, test_variants = _Candidates(train, params), _Perturbations(test)
+    search = _Search({k: _baseline_design(train, params, k) for k in fitted},
+                     {k: _baseline_design(test, params, k) for k in fitted},
+                     _Candidates(train, params), _Perturbations(test), effects, rule,
+                     {k: float(np.std(samples.coefficients[k])) for k in fitted})
+    baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
@@ -542,33 +621,148 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     for round_index in range(rule.max_rounds):
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
-        bases = {k: _round_base(designs[k], edges) for k in coefficients}
+        bases = {k: _round_base(search.designs[k], edges) for k in fitted}
         pairs = [(e, k) for e in effects if e.name not in used for k in e.coefficients
-                 if k in coefficients]
+                 if k in bases]
         evidence = [ev for e, k in pairs if (ev := _score(
-            e.name, k, bases[k], pool.named(e, k, bases[k].design.noise.variance), rule,
-            len(pairs))) is not None]
-        if fallback and not any(e.passed for e in evidence):
-            evidence += _score_products(bases, pool, rule, used)
+            e.name, k, bases[k], search.pool.named(e, k, bases[k].design.noise.variance),
+            rule, len(pairs))) is not None]
+        new = search.accept_best(evidence, used)
+        if new is None and fallback:
+            evidence += _score_products(bases, search.pool, rule, used)
+            new = search.accept_best(evidence, used)
         evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
         rounds.append(tuple(evidence))
-        winners = [e for e in evidence if e.passed]
-        if not winners:
+        if new is None:
             break
-        best = winners[0].effect
-        accepted = [e for e in winners if e.effect == best]
-        used.add(best)
-        effect = next((e for e in effects if e.name == best), None)
-        for ev in accepted:
-            k = ev.coefficient
-            designs[k], tests[k] = _with_effect(designs[k], tests[k], ev, effect, pool,
-                                                test_variants)
-        found.append(_found(best, effect, accepted))
+        found.append(new)
 
-    final = {k: _fit(k, designs[k], tests[k], rate) for k in coefficients}
+    found = search.final_check(found)
+    final = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
     found = [_with_parameters(f, final) for f in found]
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
-                           rounds=tuple(rounds), holdout_start=float(test.time[0]))
+                           rounds=tuple(rounds), holdout_start=float(test.time[0]),
+                           checks=tuple(search.checks), skipped=skipped)
+
+
+def check_coefficients(coefficients: Sequence[str]) -> None:
+    """Raises ValueError unless ``coefficients`` is a non-empty selection of
+    :data:`~drake_uav.model.coefficients.COEFFICIENTS` (names are case-sensitive: ``CL``
+    is the lift, ``Cl`` the rolling moment)."""
+    if isinstance(coefficients, str) or not coefficients:
+        raise ValueError(f"coefficients: expected a non-empty sequence of names of "
+                         f"{', '.join(COEFFICIENTS)}, got {coefficients!r}")
+    unknown = [k for k in coefficients if k not in COEFFICIENTS]
+    if unknown:
+        raise ValueError(f"unknown coefficient {', '.join(map(repr, unknown))} (known: "
+                         f"{', '.join(COEFFICIENTS)}; CL is the lift, Cl the rolling moment)")
+
+
+def _constant_coefficients(samples: AeroSamples, coefficients: Sequence[str], n_train: int,
+                           rule: EvidenceRule) -> dict[str, str]:
+    """The ``coefficients`` that do not vary over the training part or the held-out tail
+    (:attr:`EvidenceRule.constant_tolerance`) -> why; ValueError for an unknown name."""
+    check_coefficients(coefficients)
+    skipped = {}
+    for k in dict.fromkeys(coefficients):
+        z = np.asarray(samples.coefficients[k], dtype=float)
+        flat = [part for part, values in (("training part", z[:n_train]),
+                                          ("held-out tail", z[n_train:]))
+                if np.std(values) <= rule.constant_tolerance * (1.0 + abs(np.mean(values)))]
+        if flat:
+            where = "the flight" if len(flat) == 2 else f"the {flat[0]} of the flight"
+            skipped[k] = (f"it does not vary over {where} (mean {np.mean(z):.3g}, standard "
+                          f"deviation {np.std(z):.2g}): nothing to fit")
+    return skipped
+
+
+class _Search:
+    """The training and held-out designs of the fitted coefficients as the loop extends
+    them, and the held-out decisions on the effects that pass the evidence tests
+    (:class:`EvidenceRule`, :class:`HeldOutCheck`)."""
+
+    def __init__(self, designs: dict[str, _Design], tests: dict[str, _Design],
+                 pool: _Candidates, test_variants: _Perturbations, effects: Sequence[Effect],
+                 rule: EvidenceRule, scales: Mapping[str, float]):
+        self.designs, self.tests = designs, tests
+        self.pool, self.test_variants = pool, test_variants
+        self.effects, self.rule, self.scales = effects, rule, scales
+        self.checks: list[HeldOutCheck] = []
+
+    def accept_best(self, evidence: Sequence[Evidence], used: set[str]) -> FoundEffect | None:
+        """The best passing effect not tried yet that the held-out check keeps on at least
+        one coefficient, its columns added there; None if there is none. Every effect tried
+        joins ``used``."""
+        ranked = sorted((e for e in evidence if e.passed), key=lambda e: -e.pse_reduction)
+        for name in dict.fromkeys(e.effect for e in ranked):
+            if name in used:
+                continue
+            used.add(name)
+            effect = next((e for e in self.effects if e.name == name), None)
+            kept = []
+            for ev in (e for e in ranked if e.effect == name):
+                k = ev.coefficient
+                extended = _with_effect(self.designs[k], self.tests[k], ev, effect, self.pool,
+                                        self.test_variants)
+                check = self.check(name, k, (self.designs[k], self.tests[k]), extended, "round")
+                self.checks.append(check)
+                if check.kept:
+                    self.designs[k], self.tests[k] = extended
+                    kept.append(ev)
+            if kept:
+                return _found(name, effect, kept)
+        return None
+
+    def check(self, name: str, k: str, without: tuple[_Design, _Design],
+              with_effect: tuple[_Design, _Design], stage: str) -> HeldOutCheck:
+        """The held-out decision on effect ``name`` for coefficient ``k``: each pair of
+        (training, held-out) designs fitted on the first and evaluated on the second."""
+        rms_without, prediction_without = _held_out_prediction(*without)
+        rms_with, prediction_with = _held_out_prediction(*with_effect)
+        contribution = float(np.sqrt(np.mean((prediction_with - prediction_without) ** 2)))
+        threshold = max(self.rule.min_share_of_variation * self.scales[k],
+                        self.rule.min_share_of_error * rms_with)
+        return HeldOutCheck(name, k, stage, rms_without, rms_with, contribution, threshold,
+                            kept=rms_with <= rms_without and contribution >= threshold)
+
+    def final_check(self, found: Sequence[FoundEffect]) -> list[FoundEffect]:
+        """Against the final fit of each coefficient, the effects it does not need are
+        dropped one at a time (the one whose removal leaves the smallest held-out error
+        first); returns the effects found with the coefficients they keep."""
+        dropped: set[tuple[str, str]] = set()
+        for k in self.designs:
+            while True:
+                names = [f.name for f in found
+                         if k in f.coefficients and (f.name, k) not in dropped]
+                checks = [self.check(name, k, (self.designs[k].without(f"{name}:"),
+                                               self.tests[k].without(f"{name}:")),
+                                     (self.designs[k], self.tests[k]), "final")
+                          for name in names]
+                failing = [c for c in checks if not c.kept]
+                if not failing:
+                    break
+                worst = min(failing, key=lambda c: c.rms_without)
+                self.checks.append(worst)
+                dropped.add((worst.effect, k))
+                prefix = f"{worst.effect}:"
+                self.designs[k] = self.designs[k].without(prefix)
+                self.tests[k] = self.tests[k].without(prefix)
+        return [f for f in (_keep(f, dropped) for f in found) if f is not None]
+
+
+def _held_out_prediction(train: _Design, test: _Design) -> tuple[float, np.ndarray]:
+    """Held-out equation-error RMS and prediction of the fit of ``train`` on ``test``."""
+    prediction = test.X @ train.solve()
+    return float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction
+
+
+def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | None:
+    """``found`` without the coefficients it was dropped from (None: from all of them)."""
+    evidence = tuple(e for e in found.evidence if (found.name, e.coefficient) not in dropped)
+    if not evidence:
+        return None
+    return dataclasses.replace(found, coefficients=tuple(e.coefficient for e in evidence),
+                               evidence=evidence)
 
 
 def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effect | None,

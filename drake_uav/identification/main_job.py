@@ -18,6 +18,8 @@ from drake_uav.identification.discovery import (
     EvidenceRule,
     FoundEffect,
     IdentifiedDerivatives,
+    baseline_names,
+    check_coefficients,
     discover,
     fit_derivatives,
 )
@@ -29,6 +31,7 @@ from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.identification.segments import concatenate_samples
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
+from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -131,11 +134,18 @@ def _effect_summary(found: FoundEffect) -> dict:
 
 def _reconstruct(samples: AeroSamples, params, discovery: DiscoveryResult, fits,
                  reset_interval: float) -> Reconstruction:
-    start = len(samples) - len(fits["CL"].holdout_residual)
+    """Reconstruction on the held-out tail; a coefficient without a fit (not asked for, or
+    constant in the log) keeps the aircraft's own derivatives."""
+    start = int(np.searchsorted(samples.time, discovery.holdout_start))
     test = samples.subset(slice(start, len(samples)))
     sensor_effects = [f.name for f in discovery.found if f.kind == "sensor"]
     models = {k: (fits[k].names, fits[k].result.estimate, fits[k].holdout_design)
               for k in fits}
+    for k in COEFFICIENTS:
+        if k not in models:
+            names = tuple(baseline_names(params, k))
+            models[k] = (names, np.array([params.derivatives.get(n, 0.0) for n in names]),
+                         np.zeros((len(test), len(names))))
     return reconstruct(test, params, models, exclude_prefixes=sensor_effects,
                        reset_interval=reset_interval)
 
@@ -187,7 +197,8 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
              segment: tuple[float, float] | None = None,
              sensor_noise_std: dict[str, float] | None = None,
              propulsion: str = "data",
-             phases: PhaseSettings = DEFAULT_PHASES) -> IdentificationRun:
+             phases: PhaseSettings = DEFAULT_PHASES,
+             coefficients: Sequence[str] = COEFFICIENTS) -> IdentificationRun:
     """Runs the main job on ``log`` for the aircraft ``params``.
 
     Only what a real log holds is read: the airborne fixed-wing spans
@@ -198,11 +209,15 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     noise comes from the data; ``propulsion`` "data" identifies the thrust with C_X
     where the flight allows it (else the catalog model, with a warning), "catalog"
     keeps the aircraft's propulsion model. ``seed`` drives the Monte-Carlo uncertainty of the
-    measured coefficients; everything else is deterministic.
+    measured coefficients; everything else is deterministic. ``coefficients`` are the ones
+    fitted (names of :data:`~drake_uav.model.coefficients.COEFFICIENTS`); one that does
+    not vary in the log is skipped with a note (:attr:`IdentificationRun.notes`).
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
-    naming the problem when the log cannot be used.
+    naming the problem when the log cannot be used, ``ValueError`` for an unknown
+    coefficient.
     """
+    check_coefficients(coefficients)
     say = progress or (lambda message: None)
     samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
                                         air_data=air_data, segment=segment,
@@ -210,7 +225,9 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                                         propulsion=propulsion, progress=say)
     run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
                            progress=say, source=source, seed=seed,
-                           effects=testable_effects(selection.air_data))
+                           effects=testable_effects(selection.air_data),
+                           coefficients=coefficients)
+    selection = dataclasses.replace(selection, notes=selection.notes + run.discovery.notes)
     return dataclasses.replace(run, data=selection)
 
 
@@ -309,7 +326,8 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
                      rule: EvidenceRule | None = None, reset_interval: float = 5.0,
                      progress: Callable[[str], None] | None = None,
                      source: str = "flight samples", seed: int = 0,
-                     effects: Sequence[Effect] | None = None) -> IdentificationRun:
+                     effects: Sequence[Effect] | None = None,
+                     coefficients: Sequence[str] = COEFFICIENTS) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
     :func:`identify` with the measured coefficients already in ``samples``
@@ -317,9 +335,11 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
     :func:`~drake_uav.identification.isolation.isolate_coefficients`); the
     ``samples.signals`` must hold ``roll`` and ``pitch`` [rad]. ``effects``
     defaults to the whole :func:`~drake_uav.identification.effects.effect_library`.
+    The coefficients skipped and the effects not kept are in ``discovery.notes``.
     """
     say = progress or (lambda message: None)
-    result = discover(samples, params, effects=effects, rule=rule, progress=say)
+    result = discover(samples, params, effects=effects, rule=rule, progress=say,
+                      coefficients=coefficients)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)

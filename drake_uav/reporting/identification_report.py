@@ -83,7 +83,7 @@ def _add_errors(report: Report, run: IdentificationRun) -> None:
 def _add_figures(report: Report, run: IdentificationRun) -> None:
     """Held-out residuals, their whiteness and normality, and the reconstruction."""
     d = run.discovery
-    test_time = run.samples.time[-len(d.final["CL"].holdout_residual):]
+    test_time = run.samples.time[run.samples.time >= d.holdout_start]
     report.add_figure(lambda: figures.residual_time_series(
         test_time, {k: f.holdout_residual for k, f in d.baseline.items()},
         {k: f.holdout_residual for k, f in d.final.items()}), "Held-out residuals before "
