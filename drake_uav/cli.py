@@ -110,7 +110,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     log = read_log(path, format=args.format, **options)
     run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
                    air_data=args.air_data, sensor_noise_std=spec, segment=segment,
-                   propulsion=args.propulsion)
+                   propulsion=args.propulsion,
+                   coefficients=_parse_coefficients(args.coefficients))
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()
@@ -151,6 +152,25 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
         raise ValueError(f"--max-gap: must be positive, got {args.max_gap:g}")
     if args.segment != "auto":
         _parse_segment(args.segment)
+    _parse_coefficients(args.coefficients)
+
+
+_COEFFICIENTS = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
+"""The coefficients ``identify`` can fit (``drake_uav.model.coefficients.COEFFICIENTS``,
+repeated here so that the checks stay light; tests/test_decision_rules.py checks the two
+agree)."""
+
+
+def _parse_coefficients(text: str) -> tuple[str, ...]:
+    """``"CL,CD,Cm"`` -> the names, in the order given, each once."""
+    names = tuple(dict.fromkeys(name.strip() for name in text.split(",") if name.strip()))
+    unknown = [name for name in names if name not in _COEFFICIENTS]
+    if unknown or not names:
+        raise ValueError(f"--coefficients {text}: "
+                         + (f"unknown {', '.join(unknown)}; " if unknown else "")
+                         + f"expected names of {','.join(_COEFFICIENTS)} separated by commas "
+                         "(CL is the lift, Cl the rolling moment)")
+    return names
 
 
 _LOG_SUFFIXES = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet",
@@ -320,6 +340,11 @@ def _identify_parser(sub) -> None:
     ident.add_argument("--sensor-spec", metavar="FILE",
                        help="declared sensor noise (TOML table [noise_std]: channel = { std = "
                             "..., unit = \"...\" }); default: estimated from the data")
+    ident.add_argument("--coefficients", default=",".join(_COEFFICIENTS),
+                       metavar="CL,CD,...",
+                       help="coefficients to fit, of CL,CD,CY (lift, drag, side force), "
+                            "Cl,Cm,Cn (roll, pitch, yaw moments); one that does not vary in "
+                            "the log is skipped with a note (default: all six)")
     ident.set_defaults(handler=_cmd_identify)
 
 
