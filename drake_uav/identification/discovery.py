@@ -185,6 +185,11 @@ class CoefficientFit:
     holdout_design: np.ndarray
     """(N_holdout, n) regressor columns on the held-out samples, in ``names`` order."""
     diagnosis: ResidualDiagnosis
+    holdout_noise: PropagatedNoise | None = None
+    """The sensor noise the errors-in-variables fit carries to ``holdout_design`` and to the
+    held-out coefficient (the noise floor of ``rms_holdout`` reads it)."""
+    training_design: np.ndarray | None = None
+    """(N_train, n) regressor columns on the training samples, in ``names`` order."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -533,6 +538,7 @@ def _fit(coefficient: str, train: _Design, test: _Design, rate: float) -> Coeffi
         rms_holdout=float(np.sqrt(np.mean(residual_test**2))),
         holdout_residual=residual_test, holdout_design=test.X,
         diagnosis=diagnose(result.residual, rate),
+        holdout_noise=test.noise, training_design=train.X,
     )
 
 
