@@ -145,6 +145,7 @@ def residual_time_series(
     after: Mapping[str, np.ndarray] | np.ndarray | None = None,
     *,
     unit: str = "-",
+    floor: Mapping[str, float] | None = None,
 ) -> Figure:
     """Residual against time, one panel per coefficient, before (grey) and after (blue).
 
@@ -153,6 +154,7 @@ def residual_time_series(
         before: coefficient name -> (N,) residual of the baseline model, or one array.
         after: same names -> residual of the updated model (optional).
         unit: residual unit for the y labels ("-" for non-dimensional coefficients).
+        floor: name -> noise floor (RMS, same unit), drawn as dashed lines at +-floor.
     """
     t = np.asarray(time, dtype=float)
     before = {"residual": before} if isinstance(before, np.ndarray) else dict(before)
@@ -173,6 +175,9 @@ def residual_time_series(
             a = _series(f"after[{name!r}]", after[name], t.size)
             ax.plot(*_envelope(t, a), label=f"after (rms {np.sqrt(np.mean(a**2)):.3g})", **_AFTER)
         ax.axhline(0.0, color="k", lw=0.5)
+        if floor is not None and name in floor:
+            for sign, label in ((1.0, f"noise floor {floor[name]:.3g}"), (-1.0, None)):
+                ax.axhline(sign * floor[name], color="C3", ls="--", lw=0.8, label=label)
         ax.set_ylabel(f"{name} [{unit}]")
         ax.legend(loc="upper right", fontsize="small")
         ax.grid(alpha=0.3)

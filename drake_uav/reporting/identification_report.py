@@ -2,42 +2,111 @@
 
 :func:`write_report` turns an :class:`~drake_uav.identification.main_job.IdentificationRun`
 into a report folder (``report.md``, ``report.html``, figures, ``summary.json``),
-written atomically.
+written atomically. The report explains itself: every held-out error stands next to its
+noise floor (:mod:`~drake_uav.identification.noise_floor`), implausible, correlated and
+unexcited derivatives are warned about (:mod:`~drake_uav.identification.plausibility`,
+:mod:`~drake_uav.identification.identifiability`), the catalog values stand beside the
+identified ones, near-tied alternatives are named, every round of the search is listed and
+a glossary closes it (:mod:`~drake_uav.reporting.explanations`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from pathlib import Path
 
 import numpy as np
 
+from drake_uav.identification.discovery import Evidence
+from drake_uav.identification.identifiability import (
+    correlated_regressors,
+    unexcited_derivatives,
+)
 from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS as _OUTPUTS
 from drake_uav.identification.main_job import IdentificationRun
-from drake_uav.reporting import figures
+from drake_uav.identification.noise_floor import (
+    NoiseFloor,
+    held_out_noise_floor,
+    smoothing_gains,
+)
+from drake_uav.identification.plausibility import DerivativeWarning, implausible_derivatives
+from drake_uav.model.coefficients import SIGNALS
+from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "derivative_warnings", "ROUND_ROWS"]
 
 _OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
                  "r": "deg/s"}
+
+ROUND_ROWS = 12
+"""Rows of each round's table: every candidate that passed, then the strongest others."""
+
+_AT_FLOOR = 1.1
+"""A held-out error within 10 % of its noise floor is read as at the floor (the noise
+estimated from the data is good to about that)."""
 
 
 def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
     """Writes the report folder for ``run``; returns its path."""
     report = Report(f"Identification report: {run.params.name}")
     d = run.discovery
+    floors = held_out_noise_floor(run.samples, d, run.params)
+    warnings = derivative_warnings(run)
     report.add_text(
         f"Source: `{run.source}`, {len(run.samples)} samples, held-out data from "
         f"t = {d.holdout_start:.1f} s.\n\n**Result: {d.message}.**")
     _add_data(report, run)
     _add_effects(report, run)
-    _add_errors(report, run)
-    _add_figures(report, run)
+    _add_errors(report, run, floors)
+    _add_warnings(report, warnings)
+    _add_figures(report, run, floors)
+    _add_residual_meaning(report, run)
     report.add_key_values(run.coefficient_sigma, caption="Monte-Carlo standard deviation of "
-                          "the measured force coefficients (Vaiopoulos 2017, sec. 5.6)")
+                          "the measured force coefficients (Vaiopoulos 2017, sec. 5.6) [-]")
     _add_parameters(report, run)
-    _add_evidence(report, run)
-    return report.write(out_dir, run.summary())
+    _add_rounds(report, run)
+    _add_glossary(report)
+    return report.write(out_dir, _summary(run, floors, warnings))
+
+
+def derivative_warnings(run: IdentificationRun) -> list[DerivativeWarning]:
+    """Implausible catalog values, then implausible, correlated and unexcited identified
+    derivatives of every final fit (the effects' own columns are not range-checked)."""
+    catalog = implausible_derivatives(run.params.derivatives)
+    out = [dataclasses.replace(w, message=f"catalog: {w.message}") for w in catalog]
+    for fit in run.discovery.final.values():
+        r = fit.result
+        out += implausible_derivatives(dict(zip(fit.names, r.estimate.tolist(), strict=True)),
+                                       dict(zip(fit.names, r.sigma.tolist(), strict=True)))
+        if fit.training_design is not None:
+            out += correlated_regressors(fit.names, fit.training_design)
+            out += unexcited_derivatives(fit.names, fit.training_design, r.estimate, r.sigma)
+    return out
+
+
+def _summary(run: IdentificationRun, floors: dict[str, NoiseFloor],
+             warnings: list[DerivativeWarning]) -> dict:
+    """``run.summary()`` with the noise floors, catalog values, warnings, near ties and
+    every round's evidence."""
+    summary = run.summary()
+    for k, entry in summary["equation_error_rms_holdout"].items():
+        entry.update(floors[k].summary())
+    for parameters in summary["parameters"].values():
+        for name, entry in parameters.items():
+            entry["catalog"] = run.params.derivatives.get(name)
+    accepted = explanations.accepted_evidence(run.discovery)
+    summary["warnings"] = [dataclasses.asdict(w) for w in warnings]
+    summary["near_ties"] = [
+        {"round": t.round, "coefficient": t.winner.coefficient, "accepted": t.winner.effect,
+         "pse_reduction": t.winner.pse_reduction,
+         "alternatives": [{"effect": e.effect, "pse_reduction": e.pse_reduction,
+                           "passed": bool(e.passed)} for e in t.alternatives]}
+        for t in explanations.near_ties(run.discovery)]
+    summary["rounds"] = [[{**dataclasses.asdict(e), "accepted": e in accepted} for e in r]
+                         for r in run.discovery.rounds]
+    return summary
 
 
 def _add_data(report: Report, run: IdentificationRun) -> None:
@@ -49,26 +118,60 @@ def _add_data(report: Report, run: IdentificationRun) -> None:
 
 
 def _add_effects(report: Report, run: IdentificationRun) -> None:
-    """The effects found, with their strongest evidence and explanation."""
+    """The effects found, with their strongest evidence, explanation and near ties."""
     report.add_heading("Effects found")
     if not run.discovery.found:
         report.add_text("No candidate effect passed the evidence tests: the baseline model "
                         "explains the data as well as any candidate.")
-        return
-    report.add_table([
-        {"effect": f.name, "kind": f.kind, "coefficients": ", ".join(f.coefficients),
-         "held-out PSE reduction": max(e.pse_reduction for e in f.evidence),
-         "p-value": min(e.p_value for e in f.evidence), "explanation": f.explanation}
-        for f in run.discovery.found], formats={"held-out PSE reduction": ".1%", "p-value": ".2g"})
+    else:
+        report.add_table([
+            {"effect": f.name, "kind": f.kind, "coefficients": ", ".join(f.coefficients),
+             "held-out PSE reduction": max(e.pse_reduction for e in f.evidence),
+             "p-value": min(e.p_value for e in f.evidence), "explanation": f.explanation}
+            for f in run.discovery.found],
+            formats={"held-out PSE reduction": ".1%", "p-value": ".2g"})
+    ties = explanations.near_ties(run.discovery)
+    if ties:
+        report.add_text(
+            "**Near-tied alternatives** (held-out gain within "
+            f"{explanations.NEAR_TIE_MARGIN:.0%} of the accepted effect's):\n\n"
+            + "\n".join(f"- {t.sentence()}" for t in ties))
 
 
-def _add_errors(report: Report, run: IdentificationRun) -> None:
-    """Equation-error RMS and output-error MAE before and after, on the held-out data."""
+def _reading(floor: NoiseFloor) -> str:
+    """A few words on one coefficient's errors against its floor."""
+    if floor.before <= _AT_FLOOR * floor.floor:
+        return "at the noise floor: nothing to explain"
+    if floor.after <= _AT_FLOOR * floor.floor:
+        return "the update reached the noise floor"
+    share = floor.excess_explained
+    left = f"{floor.after_over_floor:.2g} x the floor left"
+    if share <= 0.0:
+        return f"unexplained, {left}"
+    return f"{share:.0%} of the excess explained, {left}"
+
+
+def _shown_share(floor: NoiseFloor) -> float | None:
+    """The excess explained in [0, 1]; None when the error before is at the floor."""
+    if floor.before <= _AT_FLOOR * floor.floor:
+        return None
+    return min(max(floor.excess_explained, 0.0), 1.0)
+
+
+def _add_errors(report: Report, run: IdentificationRun, floors: dict[str, NoiseFloor]) -> None:
+    """Equation-error RMS before and after with the noise floor; output-error MAE."""
     report.add_heading("Error before and after (held-out data)")
-    report.add_table([{"coefficient": k, "RMS before": b, "RMS after": a,
-                       "change": (a - b) / b if b else 0.0}
-                      for k, (b, a) in run.discovery.rms_change().items()],
-                     formats={"change": "+.1%"})
+    report.add_table(
+        [{"coefficient": k, "RMS before": f.before, "RMS after": f.after,
+          "noise floor": f.floor, "change": (f.after - f.before) / f.before if f.before else 0.0,
+          "excess explained": _shown_share(f),
+          "reading": _reading(f)} for k, f in floors.items()],
+        formats={"change": "+.1%", "excess explained": lambda v: "-" if v is None
+                 else f"{v:.0%}"},
+        caption="Equation error of the dimensionless coefficients [-]. Noise floor: the "
+                "error the sensor noise estimated from the data gives a model that lacks "
+                "nothing; excess explained: (before^2 - after^2) / (before^2 - floor^2), "
+                "capped at 100 %; within 10 % of the floor counts as at the floor")
     before, after = run.reconstruction_before, run.reconstruction_after
     report.add_table([{"variable": f"{name} [{_OUTPUT_UNITS[name]}]",
                        "MAE before": b * (1.0 if name == "airspeed" else np.degrees(1.0)),
@@ -80,14 +183,37 @@ def _add_errors(report: Report, run: IdentificationRun) -> None:
                              f"{after.divergences} after")
 
 
-def _add_figures(report: Report, run: IdentificationRun) -> None:
+_WARNING_TITLES = {
+    "implausible": "Implausible signs or magnitudes (ranges of "
+                   "`drake_uav.identification.plausibility`, Beard & McLain 2012, ch. 4)",
+    "correlated": "Regressors the flight moved together",
+    "unexcited": "Derivatives the flight does not pin down",
+}
+
+
+def _add_warnings(report: Report, warnings: list[DerivativeWarning]) -> None:
+    """The derivative warnings, grouped by kind."""
+    report.add_heading("Warnings on the derivatives")
+    if not warnings:
+        report.add_text("None: every identified derivative is plausible, well excited and "
+                        "not confounded with another.")
+        return
+    for kind, title in _WARNING_TITLES.items():
+        lines = [w.message for w in warnings if w.kind == kind]
+        if lines:
+            report.add_text(f"**{title}:**\n\n" + "\n".join(f"- {m}" for m in lines))
+
+
+def _add_figures(report: Report, run: IdentificationRun,
+                 floors: dict[str, NoiseFloor]) -> None:
     """Held-out residuals, their whiteness and normality, and the reconstruction."""
     d = run.discovery
     test_time = run.samples.time[run.samples.time >= d.holdout_start]
     report.add_figure(lambda: figures.residual_time_series(
         test_time, {k: f.holdout_residual for k, f in d.baseline.items()},
-        {k: f.holdout_residual for k, f in d.final.items()}), "Held-out residuals before "
-        "(grey) and after (blue) the update", name="residuals")
+        {k: f.holdout_residual for k, f in d.final.items()},
+        floor={k: f.floor for k, f in floors.items()}), "Held-out residuals before "
+        "(grey) and after (blue) the update, dashed: +- the noise floor", name="residuals")
     report.add_figure(lambda: figures.autocorrelation_plot(
         {k: f.diagnosis for k, f in d.final.items()}), "Residual autocorrelation after the "
         "update, with 95% bounds", name="autocorrelation")
@@ -100,28 +226,86 @@ def _add_figures(report: Report, run: IdentificationRun) -> None:
         dict(zip(_OUTPUTS, before.reconstructed.T, strict=True)),
         dict(zip(_OUTPUTS, after.reconstructed.T, strict=True)),
         units=_OUTPUT_UNITS, degrees=("alpha", "beta", "p", "q", "r")),
-        f"Reconstruction with periodic resets every {before.reset_interval:g} s",
-        name="reconstruction")
+        f"Reconstruction with periodic resets every {before.reset_interval:g} s (angles in "
+        "deg, rates in deg/s)", name="reconstruction")
+
+
+def _add_residual_meaning(report: Report, run: IdentificationRun) -> None:
+    """What the whiteness of each residual says about the result."""
+    report.add_heading("What the residuals say")
+    step = float(np.median(np.diff(run.samples.time)))
+    smoothing_time = step / smoothing_gains(step)[0]
+    lines = explanations.residual_meaning(
+        {k: f.diagnosis for k, f in run.discovery.final.items()}, smoothing_time)
+    report.add_text(explanations.RESIDUAL_MEANING + "\n\n"
+                    + "\n".join(f"- {line}" for line in lines))
+
+
+_UNIT = re.compile(r"\[([^\]]*)\]$")
+
+
+def _derivative_unit(name: str) -> str:
+    """Unit of a derivative: 1 / its regressor's unit (dimensionless for the constant and
+    the normalised rates); "effect" for an effect's column (see the effect)."""
+    coefficient, _, signal = name.partition("_")
+    if ":" in name or signal not in SIGNALS:
+        return "effect"
+    match = _UNIT.search(SIGNALS[signal])
+    unit = match.group(1) if match else "-"
+    return "-" if unit == "-" else f"1/{unit}"
 
 
 def _add_parameters(report: Report, run: IdentificationRun) -> None:
-    """One table of estimates, sigmas and t statistics per coefficient fit."""
+    """One table per coefficient: estimate, sigma, catalog value and their distance."""
     report.add_heading("Identified parameters")
+    catalog = run.params.derivatives
+    report.add_text("Catalog: the aircraft's parameter set (`" + run.params.name + "`); "
+                    "(estimate - catalog) / sigma measures how far the flight disagrees.")
     for k, fit in run.discovery.final.items():
         r = fit.result
-        report.add_table([{"parameter": n, "estimate": r.estimate[i], "sigma": r.sigma[i],
-                           "t": r.t_statistic[i], "significant": bool(r.significant[i])}
-                          for i, n in enumerate(fit.names)],
-                         caption=f"{k} ({r.method}, R^2 = {r.r_squared:.3f})")
+        report.add_table(
+            [{"parameter": n, "unit": _derivative_unit(n), "estimate": r.estimate[i],
+              "sigma": r.sigma[i], "catalog": catalog.get(n),
+              "(estimate - catalog) / sigma": (None if n not in catalog or not r.sigma[i]
+                                               else (r.estimate[i] - catalog[n]) / r.sigma[i]),
+              "t": r.t_statistic[i], "significant": bool(r.significant[i])}
+             for i, n in enumerate(fit.names)],
+            formats={"(estimate - catalog) / sigma": lambda v: "-" if v is None
+                     else f"{v:+.1f}"},
+            caption=f"{k} ({r.method}, R^2 = {r.r_squared:.3f})")
 
 
-def _add_evidence(report: Report, run: IdentificationRun) -> None:
-    """The first discovery round's 25 strongest candidates (passed first, then by PSE drop)."""
-    report.add_heading("Evidence of every candidate (first round)")
-    if not run.discovery.rounds:
-        return
-    report.add_table([{"effect": e.effect, "coefficient": e.coefficient,
-                       "PSE reduction": e.pse_reduction, "folds improved": e.folds_improved,
-                       "p-value": e.p_value, "delta BIC": e.delta_bic, "passed": e.passed}
-                      for e in run.discovery.rounds[0][:25]],
-                     formats={"PSE reduction": "+.2%", "p-value": ".2g", "delta BIC": ".1f"})
+def _evidence_row(e: Evidence, accepted: bool) -> dict:
+    return {"effect": e.effect, "coefficient": e.coefficient, "held-out gain": e.pse_reduction,
+            "folds improved": e.folds_improved, "p-value": e.p_value,
+            "delta BIC": e.delta_bic, "passed": bool(e.passed), "accepted": accepted}
+
+
+def _add_rounds(report: Report, run: IdentificationRun) -> None:
+    """A table per round of the search: every candidate that passed, the strongest others."""
+    report.add_heading("Every round of the search")
+    accepted = explanations.accepted_evidence(run.discovery)
+    for index, evidence in enumerate(run.discovery.rounds):
+        passed = [e for e in evidence if e.passed]
+        shown = passed + [e for e in evidence if not e.passed][:max(ROUND_ROWS - len(passed),
+                                                                    0)]
+        if not evidence:
+            report.add_heading(f"Round {index + 1}: no candidate left to test", level=3)
+            continue
+        winners = sorted({e.effect for e in evidence if e in accepted})
+        outcome = (f"accepted {', '.join(winners)}" if winners else
+                   "nothing accepted: the search stopped")
+        report.add_heading(f"Round {index + 1}: {outcome}", level=3)
+        hidden = len(evidence) - len(shown)
+        report.add_table(
+            [_evidence_row(e, e in accepted) for e in shown],
+            formats={"held-out gain": "+.2%", "p-value": ".2g", "delta BIC": ".1f"},
+            caption=f"{len(evidence)} candidates tested, {len(passed)} passed"
+                    + (f"; {hidden} weaker ones not shown (all in summary.json)"
+                       if hidden else ""))
+
+
+def _add_glossary(report: Report) -> None:
+    report.add_heading("Glossary")
+    report.add_text("\n".join(f"- **{term}:** {text}"
+                              for term, text in explanations.GLOSSARY.items()))

@@ -1,0 +1,150 @@
+"""The texts that let the main job's report explain itself.
+
+Near-tied alternatives (:func:`near_ties`), what a residual that is not white means for the
+result (:func:`residual_meaning`) and the glossary of the terms the report uses
+(:data:`GLOSSARY`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+from drake_uav.identification.discovery import DiscoveryResult, Evidence
+from drake_uav.identification.residuals import ResidualDiagnosis
+
+__all__ = ["NEAR_TIE_MARGIN", "NearTie", "near_ties", "accepted_evidence", "residual_meaning",
+           "RESIDUAL_MEANING", "SMOOTHING_CORRELATION_FACTOR", "GLOSSARY"]
+
+NEAR_TIE_MARGIN = 0.1
+"""Another candidate whose held-out gain on the same coefficient reaches (1 - margin) of the
+accepted one's explains the data almost equally well: 10 % of the winner's gain (a winner
+at 22.6 % and a rival at 22.1 % are tied; one at 15 % is not)."""
+
+SMOOTHING_CORRELATION_FACTOR = 1.5
+"""A residual correlation time up to this many times the smoothing's own correlation time
+of white noise counts as the smoothed sensor noise, not as structure left in the data."""
+
+
+@dataclasses.dataclass(frozen=True)
+class NearTie:
+    """An accepted candidate and the others that explain its coefficient almost as well."""
+
+    round: int
+    """Search round, from 1."""
+    winner: Evidence
+    alternatives: tuple[Evidence, ...]
+
+    def sentence(self) -> str:
+        """One line naming the tie."""
+        rivals = [f"`{e.effect}` ({e.pse_reduction:.2%}"
+                  + ("" if e.passed else ", failed the tests") + ")" for e in self.alternatives]
+        names = rivals[0] if len(rivals) == 1 else ", ".join(rivals[:-1]) + " and " + rivals[-1]
+        verb = "explains" if len(rivals) == 1 else "explain"
+        return (f"Round {self.round}: {names} {verb} {self.winner.coefficient} almost as well "
+                f"as the accepted `{self.winner.effect}` (held-out gain "
+                f"{self.winner.pse_reduction:.2%}): this flight cannot tell them apart.")
+
+
+def accepted_evidence(discovery: DiscoveryResult) -> set[Evidence]:
+    """The evidence of every effect the loop accepted, on every coefficient it entered."""
+    return {e for f in discovery.found for e in f.evidence}
+
+
+def near_ties(discovery: DiscoveryResult, margin: float = NEAR_TIE_MARGIN) -> list[NearTie]:
+    """Every accepted candidate whose held-out gain another effect on the same coefficient
+    and round comes within ``margin`` of (:data:`NEAR_TIE_MARGIN`), passed or not."""
+    accepted = accepted_evidence(discovery)
+    out = []
+    for index, evidence in enumerate(discovery.rounds):
+        for winner in evidence:
+            if winner not in accepted:
+                continue
+            rivals = tuple(e for e in evidence if e.coefficient == winner.coefficient
+                           and e.effect != winner.effect
+                           and e.pse_reduction >= (1.0 - margin) * winner.pse_reduction)
+            if rivals:
+                out.append(NearTie(index + 1, winner, rivals))
+    return out
+
+
+RESIDUAL_MEANING = (
+    "A residual is white when its samples are uncorrelated (Ljung-Box test at 5 %). One "
+    "that is not white carries fewer independent samples than its count (the effective "
+    "sample size): the sigmas of this report are the long-run (Newey-West) ones and the "
+    "F-tests use the effective size, so they stay valid. What it means for the model "
+    "depends on how long the correlation lasts. Up to about the smoothing's own "
+    "correlation time it is the sensor noise seen through the Savitzky-Golay filter of the "
+    "isolation: nothing is missing. A longer correlation time, a spectral peak or a drift "
+    "is structure the model does not explain (an effect outside the library, turbulence "
+    "the air data did not see, a derivative that changes during the flight): the "
+    "derivatives may have absorbed the part of it that correlates with their regressors, "
+    "and the reconstruction drifts where it acts.")
+"""The paragraph above the per-coefficient lines of :func:`residual_meaning`."""
+
+
+def residual_meaning(diagnoses: Mapping[str, ResidualDiagnosis],
+                     smoothing_time: float) -> list[str]:
+    """One line per coefficient: is its residual white, and if not, what that says.
+
+    ``smoothing_time`` [s]: the correlation time the isolation's smoothing gives white
+    noise (integrated autocorrelation time of the filter).
+    """
+    lines = []
+    for k, d in diagnoses.items():
+        if d.is_white:
+            lines.append(f"{k}: white (Ljung-Box p = {d.ljung_box_pvalue:.2g}): the model "
+                         "leaves only uncorrelated noise.")
+            continue
+        time = d.integrated_time / d.sample_rate
+        reading = ("the smoothed sensor noise" if time <= SMOOTHING_CORRELATION_FACTOR
+                   * smoothing_time else "structure the model does not explain")
+        text = (f"{k}: not white, correlation time {time:.2g} s (the smoothing alone gives "
+                f"{smoothing_time:.2g} s): {reading}")
+        if d.spectral_peaks:
+            peaks = ", ".join(f"{p.frequency:.3g} Hz" for p in d.spectral_peaks[:3])
+            text += (f"; spectral peak at {peaks}: a periodic component (vibration, "
+                     "propeller, a control limit cycle)")
+        if d.drift_significant:
+            text += "; a drift over the flight: a bias or a derivative that changes"
+        lines.append(text + ".")
+    return lines
+
+
+GLOSSARY: Mapping[str, str] = {
+    "equation error": "measured coefficient minus the model's prediction from the measured "
+                      "regressors, sample by sample (no integration)",
+    "held-out data": "the tail of the flight (the last 30 % by default), which no fit, test "
+                     "or choice of effect saw; every before/after error is read there",
+    "PSE": "prediction squared error: the mean square equation error on data the fit did "
+           "not see; the held-out gain is its relative reduction over the blocked folds",
+    "blocked folds": "the training part cut into contiguous blocks (five by default); each "
+                     "is predicted by a fit on the others (cross-validation that does not "
+                     "leak correlated neighbours)",
+    "noise floor": "the held-out equation error that the sensor noise alone gives a model "
+                   "that lacks nothing, from the noise estimated from the data; an error "
+                   "at the floor has nothing left to explain",
+    "excess explained": "share of the error above the noise floor an update removed, "
+                        "(before^2 - after^2) / (before^2 - floor^2)",
+    "BCLS": "bias-compensated least squares: the normal equations minus the expected "
+            "moments of the regressor noise, so noisy air data do not shrink the "
+            "derivatives (errors in variables)",
+    "p-value": "partial F-test of the candidate's columns with the effective sample size; "
+               "small values favour the candidate (the level it must reach, corrected for "
+               "the number of candidates, is in docs/main_job.md)",
+    "delta BIC": "change of the Bayesian information criterion with the candidate; "
+                 "negative favours it",
+    "effective sample size": "the number of independent samples a correlated residual is "
+                             "worth (N over its integrated autocorrelation time)",
+    "white residual": "a residual whose samples are uncorrelated (Ljung-Box test)",
+    "near tie": f"another candidate within {NEAR_TIE_MARGIN:.0%} of the accepted one's "
+                "held-out gain on the same coefficient: the flight cannot tell the two "
+                "apart",
+    "catalog value": "the derivative as the aircraft's parameter set gives it, the model "
+                     "the flight is compared with",
+    "VIF": "variance inflation factor: how much the correlation of a regressor with the "
+           "others inflates its derivative's variance (1: none)",
+    "reconstruction MAE": "mean absolute error of the outputs integrated with the model "
+                          "(output error), reset to the measurement every few seconds",
+}
+"""Term -> one-line definition, in the order the report lists them."""
