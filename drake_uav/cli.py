@@ -118,8 +118,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     for note in run.notes:
         print(f"note: {note}")
     print(run.discovery.message)
-    for k, (before, after) in run.discovery.rms_change().items():
-        print(f"  {k}: equation-error RMS {before:.4g} -> {after:.4g} (held-out)")
+    from drake_uav.identification.noise_floor import held_out_noise_floor
+
+    for k, f in held_out_noise_floor(run.samples, run.discovery, run.params).items():
+        print(f"  {k}: equation-error RMS {f.before:.4g} -> {f.after:.4g} (held-out; "
+              f"noise floor {f.floor:.4g})")
     names = ("Va [m/s]", "alpha [deg]", "beta [deg]", "p [deg/s]", "q [deg/s]", "r [deg/s]")
     scale = (1.0, *[np.degrees(1.0)] * 5)
     for name, b, a, s in zip(names, run.reconstruction_before.mae,
