@@ -12,12 +12,18 @@ The loop (:func:`discover`):
    F-test whose degrees of freedom use the residual's effective sample size
    (correlated residuals carry less information than their sample count), and
    the change in BIC;
-4. accept the best candidate that passes every test of :class:`EvidenceRule`,
-   add its columns, and repeat until nothing passes (or the residuals are
-   white); when no named effect passes, try the data-driven fallback (products
-   of signals), which reports the signals involved;
-5. refit, and report the equation-error RMS before and after on the held-out
-   tail of the flight.
+4. accept the best candidate that passes every test of :class:`EvidenceRule`
+   on the coefficients where the held-out tail agrees (its error does not rise,
+   the effect's contribution matters: :class:`HeldOutCheck`), add its columns
+   there, and repeat until nothing passes; when no named effect is kept, try
+   the data-driven fallback (products of signals), which reports the signals
+   involved;
+5. check every effect against each coefficient's final fit under the same
+   held-out rules, drop those it does not need, refit, and report the
+   equation-error RMS before and after on the held-out tail of the flight.
+
+Coefficients that do not vary in the samples (a purely longitudinal flight's
+lateral ones) are skipped with a note (:attr:`DiscoveryResult.skipped`).
 
 Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
 beta) are noisy and enter both the measured coefficients and the regressors;
