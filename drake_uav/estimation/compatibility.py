@@ -143,8 +143,8 @@ class _Check:
 
     def add(self, name: str, channels, value: float, sigma: float, dof: int, unit: str,
             tolerance: float, explanation: str, *, nominal: float = 0.0,
-            observable: bool = True, note: str = "", correctable: bool = True
-            ) -> CalibrationEffect:
+            observable: bool = True, note: str = "", correctable: bool = True,
+            drives: bool = False) -> CalibrationEffect:
         if observable and dof < MIN_DOF:
             observable, note = False, (f"{dof + 1} time blocks: too short a record for the "
                                        "correlation of its residuals")
@@ -153,7 +153,7 @@ class _Check:
         effect = CalibrationEffect(
             name, tuple(channels), float(value), float(sigma), int(dof), unit, nominal,
             float(tolerance), explanation, observable=observable, note=note,
-            correctable=correctable, significance=self.significance)
+            correctable=correctable, significance=self.significance, drives=drives)
         self.effects.append(effect)
         return effect
 
@@ -347,7 +347,7 @@ def _command_stage(c: _Check) -> None:
     c.add_fit("command_time_skew", fit, "skew", list(_COMMANDS.values()), "s",
               float(np.median(np.diff(c.time))),
               "the angular accelerations follow the commands by this time",
-              correctable=not late,
+              correctable=not late, drives=True,
               note=f"not corrected: a delay up to {c.max_actuator_delay:g} s may be the "
                    "servos' (a model effect)" if late else "")
 

@@ -46,6 +46,9 @@ class CalibrationEffect:
     """Why it is not observable or not corrected, when it is not."""
     correctable: bool = True
     significance: float = SIGNIFICANCE
+    drives: bool = False
+    """A skew of channels that drive the IMU's response (the commands): it says how much
+    later the response comes, so the channels are read that much earlier to remove it."""
 
     @property
     def error(self) -> float:
@@ -167,7 +170,7 @@ def _shifted(log: FlightLog, values: dict[str, np.ndarray], skews) -> tuple:
     time = log.time
     keep = np.ones(len(time), bool)
     for effect in skews:
-        tau = effect.estimate - effect.nominal
+        tau = -effect.error if effect.drives else effect.error
         keep &= (time + tau >= time[0]) & (time + tau <= time[-1])
         for channel in effect.channels:
             if channel in values:
