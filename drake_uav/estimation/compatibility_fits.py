@@ -35,6 +35,8 @@ import numpy as np
 from scipy import fft as sp_fft
 from scipy import stats
 
+from drake_uav.estimation.signals import is_new_sample
+
 __all__ = ["Cumulative", "ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
            "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
@@ -52,7 +54,7 @@ def fresh_times(time: np.ndarray, values: np.ndarray) -> np.ndarray:
     ``values`` (N, m) delivered a new value (any channel changed); the first is new."""
     values = np.asarray(values, float).reshape(len(time), -1)
     new = np.ones(len(time), bool)
-    new[1:] = np.any(values[1:] != values[:-1], axis=1)
+    new[1:] = np.any(is_new_sample(values[1:], values[:-1]), axis=1)
     return np.flatnonzero(new)
 
 

@@ -59,9 +59,15 @@ def high_pass(values: np.ndarray, samples: int) -> np.ndarray:
     return v - (c[n:] - c[:-n]) / n
 
 
-def _windows(count: int, length: int, stride: int) -> tuple[np.ndarray, np.ndarray]:
-    start = np.arange(0, max(count - length, 0), max(stride, 1))
-    return start, start + length
+def _windows(time: np.ndarray, length: int, stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """First and last sample of windows of ``length`` samples every ``stride`` samples of
+    ``time``, leaving out the windows that span a gap of the log (longer than 1.5 times
+    the usual window)."""
+    start = np.arange(0, max(len(time) - length, 0), max(stride, 1))
+    end = start + length
+    span = time[end] - time[start]
+    keep = span <= 1.5 * np.median(span) if len(span) else np.zeros(0, bool)
+    return start[keep], end[keep]
 
 
 def _weighted(design, components: int, weights: np.ndarray):
@@ -112,7 +118,7 @@ def attitude_fit(time: np.ndarray, gyro: np.ndarray, euler: np.ndarray, *, windo
     driven = np.einsum("nij,nj->ni", E.reshape(-1, 3, 3), gyro)
     rates, matrix = Cumulative(time, driven), Cumulative(time, E)
     m = max(int(round(window / dt)), 2)
-    i0, i1 = _windows(len(time), m, m // 4)
+    i0, i1 = _windows(time, m, m // 4)
     level = (np.abs(euler[i0, 1]) < MAX_PITCH) & (np.abs(euler[i1, 1]) < MAX_PITCH)
     i0, i1 = i0[level], i1[level]
     t0, t1 = time[i0], time[i1]
@@ -172,7 +178,7 @@ def velocity_fit(time: np.ndarray, strapdown: Strapdown, gps_velocity: np.ndarra
     j = fresh_times(time, gps_velocity)
     period = float(np.median(np.diff(time[j])))
     m = max(int(round(window / period)), 1)
-    k0, k1 = _windows(len(j), m, 2)
+    k0, k1 = _windows(time[j], m, 2)
     t0, t1 = time[j[k0]], time[j[k1]]
     change = gps_velocity[j[k1]] - gps_velocity[j[k0]]
     mid = np.repeat(0.5 * (t0 + t1), 3)
@@ -237,7 +243,7 @@ def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str
     axes = [a for a, (surfaces, _) in _RESPONSE.items() if surfaces[0] in commands]
     if not axes:
         return None
-    i0, i1 = _windows(len(time), window, window)
+    i0, i1 = _windows(time, window, window)
     t0, t1 = time[i0], time[i1]
     parts, names = [], []
     for axis in axes:

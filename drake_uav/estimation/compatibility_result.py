@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from drake_uav.estimation.compatibility_fits import fresh_times, t_p_value
+from drake_uav.estimation.signals import HELD_FRACTION
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 
 __all__ = ["CalibrationEffect", "CompatibilityResult", "SIGNIFICANCE", "read_later"]
@@ -141,7 +142,8 @@ class CompatibilityResult:
         if not applied:
             return log
         values = {n: np.array(log[n]) for n in log.measured_names}
-        for effect in applied:
+        # Offsets before scale factors: a vane reads b + k alpha, so alpha = (reading - b) / k.
+        for effect in sorted(applied, key=lambda e: e.nominal):
             if effect.unit != "s":
                 _calibrate(values, effect)
         time, keep = _shifted(log, values, [e for e in applied if e.unit == "s"])
@@ -183,7 +185,7 @@ def _shifted(log: FlightLog, values: dict[str, np.ndarray], skews) -> tuple:
 def read_later(time: np.ndarray, values: np.ndarray, tau: float) -> np.ndarray:
     """``values(t + tau)``: linear between samples, or held for a held channel."""
     fresh = fresh_times(time, values)
-    if len(fresh) > 0.6 * len(time):
+    if len(fresh) > HELD_FRACTION * len(time):
         return np.interp(time + tau, time, values)
     arrival = time[fresh] - tau
     index = np.clip(np.searchsorted(arrival, time, side="right") - 1, 0, len(fresh) - 1)
