@@ -137,6 +137,16 @@ def test_command_skews_a_servo_delay_is_reported_a_logging_skew_corrected(straig
     assert servo.significant and not servo.applied
 
 
+def test_skews_of_seconds_between_channel_groups_are_found(straight):
+    log = straight[STRAIGHT_SEEDS[1]]
+    gps = check_compatibility(inject(log, gps_delay=4.3), PARAMS)["gps_time_skew"]
+    assert abs(gps.estimate - 4.3) <= SIGMAS * gps.sigma and gps.applied
+    late = log.with_measured({n: _delayed(log[n], 230)
+                              for n in ("att_roll", "att_pitch", "att_yaw")})
+    attitude = check_compatibility(late, PARAMS)["attitude_time_skew"]
+    assert abs(attitude.estimate - 2.3) <= SIGMAS * attitude.sigma and attitude.applied
+
+
 def test_reads_only_measured_channels(straight):
     flight = fly("aerosonde", turbulence="light", seed=STRAIGHT_SEEDS[0], duration=40.0)
     with_truth = check_compatibility(flight, PARAMS)

@@ -40,6 +40,8 @@ from drake_uav.estimation.signals import is_new_sample
 __all__ = ["Cumulative", "ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
            "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
+MAX_RECENTRES = 5
+"""Times :func:`shift_fit` moves its grid to an edge minimum before giving up."""
 MIN_BLOCKS = 2
 """Fewest time blocks a covariance is computed from (1 degree of freedom)."""
 
@@ -167,9 +169,23 @@ def solve(X: np.ndarray, y: np.ndarray) -> np.ndarray:
     return theta / scale
 
 
-def _rss(X: np.ndarray, y: np.ndarray) -> float:
-    r = y - X @ solve(X, y)
-    return float(r @ r)
+class _Residuals:
+    """Least-squares residual sums; the factorisation is kept while the design returns
+    the same regressor matrix (a skew that moves only the observations)."""
+
+    def __init__(self):
+        self._X, self._pinv = None, None
+
+    def __call__(self, X: np.ndarray, y: np.ndarray) -> float:
+        if X is self._X:
+            if self._pinv is None:
+                self._pinv = np.linalg.pinv(X)
+            theta = self._pinv @ y
+        else:
+            self._X, self._pinv = X, None
+            theta = solve(X, y)
+        r = y - X @ theta
+        return float(r @ r)
 
 
 def _parabola_minimum(grid: np.ndarray, rss: np.ndarray) -> float:
@@ -190,12 +206,20 @@ def shift_fit(design: Design, names: Sequence[str], guess: float, step: float, r
               block_length: float) -> ParameterFit:
     """Linear parameters ``names`` and the skew (last, named ``"skew"``) [s] of ``design``.
 
-    The residual sum is evaluated on the grid ``guess + step * k``, ``|k| <= reach``; the
-    skew is the minimum of the parabola through the best point and its neighbours. The
+    The residual sum is evaluated on the grid ``guess + step * k``, ``|k| <= reach``
+    (centred again on its best point while that is at an edge, up to
+    :data:`MAX_RECENTRES` times); the skew is the minimum of the parabola through the
+    best point and its neighbours. The
     covariance is :func:`block_covariance` of the problem linearised there.
     """
-    grid = guess + step * np.arange(-reach, reach + 1)
-    rss = np.array([_rss(*design(tau)[:2]) for tau in grid])
+    residual_sum = _Residuals()
+    for _ in range(MAX_RECENTRES + 1):  # a minimum at the grid's edge moves the grid
+        grid = guess + step * np.arange(-reach, reach + 1)
+        rss = np.array([residual_sum(*design(tau)[:2]) for tau in grid])
+        best = int(np.argmin(rss))
+        if 0 < best < len(grid) - 1:
+            break
+        guess = grid[best]
     tau = _parabola_minimum(grid, rss)
     X, y, row_time = design(tau)
     theta = solve(X, y)

@@ -132,7 +132,7 @@ def attitude_fit(time: np.ndarray, gyro: np.ndarray, euler: np.ndarray, *, windo
     unwrapped = np.unwrap(euler, axis=0)
     n = int(round(2.0 / dt))
     guess = coarse_lag(high_pass(rates.values, n), high_pass(unwrapped, n), 1.0 / dt, max_skew)
-    return _two_pass(design, ("bias_p", "bias_q", "bias_r"), 3, guess, dt, 10)
+    return _two_pass(design, ("bias_p", "bias_q", "bias_r"), 3, guess, dt, 6)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -230,7 +230,7 @@ _RESPONSE = {"p": (("aileron", "rudder"), ("p", "r", "ay")),
 
 
 def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str, np.ndarray],
-                *, max_skew: float, window: int = 4) -> ParameterFit | None:
+                *, max_skew: float, window: int = 6) -> ParameterFit | None:
     """Skew [s] of the commands against the angular accelerations they cause.
 
     Per body axis, the rate change over ``window`` samples against the integral over the
@@ -260,7 +260,7 @@ def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str
     n = max(int(round(0.1 / dt)), 1)
     guess = coarse_lag(reference - high_pass(reference, n), response - high_pass(response, n),
                        1.0 / dt, max_skew)
-    return _two_pass(design, names, len(axes), guess, dt, 10)
+    return _two_pass(design, names, len(axes), guess, dt, 6)
 
 
 def _block_design(parts, t0: np.ndarray, t1: np.ndarray):
