@@ -135,6 +135,16 @@ def test_a_scenario_that_raises_gives_one_error_row(tmp_path, workers):
     assert all(r["error"] is None for r in rows if r["status"] == "ok")
 
 
+def test_an_unknown_scenario_raises_on_a_cluster_too(tmp_path):
+    # The cluster's runs are submitted before the name is checked (the workers load the
+    # scenario meanwhile): the error still comes before any row is written.
+    out = tmp_path / "r.parquet"
+    with pytest.raises(ValueError, match="unknown"):
+        run_campaign(Campaign("no_such_scenario", seeds=range(3)), out, workers=1,
+                     progress=False)
+    assert not out.exists()
+
+
 def test_progress_bar_counts_runs_and_errors(tmp_path, capsys):
     run_campaign(_campaign(fail_seed=5), tmp_path / "r.parquet", workers=0,
                  progress=sys.stdout)

@@ -144,6 +144,9 @@ def _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers
     try:
         futures = {client.submit(execute_run, scenario, run, version, pure=False): run
                    for run in pending}
+        # The workers load the scenario's modules with their first run; this process
+        # checks the scenario meanwhile (an unknown name raises before any row is written).
+        resolve_scenario(scenario)
         for i, future in enumerate(as_completed(futures), 1):
             try:
                 row = future.result()
@@ -185,12 +188,10 @@ def run_campaign(campaign: Campaign, out: str | os.PathLike, *, workers: int | N
     stream = (sys.stderr if progress is True else None) if isinstance(progress, bool) else progress
     bar = ProgressBar(len(pending), done=len(done), stream=stream)
     scenario = campaign.scenario
-    resolve_scenario(scenario)  # an unknown name fails here, not in every run
     version = drake_uav.__version__
     try:
-        if not pending:
-            pass
-        elif workers == 0 and scheduler is None:
+        if not pending or workers == 0 and scheduler is None:
+            resolve_scenario(scenario)  # an unknown name fails here, not in every run
             _run_local(pending, scenario, version, store, bar, rows, flush_every)
         else:
             _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers,
