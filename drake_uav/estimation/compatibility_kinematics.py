@@ -105,34 +105,59 @@ def _euler_rate_matrix() -> CompiledFunction:
     return CompiledFunction(matrix, (3,), {}, "euler_rate_matrix")
 
 
+class _EulerRelation:
+    """The Euler-angle kinematics over windows: attitude change against the integrated
+    Euler rates of the gyro, ``E(euler) (omega_m - b) dt`` (attitude ``tau`` late)."""
+
+    def __init__(self, time: np.ndarray, gyro: np.ndarray, euler: np.ndarray):
+        self.time, self.euler = time, euler
+        E = _euler_rate_matrix().batch_value(euler)
+        driven = np.einsum("nij,nj->ni", E.reshape(-1, 3, 3), gyro)
+        self.rates, self.matrix = Cumulative(time, driven), Cumulative(time, E)
+
+    def design(self, window: float, stride: float):
+        """``design(tau)`` of windows of ``window`` [s] every ``stride`` [s]."""
+        dt = float(np.median(np.diff(self.time)))
+        m = max(int(round(window / dt)), 2)
+        i0, i1 = _windows(self.time, m, max(int(round(stride / dt)), 1))
+        level = (np.abs(self.euler[i0, 1]) < MAX_PITCH) & (np.abs(self.euler[i1, 1]) < MAX_PITCH)
+        i0, i1 = i0[level], i1[level]
+        t0, t1 = self.time[i0], self.time[i1]
+        change = wrap(self.euler[i1] - self.euler[i0])
+        mid = np.repeat(0.5 * (t0 + t1), 3)
+
+        def design(tau):
+            y = change - self.rates.between(t0, t1, tau)
+            return -self.matrix.between(t0, t1, tau).reshape(-1, 3), y.reshape(-1), mid
+        return design
+
+
 def attitude_fit(time: np.ndarray, gyro: np.ndarray, euler: np.ndarray, *, window: float,
                  max_skew: float) -> ParameterFit:
     """Gyro biases ``bias_p, bias_q, bias_r`` [rad/s] and the attitude skew [s].
 
     ``gyro`` (N, 3) [rad/s] and ``euler`` (N, 3) roll, pitch, yaw [rad] on ``time`` (N) [s].
-    Windows of ``window`` [s] every quarter window; the skew is searched within
-    ``+-max_skew`` [s] (positive: the attitude lags the gyro).
+    The skew (searched within ``+-max_skew`` [s]; positive: the attitude lags the gyro)
+    comes from half windows every eighth of ``window`` [s], whose ends see more of the
+    fast attitude changes; the biases, at that skew, from windows of ``window`` every
+    quarter window, over which a bias builds up more. The two are taken as uncorrelated.
     """
     dt = float(np.median(np.diff(time)))
-    E = _euler_rate_matrix().batch_value(euler)
-    driven = np.einsum("nij,nj->ni", E.reshape(-1, 3, 3), gyro)
-    rates, matrix = Cumulative(time, driven), Cumulative(time, E)
-    m = max(int(round(window / dt)), 2)
-    i0, i1 = _windows(time, m, m // 4)
-    level = (np.abs(euler[i0, 1]) < MAX_PITCH) & (np.abs(euler[i1, 1]) < MAX_PITCH)
-    i0, i1 = i0[level], i1[level]
-    t0, t1 = time[i0], time[i1]
-    change = wrap(euler[i1] - euler[i0])
-    mid = np.repeat(0.5 * (t0 + t1), 3)
-
-    def design(tau):
-        y = change - rates.between(t0, t1, tau)
-        return -matrix.between(t0, t1, tau).reshape(-1, 3), y.reshape(-1), mid
-
-    unwrapped = np.unwrap(euler, axis=0)
+    relation = _EulerRelation(time, gyro, euler)
     n = int(round(2.0 / dt))
-    guess = coarse_lag(high_pass(rates.values, n), high_pass(unwrapped, n), 1.0 / dt, max_skew)
-    return _two_pass(design, ("bias_p", "bias_q", "bias_r"), 3, guess, dt, 6)
+    guess = coarse_lag(high_pass(relation.rates.values, n),
+                       high_pass(np.unwrap(euler, axis=0), n), 1.0 / dt, max_skew)
+    names = ("bias_p", "bias_q", "bias_r")
+    timing = _two_pass(relation.design(0.5 * window, 0.125 * window), names, 3, guess, dt, 6)
+    tau = timing.value("skew")
+    design = relation.design(window, 0.25 * window)
+    weights = _component_weights(timing, design, 3)
+    X, y, row_time = _weighted(design, 3, weights)(tau)
+    biases = linear_fit(X, y, names, row_time, KINEMATIC_BLOCK)
+    covariance = np.zeros((4, 4))
+    covariance[:3, :3], covariance[3, 3] = biases.covariance, timing.covariance[3, 3]
+    return ParameterFit((*names, "skew"), np.append(biases.estimate, tau), covariance,
+                        min(biases.dof, timing.dof), biases.residual_rms)
 
 
 @dataclasses.dataclass(frozen=True)
