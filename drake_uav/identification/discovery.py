@@ -94,7 +94,9 @@ class EvidenceRule:
     A candidate that passes is then checked, per coefficient, on the held-out tail
     (``holdout_fraction`` of the flight, which no test above saw;
     :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
-    equation-error RMS does not rise with it and its contribution there (RMS of the
+    prediction error falls with it by at least ``min_pse_reduction`` (the gain the
+    folds must show on average, so that cross-validation and the held-out tail ask
+    the same of an effect) and its contribution there (RMS of the
     change it makes to the prediction) reaches both ``min_share_of_variation`` of the
     coefficient's standard deviation over the flight and ``min_share_of_error`` of
     the held-out error left with it. A coefficient whose standard deviation over the
@@ -165,6 +167,14 @@ class HeldOutCheck:
     threshold: float
     """Smallest contribution that matters [-]: the larger of the two shares of the rule."""
     kept: bool
+    min_gain: float = 0.0
+    """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
+
+    @property
+    def gain(self) -> float:
+        """Held-out prediction-error (mean-square) reduction, fraction of the PSE without
+        the effect [-]."""
+        return 1.0 - (self.rms_with / self.rms_without) ** 2 if self.rms_without > 0 else 0.0
 
     @property
     def reason(self) -> str:
@@ -172,6 +182,9 @@ class HeldOutCheck:
         if self.rms_with > self.rms_without:
             return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
                     f"{self.rms_with:.4g})")
+        if self.gain < self.min_gain:
+            return (f"its held-out prediction error falls by {100 * self.gain:.2g} %, less "
+                    f"than {100 * self.min_gain:.2g} %")
         if self.contribution < self.threshold:
             return (f"its held-out contribution {self.contribution:.2g} is below "
                     f"{self.threshold:.2g}")
@@ -734,8 +747,11 @@ class _Search:
         contribution = float(np.sqrt(np.mean((prediction_with - prediction_without) ** 2)))
         threshold = max(self.rule.min_share_of_variation * self.scales[k],
                         self.rule.min_share_of_error * rms_with)
+        gain = 1.0 - (rms_with / rms_without) ** 2 if rms_without > 0 else 0.0
         return HeldOutCheck(name, k, stage, rms_without, rms_with, contribution, threshold,
-                            kept=rms_with <= rms_without and contribution >= threshold)
+                            kept=(rms_with <= rms_without and gain >= self.rule.min_pse_reduction
+                                  and contribution >= threshold),
+                            min_gain=self.rule.min_pse_reduction)
 
     def final_check(self, found: Sequence[FoundEffect]) -> list[FoundEffect]:
         """Against the final fit of each coefficient, the effects it does not need are
