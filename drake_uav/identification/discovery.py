@@ -61,6 +61,13 @@ from drake_uav.identification.errors_in_variables import (
 )
 from drake_uav.identification.isolation import AeroSamples
 from drake_uav.identification.regression import RegressionResult, bcls, r_factor
+from drake_uav.identification.regressor_noise import (
+    AIR_DATA_SOURCES,
+    STEPS,
+    observation_sensitivity,
+    perturbed,
+    source_variances,
+)
 from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -169,19 +176,38 @@ class HeldOutCheck:
     kept: bool
     min_gain: float = 0.0
     """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
+    noise_without: float = 0.0
+    """Regressor-noise part of the held-out mean-square error without the effect [-]: what
+    the sensor noise of the regressors, carried through the fit, adds to it
+    (:func:`~drake_uav.identification.errors_in_variables.noise_error_energy`)."""
+    noise_with: float = 0.0
+    """The same with the effect [-]."""
+
+    @property
+    def corrected_without(self) -> float:
+        """Held-out RMS without the effect and without its regressor-noise part [-]: the
+        error of the prediction of the true coefficient, which the decision compares."""
+        return float(np.sqrt(max(self.rms_without**2 - self.noise_without, 0.0)))
+
+    @property
+    def corrected_with(self) -> float:
+        """The same with the effect [-]."""
+        return float(np.sqrt(max(self.rms_with**2 - self.noise_with, 0.0)))
 
     @property
     def gain(self) -> float:
-        """Held-out prediction-error (mean-square) reduction, fraction of the PSE without
-        the effect [-]."""
-        return 1.0 - (self.rms_with / self.rms_without) ** 2 if self.rms_without > 0 else 0.0
+        """Held-out prediction-error (mean-square) reduction without the regressor-noise
+        part, fraction of the observed PSE without the effect [-] (the folds' measure)."""
+        if self.rms_without <= 0:
+            return 0.0
+        return (self.corrected_without**2 - self.corrected_with**2) / self.rms_without**2
 
     @property
     def reason(self) -> str:
         """Why the effect was not kept on the coefficient ("" when it was)."""
-        if self.rms_with > self.rms_without:
-            return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
-                    f"{self.rms_with:.4g})")
+        if self.corrected_with > self.corrected_without:
+            return (f"its held-out error rises with it ({self.corrected_without:.4g} -> "
+                    f"{self.corrected_with:.4g})")
         if self.gain < self.min_gain:
             return (f"its held-out prediction error falls by {100 * self.gain:.2g} %, less "
                     f"than {100 * self.min_gain:.2g} %")
@@ -250,41 +276,58 @@ class DiscoveryResult:
                 for k in self.baseline}
 
 
-NOISY_SIGNALS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5}
-"""Air-data signals whose noise is propagated, with their finite-difference steps."""
-
 ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
 
 
 class _Perturbations:
-    """Samples and their copies with one noisy air-data signal moved by +-its step.
+    """Samples and their copies with one noise source moved by +-its step
+    (:func:`~drake_uav.identification.regressor_noise.perturbed`), and the probe: every
+    source but the air data moved at once, which tells the columns that depend on none
+    of them (most) from the others.
 
     The copies are made once and shared by every column function evaluated on them.
     """
 
     def __init__(self, samples: AeroSamples):
         self.samples = samples
-        self._copies: dict[tuple[str, float], AeroSamples] = {}
+        self._copies: dict[tuple, AeroSamples] = {}
 
-    def __call__(self, signal: str, step: float) -> AeroSamples:
-        key = (signal, step)
+    def __call__(self, source: str, step: float) -> AeroSamples:
+        key = (source, step)
         if key not in self._copies:
-            self._copies[key] = self.samples.perturbed(signal, step)
+            self._copies[key] = perturbed(self.samples, source, step)
         return self._copies[key]
+
+    def probe(self, sources: tuple[str, ...]) -> AeroSamples:
+        """The samples with every one of ``sources`` moved by its step."""
+        if sources not in self._copies:
+            moved = self.samples
+            for source in sources:
+                moved = perturbed(moved, source, STEPS[source])
+            self._copies[sources] = moved
+        return self._copies[sources]
 
 
 def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | _Perturbations,
                            variance):
-    """Columns of ``function(samples)`` and their derivatives w.r.t. the noisy signals."""
+    """Columns of ``function(samples)`` and their derivatives w.r.t. the noise sources of
+    ``variance``: the air data always, the others (rates, derivatives) where a column
+    depends on them."""
     variants = samples if isinstance(samples, _Perturbations) else _Perturbations(samples)
     columns = dict(function(variants.samples))
+    sources = [s for s in AIR_DATA_SOURCES if variance.get(s, 0.0) > 0.0]
+    others = tuple(s for s in STEPS if s not in AIR_DATA_SOURCES and variance.get(s, 0.0) > 0.0)
+    probe = function(variants.probe(others)) if others else columns
+    if any(not np.array_equal(probe[k], v) for k, v in columns.items()):
+        sources += others
     jac = {}
-    for signal, step in NOISY_SIGNALS.items():
-        if variance.get(signal, 0.0) <= 0.0:
-            continue
+    for signal in sources:
+        step = STEPS[signal]
         up = function(variants(signal, step))
         down = function(variants(signal, -step))
-        jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
+        derivative = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
+        if signal in AIR_DATA_SOURCES or any(np.any(d) for d in derivative.values()):
+            jac[signal] = derivative
     return columns, jac
 
 
@@ -356,15 +399,14 @@ def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient:
         X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
         return dict(zip(names, X.T, strict=True))
 
-    aligned = samples.aligned(coefficient)
-    variance = aligned.noise_variance
+    variance = source_variances(samples, coefficient)
     cols, jac = _columns_and_jacobians(columns, samples, variance)
     noise = PropagatedNoise(
         columns=len(names),
         regressors={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
-        observation={s: v for s, v in aligned.observation_sensitivity(coefficient).items()
-                     if s in jac},
-        variance={s: float(variance[s]) for s in jac},
+        observation={s: v for s, v in observation_sensitivity(samples, coefficient,
+                                                              params).items() if s in variance},
+        variance=variance,
     )
     return _Design(names=list(names), X=np.column_stack(list(cols.values())),
                    z=np.asarray(samples.coefficients[coefficient], dtype=float), noise=noise)
@@ -742,16 +784,15 @@ class _Search:
               with_effect: tuple[_Design, _Design], stage: str) -> HeldOutCheck:
         """The held-out decision on effect ``name`` for coefficient ``k``: each pair of
         (training, held-out) designs fitted on the first and evaluated on the second."""
-        rms_without, prediction_without = _held_out_prediction(*without)
-        rms_with, prediction_with = _held_out_prediction(*with_effect)
+        rms_without, prediction_without, noise_without = _held_out_prediction(*without)
+        rms_with, prediction_with, noise_with = _held_out_prediction(*with_effect)
         contribution = float(np.sqrt(np.mean((prediction_with - prediction_without) ** 2)))
         threshold = max(self.rule.min_share_of_variation * self.scales[k],
                         self.rule.min_share_of_error * rms_with)
-        gain = 1.0 - (rms_with / rms_without) ** 2 if rms_without > 0 else 0.0
-        return HeldOutCheck(name, k, stage, rms_without, rms_with, contribution, threshold,
-                            kept=(rms_with <= rms_without and gain >= self.rule.min_pse_reduction
-                                  and contribution >= threshold),
-                            min_gain=self.rule.min_pse_reduction)
+        check = HeldOutCheck(name, k, stage, rms_without, rms_with, contribution, threshold,
+                             kept=False, min_gain=self.rule.min_pse_reduction,
+                             noise_without=noise_without, noise_with=noise_with)
+        return dataclasses.replace(check, kept=not check.reason)
 
     def final_check(self, found: Sequence[FoundEffect]) -> list[FoundEffect]:
         """Against the final fit of each coefficient, the effects it does not need are
@@ -769,7 +810,7 @@ class _Search:
                 failing = [c for c in checks if not c.kept]
                 if not failing:
                     break
-                worst = min(failing, key=lambda c: c.rms_without)
+                worst = min(failing, key=lambda c: c.corrected_without)
                 self.checks.append(worst)
                 dropped.add((worst.effect, k))
                 prefix = f"{worst.effect}:"
@@ -778,10 +819,13 @@ class _Search:
         return [f for f in (_keep(f, dropped) for f in found) if f is not None]
 
 
-def _held_out_prediction(train: _Design, test: _Design) -> tuple[float, np.ndarray]:
-    """Held-out equation-error RMS and prediction of the fit of ``train`` on ``test``."""
-    prediction = test.X @ train.solve()
-    return float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction
+def _held_out_prediction(train: _Design, test: _Design) -> tuple[float, np.ndarray, float]:
+    """Held-out equation-error RMS and prediction of the fit of ``train`` on ``test``, and
+    the regressor-noise part of the mean-square error (see :func:`_errors`)."""
+    theta = train.solve()
+    prediction = test.X @ theta
+    noise = noise_error_energy(theta, *test.noise.moments()) / len(test.z)
+    return float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction, noise
 
 
 def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | None:

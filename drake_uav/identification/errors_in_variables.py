@@ -127,12 +127,16 @@ class PropagatedNoise:
 
     def extended(self, regressors: Mapping[str, np.ndarray], n_new: int) -> PropagatedNoise:
         """The noise of ``n_new`` added columns appended; ``regressors`` maps a source to
-        their (N, n_new) sensitivities (missing: the columns do not depend on it)."""
+        their (N, n_new) sensitivities (missing: the columns do not depend on it). A source
+        the present columns do not depend on joins when ``variance`` knows it."""
         new = {}
-        for source, J in self.regressors.items():
-            added = regressors.get(source)
+        for source in (*self.regressors, *(s for s in regressors if s not in self.regressors
+                                           and s in self.variance)):
+            J, added = self.regressors.get(source), regressors.get(source)
+            rows = (J if added is None else added).shape[0]
             new[source] = np.column_stack(
-                [J, np.zeros((J.shape[0], n_new)) if added is None else added])
+                [np.zeros((rows, self.columns)) if J is None else J,
+                 np.zeros((rows, n_new)) if added is None else added])
         return PropagatedNoise(self.columns + n_new, new, self.observation, self.variance)
 
 
@@ -188,8 +192,8 @@ class BlockMoments:
 
         ``(X, z, noise)`` is the design these sums were built from; ``X_new`` (N, q) the
         added columns, ``J_new`` their (N, q) sensitivities to each noise source (a source
-        missing: the columns do not depend on it). Only the new rows of the moments are
-        computed.
+        missing: the columns do not depend on it; one ``X`` does not depend on counts
+        when ``noise.variance`` knows it). Only the new rows of the moments are computed.
         """
         p, q = X.shape[1], X_new.shape[1]
         K = len(self.edges) - 1
@@ -202,12 +206,13 @@ class BlockMoments:
             new = X_new[a:b].T
             xx[k, p:, :p], xx[k, p:, p:] = new @ X[a:b], new @ X_new[a:b]
             xz[k, p:] = new @ z[a:b]
-            for source, J in noise.regressors.items():
-                added = J_new.get(source)
-                if added is None:
+            for source, added in J_new.items():
+                if source not in noise.variance:
                     continue
+                J = noise.regressors.get(source)
                 var, new_j = noise.variance[source], added[a:b].T
-                noise_xx[k, p:, :p] += var * (new_j @ J[a:b])
+                if J is not None:
+                    noise_xx[k, p:, :p] += var * (new_j @ J[a:b])
                 noise_xx[k, p:, p:] += var * (new_j @ added[a:b])
                 jz = noise.observation.get(source)
                 if jz is not None:

@@ -11,11 +11,12 @@ square is ``sum_s var_s (dz_t/ds - dx_t/ds . theta)^2``. Two kinds of source ent
 
 * the noise the errors-in-variables fit carries
   (:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise` of the held-out
-  design: air data through the regressors and the coefficient);
+  design, :mod:`~drake_uav.identification.regressor_noise`: air data, gyros and their
+  derivatives through the regressors and the coefficient; the angular accelerations,
+  the Savitzky-Golay derivative of the gyros, make the moments);
 * the noise that enters the coefficient alone and so does not bias the fit: the
   accelerometers for the forces (Vaiopoulos 2017, eq. 5.41 is linear in the specific
-  force) and the angular accelerations, the Savitzky-Golay derivative of the gyros, for
-  the moments.
+  force).
 
 The floor is the root of the mean of that square over the held-out samples. Every variance
 is the one the isolation estimated from the data (or the specs the user declared): never
@@ -26,25 +27,30 @@ explains is ``(before^2 - after^2) / (before^2 - floor^2)``.
 from __future__ import annotations
 
 import dataclasses
-import inspect
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from drake_uav.identification.discovery import CoefficientFit, DiscoveryResult
-from drake_uav.identification.isolation import MOMENTS, AeroSamples, isolate_coefficients
-from drake_uav.model.isolation import differentiate, force_coefficients, moment_coefficients
+from drake_uav.identification.errors_in_variables import PropagatedNoise
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.regressor_noise import (
+    ISOLATION_WINDOW,
+    observation_sensitivity,
+    smoothing_gains,
+    source_variances,
+)
+from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["NoiseFloor", "held_out_noise_floor", "smoothing_gains", "ISOLATION_WINDOW"]
+if TYPE_CHECKING:
+    from drake_uav.identification.discovery import DiscoveryResult
 
-ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
-    "derivative_window"].default
-"""Savitzky-Golay window [s] of the isolation (its default, which the main job uses)."""
+__all__ = ["NoiseFloor", "held_out_noise_floor", "noise_variance_per_sample",
+           "smoothing_gains", "ISOLATION_WINDOW"]
 
 _FORCES = ("CL", "CD", "CY")
 _ACCELEROMETERS = ("ax", "ay", "az")
-_GYROS = ("p", "q", "r")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,18 +89,6 @@ class NoiseFloor:
                 "after_over_floor": self.after_over_floor}
 
 
-def smoothing_gains(step: float, window: float = ISOLATION_WINDOW) -> tuple[float, float]:
-    """``(sum h^2, sum d^2 [1/s^2])`` of the isolation's Savitzky-Golay smoothing ``h`` and
-    derivative ``d`` for a sample ``step`` [s]: white noise of variance ``v`` leaves
-    ``v sum h^2`` in the smoothed signal and ``v sum d^2`` in its derivative."""
-    half = int(round(window / step)) + 2
-    time = np.arange(2 * half + 1) * step
-    impulse = np.zeros(time.size)
-    impulse[half] = 1.0
-    return (float(np.sum(differentiate(time, impulse, window, deriv=0) ** 2)),
-            float(np.sum(differentiate(time, impulse, window, deriv=1) ** 2)))
-
-
 def held_out_noise_floor(samples: AeroSamples, discovery: DiscoveryResult,
                          params: FixedWingParams) -> dict[str, NoiseFloor]:
     """The noise floor of every coefficient's held-out error (module docstring).
@@ -105,75 +99,60 @@ def held_out_noise_floor(samples: AeroSamples, discovery: DiscoveryResult,
     out = {}
     for k, fit in discovery.final.items():
         test = samples.subset(slice(len(samples) - len(fit.holdout_residual), len(samples)))
-        parts = {s: v for s, v in {**_propagated(fit),
-                                   **_coefficient_only(test, k, params, fit)}.items() if v > 0}
+        variance = noise_variance_per_sample(test, k, params, fit.holdout_noise,
+                                             fit.result.estimate)
+        parts = {s: float(np.mean(v)) for s, v in variance.items()}
+        parts = {s: v for s, v in parts.items() if v > 0}
         floor = float(np.sqrt(sum(v for v in parts.values())))
         out[k] = NoiseFloor(k, discovery.baseline[k].rms_holdout, fit.rms_holdout, floor,
                             {s: float(np.sqrt(v)) for s, v in parts.items()})
     return out
 
 
-def _propagated(fit: CoefficientFit) -> dict[str, float]:
-    """Source -> mean square error the fit's propagated noise gives (module docstring)."""
-    noise = fit.holdout_noise
-    if noise is None:
-        return {}
-    theta = fit.result.estimate
-    return {s: float(noise.variance[s] * np.mean((noise.observation.get(s, 0.0) - J @ theta) ** 2))
-            for s, J in noise.regressors.items()}
+def noise_variance_per_sample(samples: AeroSamples, coefficient: str, params: FixedWingParams,
+                              noise: PropagatedNoise | None, theta: np.ndarray
+                              ) -> dict[str, np.ndarray]:
+    """Source -> (N,) variance of the equation error of the fit ``theta`` that the source's
+    noise gives at each sample of ``samples`` (module docstring).
 
-
-def _coefficient_only(test: AeroSamples, coefficient: str, params: FixedWingParams,
-                      fit: CoefficientFit) -> dict[str, float]:
-    """Source -> mean square error of the noise that enters the coefficient alone.
-
-    The coefficients are linear in the specific force and in the angular accelerations,
-    so a unit step gives their exact sensitivity. A source the fit's own noise model
-    already carries is not counted twice.
+    ``noise`` is the noise the fit's design carries on ``samples`` (None: the coefficient's
+    own, without regressors); the accelerometers' noise, which enters the force
+    coefficients alone, is added.
     """
-    carried = set() if fit.holdout_noise is None else set(fit.holdout_noise.observation)
-    terms = _force_terms if coefficient in _FORCES else _moment_terms
-    signal, variances, value = terms(test, coefficient, params)
+    if noise is None:
+        noise = PropagatedNoise(len(theta), {}, observation_sensitivity(
+            samples, coefficient, params), source_variances(samples, coefficient))
     out = {}
-    for axis, (name, variance) in enumerate(variances.items()):
-        if name in carried or variance <= 0.0:
+    for s in dict.fromkeys((*noise.regressors, *noise.observation)):
+        if s not in noise.variance:
             continue
-        step = np.zeros(3)
-        step[axis] = 1.0
-        sensitivity = value(signal + step) - value(signal)
-        out[name] = float(variance * np.mean(sensitivity**2))
+        J = noise.regressors.get(s)
+        error = noise.observation.get(s, 0.0) - (0.0 if J is None else J @ theta)
+        out[s] = noise.variance[s] * np.broadcast_to(error, samples.time.shape) ** 2
+    if coefficient in _FORCES:
+        for s, v in _accelerometer_terms(samples, coefficient, params).items():
+            out.setdefault(s, v)
     return out
 
 
-def _force_terms(test: AeroSamples, coefficient: str, params: FixedWingParams):
-    """The specific force (N, 3) [m/s^2], its noise variances, and the force coefficient
-    ``coefficient`` as a function of it (Vaiopoulos 2017, eq. 5.41)."""
+def _accelerometer_terms(test: AeroSamples, coefficient: str, params: FixedWingParams
+                         ) -> dict[str, np.ndarray]:
+    """Accelerometer -> (N,) variance its noise gives the force coefficient
+    ``coefficient``: the coefficients are linear in the specific force (Vaiopoulos 2017,
+    eq. 5.41), so a unit step gives their exact sensitivity."""
     index = _FORCES.index(coefficient)
 
     def value(specific_force):
         return force_coefficients(specific_force, test.thrust, test.dynamic_pressure,
                                   test.condition.alpha, params.mass, params.S)[index]
 
-    return (test.specific_force,
-            {ch: test.noise_variance.get(ch, 0.0) for ch in _ACCELEROMETERS}, value)
-
-
-def _moment_terms(test: AeroSamples, coefficient: str, params: FixedWingParams):
-    """The angular accelerations (N, 3) [rad/s^2], their noise variances, and the moment
-    coefficient ``coefficient`` as a function of them (Vaiopoulos 2017, eq. 5.41).
-
-    The accelerations are the Savitzky-Golay derivative of the gyros: the force view's
-    gyro variance is the raw one times ``sum h^2``, the derivative's the raw one times
-    ``sum d^2`` (:func:`smoothing_gains`).
-    """
-    view, index = test.aligned(coefficient), MOMENTS.index(coefficient)
-    rates = np.column_stack([view.condition.p, view.condition.q, view.condition.r])
-    smooth, derivative = smoothing_gains(float(np.median(np.diff(test.time))))
-
-    def value(rate_derivatives):
-        return moment_coefficients(rate_derivatives, rates, params.inertia, 0.0,
-                                   view.dynamic_pressure, params.S, params.b, params.c)[index]
-
-    return (view.rate_derivatives,
-            {f"{ch}_dot": test.noise_variance.get(ch, 0.0) / smooth * derivative
-             for ch in _GYROS}, value)
+    out = {}
+    for axis, name in enumerate(_ACCELEROMETERS):
+        variance = test.noise_variance.get(name, 0.0)
+        if variance <= 0.0:
+            continue
+        step = np.zeros(3)
+        step[axis] = 1.0
+        out[name] = variance * (value(test.specific_force + step)
+                                - value(test.specific_force)) ** 2
+    return out

@@ -1,0 +1,136 @@
+"""The sensor noise in every regressor column and measured coefficient: its sources,
+their variances per sample, and the perturbations that give each column's sensitivity.
+
+The isolation (:func:`~drake_uav.identification.isolation.isolate_coefficients`) builds
+every signal of the regressions from a few noisy channels through one Savitzky-Golay
+filter of window :data:`ISOLATION_WINDOW` (smoothing weights ``h``, derivative weights
+``d``). White noise of raw variance ``v`` leaves ``v sum h^2`` in a smoothed signal and
+``v sum d^2`` in its derivative (:func:`smoothing_gains`):
+
+===================  ===============================================  ====================
+source               what carries it                                   variance per sample
+===================  ===============================================  ====================
+``airspeed``,        smoothed air data: qbar, the normalised rates,    the isolation's
+``alpha``, ``beta``  the thrust coefficient, every coefficient         (smoothed channel)
+``p``, ``q``, ``r``  smoothed gyros: normalised rates ``b p / 2Va``,   the isolation's
+                     rate products, the moments' gyroscopic terms
+``alphadot``         derivative of the vane alpha (``c alpha_dot /    raw alpha ``sum d^2``
+                     2Va``)
+``p_dot`` ...        derivative of the gyros: the moments' angular     raw gyro ``sum d^2``
+                     accelerations, the accelerometer lever arm
+===================  ===============================================  ====================
+
+The derivative weights of a centred smoothing filter are antisymmetric and its
+smoothing weights symmetric, so at one sample a channel's smoothed noise and the noise
+of its derivative are uncorrelated: they are separate sources. The moments' interval
+filter is the same derivative written on the sample increments, so the derivatives carry
+the same noise for forces and moments. The controls are the logged commands (exact); the
+thrust coefficient's noise is the airspeed's (the propulsion model's thrust at the
+measured airspeed, over qbar).
+
+A column's sensitivity to a source is the central difference of the column over a copy
+of the samples with the source moved by :data:`STEPS` (:func:`perturbed`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+
+import numpy as np
+
+from drake_uav.identification.isolation import MOMENTS, AeroSamples, isolate_coefficients
+from drake_uav.model.isolation import differentiate, moment_coefficients
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["ISOLATION_WINDOW", "STEPS", "AIR_DATA_SOURCES", "DERIVATIVES", "smoothing_gains",
+           "source_variances", "perturbed", "observation_sensitivity"]
+
+ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
+    "derivative_window"].default
+"""Savitzky-Golay window [s] of the isolation (its default, which the main job uses)."""
+
+STEPS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5, "alphadot": 1e-5,
+         "p": 1e-5, "q": 1e-5, "r": 1e-5, "p_dot": 1e-4, "q_dot": 1e-4, "r_dot": 1e-4}
+"""Every noise source with its finite-difference step [m/s, rad, rad/s, rad/s^2]."""
+
+AIR_DATA_SOURCES = ("airspeed", "alpha", "beta")
+"""Sources nearly every column and coefficient depends on (through qbar and the axes)."""
+
+DERIVATIVES = {"alphadot": "alpha", "p_dot": "p", "q_dot": "q", "r_dot": "r"}
+"""Differentiated sources -> the channel they are the derivative of."""
+
+_RATES = ("p", "q", "r")
+
+
+def smoothing_gains(step: float, window: float = ISOLATION_WINDOW) -> tuple[float, float]:
+    """``(sum h^2, sum d^2 [1/s^2])`` of the isolation's Savitzky-Golay smoothing ``h`` and
+    derivative ``d`` for a sample ``step`` [s]: white noise of variance ``v`` leaves
+    ``v sum h^2`` in the smoothed signal and ``v sum d^2`` in its derivative."""
+    half = int(round(window / step)) + 2
+    time = np.arange(2 * half + 1) * step
+    impulse = np.zeros(time.size)
+    impulse[half] = 1.0
+    return (float(np.sum(differentiate(time, impulse, window, deriv=0) ** 2)),
+            float(np.sum(differentiate(time, impulse, window, deriv=1) ** 2)))
+
+
+def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]:
+    """Noise variance per sample of every source (module table) as the signals of
+    ``coefficient`` carry it [unit^2]; sources without noise are left out.
+
+    The smoothed channels' variances are those of the view the coefficient uses
+    (:meth:`AeroSamples.aligned`: the moments' interval filter changes them); a
+    derivative's is the raw channel's (the force view's over ``sum h^2``) times
+    ``sum d^2``.
+    """
+    view = samples.aligned(coefficient).noise_variance
+    out = {s: float(view[s]) for s in (*AIR_DATA_SOURCES, *_RATES) if s in view}
+    smooth, derivative = smoothing_gains(float(np.median(np.diff(samples.time))))
+    for source, channel in DERIVATIVES.items():
+        if channel in samples.noise_variance:
+            out[source] = float(samples.noise_variance[channel]) / smooth * derivative
+    return {s: v for s, v in out.items() if v > 0.0}
+
+
+def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
+    """A copy of ``samples`` (both views) with ``delta`` added to one source's signal."""
+    if source not in DERIVATIVES or source == "alphadot":
+        return samples.perturbed(source, delta)
+    rates = samples.rate_derivatives.copy()
+    rates[:, _RATES.index(source[0])] += delta
+    view = None if samples.moment_view is None else perturbed(samples.moment_view, source, delta)
+    return dataclasses.replace(samples, rate_derivatives=rates, moment_view=view)
+
+
+def observation_sensitivity(samples: AeroSamples, coefficient: str,
+                            params: FixedWingParams) -> dict[str, np.ndarray]:
+    """d(measured coefficient)/d(source) per sample [1/unit].
+
+    The air data's from :meth:`AeroSamples.observation_sensitivity`; a moment
+    coefficient also moves with the gyros (the gyroscopic term ``w x J w``) and with the
+    angular accelerations (Vaiopoulos 2017, eq. 5.41), by central differences of
+    :func:`~drake_uav.model.isolation.moment_coefficients` (exact: it is quadratic in the
+    rates and linear in their derivatives). The accelerometers enter the force
+    coefficients alone and are not sources of the regressors.
+    """
+    view = samples.aligned(coefficient)
+    out = view.observation_sensitivity(coefficient)
+    if coefficient not in MOMENTS:
+        return out
+    index = MOMENTS.index(coefficient)
+    rates = np.column_stack([view.condition.p, view.condition.q, view.condition.r])
+
+    def value(w_dot, w):
+        return moment_coefficients(w_dot, w, params.inertia, 0.0, view.dynamic_pressure,
+                                   params.S, params.b, params.c)[index]
+
+    for axis, name in enumerate(_RATES):
+        step = np.zeros(3)
+        step[axis] = STEPS[name]
+        out[name] = (value(view.rate_derivatives, rates + step)
+                     - value(view.rate_derivatives, rates - step)) / (2.0 * STEPS[name])
+        step[axis] = 1.0
+        out[f"{name}_dot"] = (value(view.rate_derivatives + step, rates)
+                              - value(view.rate_derivatives, rates))
+    return out
