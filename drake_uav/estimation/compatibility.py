@@ -233,9 +233,9 @@ def _wind_segments(time: np.ndarray) -> np.ndarray:
                      return_inverse=True)[1]
 
 
-_RESPONSE = {"airspeed": ("imu_ax",), "alpha": ("imu_az", "imu_q"),
-             "beta": ("imu_ay", "imu_p", "imu_r")}
-"""IMU signals that see a gust at the same time as each air-data channel."""
+_RESPONSE = {"airspeed": ("imu_ax",), "alpha": ("imu_az",), "beta": ("imu_ay",)}
+"""IMU signal that sees a gust at the same time as each air-data channel: the specific
+force along the force the channel's flow angle or airspeed changes."""
 
 
 class _AirData:

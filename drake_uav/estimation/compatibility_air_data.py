@@ -36,6 +36,8 @@ from drake_uav.estimation.compatibility_fits import (
     block_covariance,
     block_sandwich,
     coarse_lag,
+    correlated_covariance,
+    larger_errors,
     shift_fit,
     solve,
 )
@@ -177,9 +179,12 @@ def wind_fit(time: np.ndarray, velocity: np.ndarray, rows: np.ndarray,
     problem.reweight(p)
     p = problem.solve(p)
     problem.reweight(p)
-    r = problem.stacked(p)
-    row_time = np.tile(_averaged(time, n), len(r) // len(problem.segment))
-    cov, dof = block_covariance(-problem.jacobian(p), r, row_time, WIND_BLOCK)
+    r, G = problem.stacked(p), -problem.jacobian(p)
+    channels = len(r) // len(problem.segment)
+    row_time = np.tile(_averaged(time, n), channels)
+    cov, dof = block_covariance(G, r, row_time, WIND_BLOCK)
+    groups = np.repeat(np.arange(channels), len(problem.segment))
+    cov = larger_errors(cov, correlated_covariance(G, r, groups))
     return ParameterFit(problem.names, p, cov, dof, float(np.sqrt(np.mean(r * r))))
 
 

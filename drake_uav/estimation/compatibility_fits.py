@@ -38,6 +38,7 @@ from scipy import stats
 from drake_uav.estimation.signals import is_new_sample
 
 __all__ = ["Cumulative", "ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
+           "correlation_time", "correlated_covariance", "larger_errors",
            "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
 MAX_RECENTRES = 5
@@ -144,6 +145,48 @@ def block_covariance(jacobian: np.ndarray, residual: np.ndarray, row_time: np.nd
     at the solution, ``row_time`` (n) [s]."""
     return block_sandwich(jacobian * residual[:, None], jacobian.T @ jacobian, row_time,
                           block_length)
+
+
+def correlation_time(series: np.ndarray) -> float:
+    """Integrated autocorrelation time ``1 + 2 sum_k rho_k`` [samples] of a series, the sum
+    over Geyer's initial positive sequence (pairs of lags summed while positive; Geyer
+    1992): the factor by which correlation inflates the variance of its mean."""
+    x = np.asarray(series, float) - np.mean(series)
+    n = len(x)
+    energy = float(x @ x)
+    if n < 4 or not energy > 0.0:
+        return 1.0
+    size = sp_fft.next_fast_len(2 * n, real=True)
+    spectrum = sp_fft.rfft(x, size)
+    rho = sp_fft.irfft(spectrum.real**2 + spectrum.imag**2, size)[:n] / energy
+    pairs = rho[0 : 2 * (n // 2) : 2] + rho[1 : 2 * (n // 2) : 2]
+    positive = np.flatnonzero(pairs <= 0.0)
+    count = int(positive[0]) if len(positive) else len(pairs)
+    return max(-1.0 + 2.0 * float(pairs[:count].sum()), 1.0)
+
+
+def correlated_covariance(jacobian: np.ndarray, residual: np.ndarray,
+                          groups: np.ndarray) -> np.ndarray:
+    """Covariance of least-squares parameters whose residuals are a stationary correlated
+    series within each group of rows (rows of a group in time order, equally spaced):
+    ``A^-1 (sum_g tau_g s_g^2 G_g^T G_g) A^-1`` with ``tau_g`` the group residual's
+    :func:`correlation_time` and ``s_g^2`` its variance (the regressors vary slowly
+    against the correlation; the effective-sample-size form of the sandwich)."""
+    omega = np.zeros((jacobian.shape[1], jacobian.shape[1]))
+    for g in np.unique(groups):
+        rows = groups == g
+        G, r = jacobian[rows], residual[rows]
+        omega += correlation_time(r) * float(np.mean(r * r)) * (G.T @ G)
+    inverse = np.linalg.pinv(jacobian.T @ jacobian)
+    return inverse @ omega @ inverse
+
+
+def larger_errors(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The covariance ``first`` with each standard error raised to the larger of the two
+    covariances' (correlations of ``first`` kept)."""
+    a, b = np.sqrt(np.maximum(np.diag(first), 0.0)), np.sqrt(np.maximum(np.diag(second), 0.0))
+    scale = np.where(a > 0, np.maximum(a, b) / np.where(a > 0, a, 1.0), 1.0)
+    return first * np.outer(scale, scale)
 
 
 def linear_fit(X: np.ndarray, y: np.ndarray, names: Sequence[str], row_time: np.ndarray,
