@@ -136,8 +136,8 @@ def test_a_scenario_that_raises_gives_one_error_row(tmp_path, workers):
 
 
 def test_an_unknown_scenario_raises_on_a_cluster_too(tmp_path):
-    # The cluster's runs are submitted before the name is checked (the workers load the
-    # scenario meanwhile): the error still comes before any row is written.
+    # On a cluster a worker checks the name (this process does not load the scenarios):
+    # the error still comes before any row is written.
     out = tmp_path / "r.parquet"
     with pytest.raises(ValueError, match="unknown"):
         run_campaign(Campaign("no_such_scenario", seeds=range(3)), out, workers=1,

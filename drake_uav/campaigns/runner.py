@@ -86,6 +86,11 @@ def execute_run(scenario, run: RunSpec, version: str) -> dict[str, Any]:
     return row
 
 
+def _check_scenario(scenario) -> None:
+    """Raises ValueError if ``scenario`` is not a known scenario (run where the runs run)."""
+    resolve_scenario(scenario)
+
+
 def _error_row(run: RunSpec, version: str, err: BaseException) -> dict[str, Any]:
     return {"point": run.point, "seed": run.seed, "version": version, "status": "error",
             "error": f"{type(err).__name__}: {err}", "wall_time_s": float("nan"),
@@ -142,11 +147,13 @@ def _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers
 
     client, cluster = _client(workers, scheduler)
     try:
+        # One worker checks the scenario (loading its modules, as the runs do on every
+        # worker): this process needs none of them, and an unknown name raises here
+        # before any row is written.
+        check = client.submit(_check_scenario, scenario, pure=False)
         futures = {client.submit(execute_run, scenario, run, version, pure=False): run
                    for run in pending}
-        # The workers load the scenario's modules with their first run; this process
-        # checks the scenario meanwhile (an unknown name raises before any row is written).
-        resolve_scenario(scenario)
+        check.result()
         for i, future in enumerate(as_completed(futures), 1):
             try:
                 row = future.result()
