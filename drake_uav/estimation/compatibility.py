@@ -215,11 +215,10 @@ def _gps_stage(c: _Check) -> None:
 
 def _baro_stage(c: _Check) -> None:
     fit = baro_fit(c.time, c.channels["baro_alt"], c.channels["gps_pd"], c.gps_delay, 10.0)
-    effect = c.add_fit("baro_bias", fit, "bias", ("baro_alt",), "m", c.tolerances["baro_bias"],
-                       "barometric altitude minus GPS altitude (a different reference "
-                       "shows here too)")
-    if effect.applied:
-        c.subtract("baro_alt", effect.estimate)
+    c.add_fit("baro_bias", fit, "bias", ("baro_alt",), "m", c.tolerances["baro_bias"],
+              "barometric altitude minus GPS altitude", correctable=False,
+              note="the barometer keeps its own reference (sea level, or the ground at "
+                   "power-up)")
 
 
 def _wind_segments(time: np.ndarray) -> np.ndarray:
@@ -348,8 +347,8 @@ def _command_stage(c: _Check) -> None:
               float(np.median(np.diff(c.time))),
               "the angular accelerations follow the commands by this time",
               correctable=not late, drives=True,
-              note=f"not corrected: a delay up to {c.max_actuator_delay:g} s may be the "
-                   "servos' (a model effect)" if late else "")
+              note=f"a delay up to {c.max_actuator_delay:g} s may be the servos' (a model "
+                   "effect), left to the model" if late else "")
 
 
 def check_compatibility(log: FlightLog, params, *, gps_latency: float = DEFAULT_GPS_LATENCY,

@@ -35,8 +35,8 @@ from drake_uav.estimation.compatibility_fits import (
     ParameterFit,
     block_covariance,
     block_sandwich,
-    coarse_lag,
     correlated_covariance,
+    grid_minimum,
     larger_errors,
     shift_fit,
     solve,
@@ -55,6 +55,9 @@ WIND_BLOCK = 20.0
 of low-altitude gusts (Dryden length over airspeed), which dominate its residuals."""
 SKEW_BAND = (0.2, 2.0)
 """Band [Hz] of the air-data skew fit."""
+COARSE_STEP = 0.05
+"""Step [s] of the coarse search of the air-data skew (a tenth of the band's shortest
+period)."""
 SKEW_BLOCK = 5.0
 """Time block [s] of the covariance of the air-data skew fit."""
 GAUSS_NEWTON_STEPS = 8
@@ -236,9 +239,7 @@ def air_data_skew(time: np.ndarray, kinematic: Mapping[str, np.ndarray],
     band = {c: signal.sosfiltfilt(sos, np.column_stack([kinematic[c], response[c]]), axis=0)
             for c in names}
     meas = {c: signal.sosfiltfilt(sos, measured[c]) for c in names}
-    guess = coarse_lag(np.column_stack([band[c][:, 0] for c in names]),
-                       np.column_stack([meas[c] for c in names]), 1.0 / dt, max_skew)
-    margin = abs(guess) + 0.2
+    margin = max_skew + 0.2
     # Rows at about 20 Hz: ten times the band's upper edge, so the shifted band-passed
     # signals are read exactly enough between samples.
     every = max(int(round(1.0 / (10.0 * SKEW_BAND[1] * dt))), 1)
@@ -258,4 +259,9 @@ def air_data_skew(time: np.ndarray, kinematic: Mapping[str, np.ndarray],
         return X, y.reshape(-1), row_time
 
     labels = [f"{c}_gain_{j}" for c in names for j in range(band[c].shape[1])]
-    return shift_fit(design, labels, guess, dt, 6, SKEW_BLOCK)
+    # Coarse search over the whole range with the full regression (a cross-correlation
+    # of the airspeed alone can peak elsewhere), then the fine grid around its minimum.
+    coarse = max(int(round(COARSE_STEP / dt)), 1) * dt
+    guess = grid_minimum(design, coarse * np.arange(-int(max_skew / coarse),
+                                                    int(max_skew / coarse) + 1))
+    return shift_fit(design, labels, guess, dt, max(int(round(coarse / dt)), 6), SKEW_BLOCK)

@@ -38,7 +38,7 @@ from scipy import stats
 from drake_uav.estimation.signals import is_new_sample
 
 __all__ = ["Cumulative", "ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
-           "correlation_time", "correlated_covariance", "larger_errors",
+           "correlation_time", "correlated_covariance", "larger_errors", "grid_minimum",
            "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
 MAX_RECENTRES = 5
@@ -243,6 +243,13 @@ def _parabola_minimum(grid: np.ndarray, rss: np.ndarray) -> float:
 
 Design = Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
 """``design(tau) -> (X (n, p), y (n), row_time (n))`` of a relation at skew ``tau`` [s]."""
+
+
+def grid_minimum(design: Design, grid: np.ndarray) -> float:
+    """The point of ``grid`` [s] with the smallest residual sum of ``design`` (a coarse
+    search for a design whose regressors do not move with the skew: one factorisation)."""
+    residual_sum = _Residuals()
+    return float(grid[int(np.argmin([residual_sum(*design(tau)[:2]) for tau in grid]))])
 
 
 def shift_fit(design: Design, names: Sequence[str], guess: float, step: float, reach: int,
