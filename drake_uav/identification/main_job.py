@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from drake_uav.estimation.compatibility import CompatibilityResult, check_compatibility
 from drake_uav.identification.air_data_source import choose_air_data, flow_angles
 from drake_uav.identification.discovery import (
     DiscoveryResult,
@@ -38,7 +39,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 __all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
            "identify_derivatives", "select_samples", "check_fixed_wing",
            "testable_effects", "ESTIMATE_CONFOUNDED",
-           "coefficient_uncertainty"]
+           "coefficient_uncertainty", "check_log_compatibility"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 """Reconstructed outputs, in the order of :class:`Reconstruction` columns."""
@@ -77,6 +78,10 @@ class IdentificationRun:
     """Monte-Carlo standard deviation of the measured C_L, C_D, C_Y (Vaiopoulos 2017, sec. 5.6)."""
     data: LogSelection | None = None
     """What the job used of the log: spans, air data, notes (None: samples given directly)."""
+    compatibility: CompatibilityResult | None = None
+    """The data-compatibility check of the airborne spans (docs/compatibility.md), whose
+    significant calibration errors were removed before the isolation (None: samples given
+    directly, or nothing to check)."""
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -211,7 +216,10 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     keeps the aircraft's propulsion model. ``seed`` drives the Monte-Carlo uncertainty of the
     measured coefficients; everything else is deterministic. ``coefficients`` are the ones
     fitted (names of :data:`~drake_uav.model.coefficients.COEFFICIENTS`); one that does
-    not vary in the log is skipped with a note (:attr:`IdentificationRun.notes`).
+    not vary in the log is skipped with a note (:attr:`IdentificationRun.notes`). Before
+    the isolation, the data-compatibility check of the airborne spans
+    (:func:`check_log_compatibility`) removes the significant sensor biases, scale
+    factors and time skews it finds (:attr:`IdentificationRun.compatibility`).
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
     naming the problem when the log cannot be used, ``ValueError`` for an unknown
@@ -219,6 +227,10 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     """
     check_coefficients(coefficients)
     say = progress or (lambda message: None)
+    compatibility = check_log_compatibility(log, params, source=source, segment=segment,
+                                            phases=phases, progress=say)
+    if compatibility is not None:
+        log = compatibility.corrected(log)
     samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
                                         air_data=air_data, segment=segment,
                                         sensor_noise_std=sensor_noise_std, phases=phases,
@@ -228,7 +240,40 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                            effects=testable_effects(selection.air_data),
                            coefficients=coefficients)
     selection = dataclasses.replace(selection, notes=selection.notes + run.discovery.notes)
-    return dataclasses.replace(run, data=selection)
+    return dataclasses.replace(run, data=selection, compatibility=compatibility)
+
+
+def check_log_compatibility(log: FlightLog, params: FixedWingParams, *,
+                            source: str = "flight log",
+                            segment: tuple[float, float] | None = None,
+                            phases: PhaseSettings = DEFAULT_PHASES,
+                            progress: Callable[[str], None] | None = None
+                            ) -> CompatibilityResult | None:
+    """The data-compatibility check (:func:`~drake_uav.estimation.compatibility.
+    check_compatibility`) on the samples of the airborne spans of ``log`` (see
+    :func:`identify` for the arguments).
+
+    None when the log has no usable span or too little for the check (the IMU and the
+    attitude over 8 s): :func:`select_samples` then says what is wrong, or the job goes on
+    with the log as recorded.
+    """
+    check_fixed_wing(log, source)
+    try:
+        spans = usable_spans(log, phases, segment)
+    except FlightLogError:
+        return None
+    inside = np.zeros(len(log), bool)
+    for start, end in spans:
+        inside |= (log.time >= start) & (log.time <= end)
+    names = log.measured_names
+    airborne = FlightLog(log.time[inside], {n: log[n][inside] for n in names}, None,
+                         {n: log.unit(n) for n in names})
+    if progress is not None:
+        progress("checking data compatibility (sensor biases, scale factors, time skews)")
+    try:
+        return check_compatibility(airborne, params)
+    except FlightLogError:
+        return None
 
 
 ESTIMATE_CONFOUNDED = ("ned_force", "steady_wind_in_air_data")
