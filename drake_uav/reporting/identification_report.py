@@ -58,6 +58,7 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
         f"Source: `{run.source}`, {len(run.samples)} samples, held-out data from "
         f"t = {d.holdout_start:.1f} s.\n\n**Result: {d.message}.**")
     _add_data(report, run)
+    _add_compatibility(report, run)
     _add_effects(report, run)
     _add_errors(report, run, floors)
     _add_warnings(report, warnings)
@@ -106,6 +107,8 @@ def _summary(run: IdentificationRun, floors: dict[str, NoiseFloor],
         for t in explanations.near_ties(run.discovery)]
     summary["rounds"] = [[{**dataclasses.asdict(e), "accepted": e in accepted} for e in r]
                          for r in run.discovery.rounds]
+    if run.compatibility is not None:
+        summary["compatibility"] = run.compatibility.summary()
     return summary
 
 
@@ -115,6 +118,20 @@ def _add_data(report: Report, run: IdentificationRun) -> None:
         return
     report.add_heading("Data used")
     report.add_text("\n".join(f"- {note}" for note in run.notes))
+
+
+def _add_compatibility(report: Report, run: IdentificationRun) -> None:
+    """The data-compatibility check: each calibration error, and what was corrected."""
+    if run.compatibility is None:
+        return
+    report.add_heading("Data compatibility")
+    applied = run.compatibility.applied
+    head = ("Corrected before fitting: " + ", ".join(e.name for e in applied) + "."
+            if applied else "No significant calibration error: the log was used as logged.")
+    report.add_text(f"{head} Sensor biases, scale factors and time skews from the "
+                    "redundancy of IMU, attitude, GPS, baro and air data (flight-path "
+                    "reconstruction; docs/compatibility.md):\n\n"
+                    + "\n".join(f"- {line}" for line in run.compatibility.lines()))
 
 
 def _add_effects(report: Report, run: IdentificationRun) -> None:
