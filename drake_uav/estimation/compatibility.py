@@ -215,10 +215,11 @@ def _gps_stage(c: _Check) -> None:
 
 def _baro_stage(c: _Check) -> None:
     fit = baro_fit(c.time, c.channels["baro_alt"], c.channels["gps_pd"], c.gps_delay, 10.0)
-    c.add_fit("baro_bias", fit, "bias", ("baro_alt",), "m", c.tolerances["baro_bias"],
+    tolerance = c.tolerances["baro_bias"]
+    c.add_fit("baro_bias", fit, "bias", ("baro_alt",), "m", tolerance,
               "barometric altitude minus GPS altitude", correctable=False,
               note="the barometer keeps its own reference (sea level, or the ground at "
-                   "power-up)")
+                   "power-up)" if abs(fit.value("bias")) > tolerance else "")
 
 
 def _wind_segments(time: np.ndarray) -> np.ndarray:
@@ -341,14 +342,13 @@ def _command_stage(c: _Check) -> None:
     fit = command_fit(c.time, imu, commands, max_skew=c.max_skew)
     if fit is None:
         return
-    skew = fit.value("skew")
+    skew, period = fit.value("skew"), float(np.median(np.diff(c.time)))
     late = 0.0 <= skew <= c.max_actuator_delay
     c.add_fit("command_time_skew", fit, "skew", list(_COMMANDS.values()), "s",
-              float(np.median(np.diff(c.time))),
-              "the angular accelerations follow the commands by this time",
+              period, "the angular accelerations follow the commands by this time",
               correctable=not late, drives=True,
               note=f"a delay up to {c.max_actuator_delay:g} s may be the servos' (a model "
-                   "effect), left to the model" if late else "")
+                   "effect), left to the model" if late and skew > period else "")
 
 
 def check_compatibility(log: FlightLog, params, *, gps_latency: float = DEFAULT_GPS_LATENCY,

@@ -83,7 +83,8 @@ class CalibrationEffect:
     def line(self) -> str:
         """One line for a report: the value in display units and the verdict."""
         factor, unit = _DISPLAY.get(self.unit, (1.0, self.unit))
-        value = f"{self.estimate * factor:+.4g} +- {self.sigma * factor:.2g} {unit}".rstrip()
+        value = (f"{self.estimate * factor:+.4g} +- {self.sigma * factor:.2g} {unit}".rstrip()
+                 if math.isfinite(self.estimate) else "not estimated")
         verdict = ("not observable" if not self.observable else
                    "corrected" if self.applied else "significant, not corrected"
                    if self.significant else "within tolerance")
