@@ -168,6 +168,17 @@ def test_missing_channels(straight):
     assert "gps_time_skew" not in {e.name for e in no_gps.effects}
 
 
+def test_channels_held_constant_leave_notes_not_errors(straight):
+    log = straight[STRAIGHT_SEEDS[0]]
+    lateral = ("imu_ay", "imu_p", "imu_r", "vane_beta", "att_roll", "cmd_aileron",
+               "cmd_rudder")
+    held = log.with_measured({**{n: 0.0 * log[n] for n in lateral},
+                              "att_yaw": 0.0 * log["att_yaw"] + log["att_yaw"][0]})
+    result = check_compatibility(held, PARAMS)
+    assert result.significant == ()
+    assert not result["vane_beta_scale_factor"].observable
+
+
 def test_shift_fit_finds_a_sub_sample_delay_with_an_honest_error():
     rng = np.random.default_rng(5)
     time = np.arange(0.0, 60.0, 0.01)

@@ -145,7 +145,9 @@ class _Check:
             tolerance: float, explanation: str, *, nominal: float = 0.0,
             observable: bool = True, note: str = "", correctable: bool = True,
             drives: bool = False) -> CalibrationEffect:
-        if observable and dof < MIN_DOF:
+        if observable and not (math.isfinite(sigma) and sigma > 0.0):
+            observable, note = False, "degenerate: a channel held constant"
+        elif observable and dof < MIN_DOF:
             observable, note = False, (f"{dof + 1} time blocks: too short a record for the "
                                        "correlation of its residuals")
         elif observable and not sigma <= tolerance:
@@ -381,17 +383,28 @@ def check_compatibility(log: FlightLog, params, *, gps_latency: float = DEFAULT_
     check = _Check(log, float(params.gravity), {**DEFAULT_TOLERANCES, **(tolerances or {})},
                    gps_latency, min(max_skew, 0.25 * log.duration), significance,
                    max_actuator_delay)
-    _attitude_stage(check)
+    _run(_attitude_stage, check, "attitude and gyro")
     if check.has(*_GPS_VELOCITY):
-        _gps_stage(check)
+        _run(_gps_stage, check, "accelerometer and GPS")
         if check.has("baro_alt", "gps_pd"):
-            _baro_stage(check)
+            _run(_baro_stage, check, "baro")
         if check.has("pitot_airspeed"):
-            _air_data_stage(check)
+            _run(_air_data_stage, check, "air data")
         else:
             check.notes.append("air data not checked: no pitot_airspeed channel")
     else:
         check.notes.append("accelerometer, GPS, baro and air data not checked: no GPS "
                            "velocity channels (gps_vn, gps_ve, gps_vd)")
-    _command_stage(check)
+    _run(_command_stage, check, "commands")
     return CompatibilityResult(tuple(check.effects), tuple(check.notes))
+
+
+def _run(stage, check: _Check, what: str) -> None:
+    """Runs one stage; data it cannot fit (a channel held constant, a singular relation)
+    leave a note instead of stopping the check."""
+    with np.errstate(all="ignore"):
+        try:
+            stage(check)
+        except (np.linalg.LinAlgError, ValueError) as err:
+            check.notes.append(f"{what} not checked: the data do not determine the "
+                               f"relation ({err})")

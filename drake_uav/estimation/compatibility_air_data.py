@@ -239,6 +239,9 @@ def air_data_skew(time: np.ndarray, kinematic: Mapping[str, np.ndarray],
     band = {c: signal.sosfiltfilt(sos, np.column_stack([kinematic[c], response[c]]), axis=0)
             for c in names}
     meas = {c: signal.sosfiltfilt(sos, measured[c]) for c in names}
+    names = [c for c in names if np.std(meas[c]) > 0.0 and np.std(band[c][:, 0]) > 0.0]
+    if not names:
+        raise ValueError("no air-data channel varies in the band of the skew fit")
     margin = max_skew + 0.2
     # Rows at about 20 Hz: ten times the band's upper edge, so the shifted band-passed
     # signals are read exactly enough between samples.
@@ -246,7 +249,7 @@ def air_data_skew(time: np.ndarray, kinematic: Mapping[str, np.ndarray],
     inside = (time >= time[0] + margin) & (time <= time[-1] - margin)
     inside &= np.arange(len(time)) % every == 0
     widths = np.cumsum([0] + [band[c].shape[1] for c in names])
-    scale = {c: 1.0 / max(float(np.std(meas[c])), 1e-300) for c in names}
+    scale = {c: 1.0 / float(np.std(meas[c])) for c in names}
     X = np.zeros((int(inside.sum()), len(names), widths[-1]))
     for i, c in enumerate(names):
         X[:, i, widths[i]:widths[i + 1]] = band[c][inside] * scale[c]

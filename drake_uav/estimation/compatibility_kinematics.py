@@ -80,10 +80,12 @@ def _weighted(design, components: int, weights: np.ndarray):
 
 
 def _component_weights(fit: ParameterFit, design, components: int) -> np.ndarray:
-    """Inverse residual RMS of each component of a first (unweighted) fit."""
+    """Inverse residual RMS of each component of a first (unweighted) fit; a component
+    that fits exactly (a channel held constant) gets the weight of the others' worst."""
     X, y, _ = design(fit.value("skew"))
     r = (y - X @ fit.estimate[:-1]).reshape(-1, components)
-    return 1.0 / np.maximum(np.sqrt(np.mean(r * r, axis=0)), 1e-300)
+    rms = np.sqrt(np.mean(r * r, axis=0))
+    return 1.0 / np.maximum(rms, max(float(rms.max()), 1e-300) * 1e-3)
 
 
 def _two_pass(design, names, components: int, guess: float, step: float,
