@@ -49,7 +49,7 @@ from drake_uav.estimation.compatibility_air_data import (
     vane_scale_fit,
     wind_fit,
 )
-from drake_uav.estimation.compatibility_fits import ParameterFit, fresh_times, wrap
+from drake_uav.estimation.compatibility_fits import ParameterFit, fresh_times
 from drake_uav.estimation.compatibility_kinematics import (
     Strapdown,
     attitude_fit,
@@ -168,12 +168,11 @@ class _Check:
         self.channels[channel] = self.channels[channel] - value
 
     def read_later(self, names, tau: float) -> None:
-        """Channels ``names`` (those present) read ``tau`` [s] later; yaw unwrapped."""
+        """Channels ``names`` (those present) read ``tau`` [s] later."""
         for n in names:
             if n in self.channels:
-                v = np.unwrap(self.channels[n]) if n == "att_yaw" else self.channels[n]
-                v = read_later(self.time, v, tau)
-                self.channels[n] = wrap(v) if n == "att_yaw" else v
+                self.channels[n] = read_later(self.time, self.channels[n], tau,
+                                              angle=self.log.unit(n) == "rad")
 
 
 def _attitude_stage(c: _Check) -> None:

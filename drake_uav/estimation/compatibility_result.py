@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from drake_uav.estimation.compatibility_fits import fresh_times, t_p_value
+from drake_uav.estimation.compatibility_fits import fresh_times, t_p_value, wrap
 from drake_uav.estimation.signals import HELD_FRACTION
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 
@@ -177,14 +177,19 @@ def _shifted(log: FlightLog, values: dict[str, np.ndarray], skews) -> tuple:
         keep &= (time + tau >= time[0]) & (time + tau <= time[-1])
         for channel in effect.channels:
             if channel in values:
-                values[channel] = read_later(time, values[channel], tau)
+                values[channel] = read_later(time, values[channel], tau,
+                                             angle=log.unit(channel) == "rad")
     if not keep.any():
         raise FlightLogError("compatibility: the corrected skews leave no common samples")
     return time, keep
 
 
-def read_later(time: np.ndarray, values: np.ndarray, tau: float) -> np.ndarray:
-    """``values(t + tau)``: linear between samples, or held for a held channel."""
+def read_later(time: np.ndarray, values: np.ndarray, tau: float,
+               angle: bool = False) -> np.ndarray:
+    """``values(t + tau)``: linear between samples, or held for a held channel; an
+    ``angle`` [rad] is unwrapped first and wrapped back to [-pi, pi) where it wrapped."""
+    if angle and np.any(np.abs(np.diff(values)) > np.pi):
+        return wrap(read_later(time, np.unwrap(values), tau))
     fresh = fresh_times(time, values)
     if len(fresh) > HELD_FRACTION * len(time):
         return np.interp(time + tau, time, values)
