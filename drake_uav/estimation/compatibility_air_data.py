@@ -43,6 +43,7 @@ from drake_uav.estimation.compatibility_fits import (
 )
 from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.model.air_data import air_data_from_velocity
+from drake_uav.model.rotations import rotate_back
 
 __all__ = ["kinematic_air_data", "wind_fit", "heading_spread", "vane_scale_fit",
            "air_data_skew", "AVERAGING", "WIND_BLOCK"]
@@ -72,8 +73,8 @@ def heading_spread(yaw: np.ndarray) -> float:
 def kinematic_air_data(velocity: np.ndarray, rows: np.ndarray, wind: np.ndarray) -> tuple:
     """Airspeed [m/s], alpha and beta [rad] (each (N)) of the ground velocity (N, 3) NED
     [m/s] minus the wind (N, 3) [m/s], in the body axes of the rotations ``rows``
-    (N, 3, 3), body -> NED."""
-    body = np.einsum("nji,nj->in", rows, velocity - wind)
+    (N, 3, 3), body -> NED: the wind triangle ``v_B = R^T (v - W)``."""
+    body = rotate_back(np.moveaxis(rows, 0, -1), (velocity - wind).T)
     return air_data_from_velocity(body[0], body[1], body[2])
 
 
