@@ -23,6 +23,7 @@ __all__ = ["CalibrationEffect", "CompatibilityResult", "SIGNIFICANCE", "read_lat
 SIGNIFICANCE = 0.01
 """Two-sided p-value below which an effect is statistically significant."""
 
+
 @dataclasses.dataclass(frozen=True)
 class CalibrationEffect:
     """One calibration error estimated from the sensors' redundancy."""
@@ -32,11 +33,13 @@ class CalibrationEffect:
     channels: tuple[str, ...]
     """Measured channels it corrects."""
     estimate: float
+    """[unit]; NaN when the data could not fit it."""
     sigma: float
     """Standard error (time-block sandwich) [unit]."""
     dof: int
     """Degrees of freedom of its t statistic."""
     unit: str
+    """SI unit of ``estimate`` ("1" for a scale factor, "s" for a skew)."""
     nominal: float
     """Value of a calibrated sensor (1 for a scale factor, 0 otherwise)."""
     tolerance: float
