@@ -13,23 +13,29 @@ The loop (:func:`discover`):
    (correlated residuals carry less information than their sample count), and
    the change in BIC;
 4. accept the best candidate that passes every test of :class:`EvidenceRule`
-   on the coefficients where the held-out tail agrees (its error does not rise,
-   the effect's contribution matters: :class:`HeldOutCheck`), add its columns
-   there, and repeat until nothing passes; when no named effect is kept, try
-   the data-driven fallback (products of signals), which reports the signals
-   involved;
+   on the coefficients where the held-out tail agrees (its error, without its
+   regressor-noise part, does not rise, the effect's contribution matters:
+   :class:`HeldOutCheck`), add its columns there, and repeat until nothing passes;
+   when no named effect is kept, try the data-driven fallback (products of
+   signals), which reports the signals involved (or, with
+   :attr:`EvidenceRule.named_first` off, both in one pool);
 5. check every effect against each coefficient's final fit under the same
    held-out rules, drop those it does not need, refit, and report the
-   equation-error RMS before and after on the held-out tail of the flight.
+   equation-error RMS before and after on the held-out tail of the flight;
+6. hold each final fit's error against its noise floor: where the sensor noise
+   does not explain it, the model is incomplete there, and the result says where
+   (:mod:`~drake_uav.identification.adequacy`, :attr:`DiscoveryResult.incomplete`).
 
 Coefficients that do not vary in the samples (a purely longitudinal flight's
 lateral ones) are skipped with a note (:attr:`DiscoveryResult.skipped`).
 
 Every fit is errors-in-variables corrected. The air data (airspeed, alpha,
-beta) are noisy and enter both the measured coefficients and the regressors;
+beta), the gyros and the signals differentiated from them (alpha-dot, the angular
+accelerations) are noisy and enter the measured coefficients and the regressors;
 ordinary least squares then attenuates the derivatives (Vaiopoulos 2017, Table 5) and
-leaves a systematic residual that any column correlated with the air data
-would "explain". The noise variances estimated by the isolation are propagated
+leaves a systematic residual that any column correlated with them would "explain".
+The noise variances estimated by the isolation, carried through its filters
+(:mod:`~drake_uav.identification.regressor_noise`), are propagated
 to every column and to the observation by finite-difference Jacobians
 (:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`), and the
 normal equations are corrected by the expected noise moments: bias-compensated
@@ -37,7 +43,8 @@ least squares (:func:`~drake_uav.identification.regression.bcls`), the moment fo
 of GTLS (Vaiopoulos 2017, eq. 4.54-4.63) for noise that differs from sample to sample.
 
 The rule is strict on purpose: it must not invent effects. With no effect in
-the data it answers "no missing effect found".
+the data it answers "no missing effect found"; with an error the noise does not
+explain and no candidate that does, "the model is incomplete for C_D: ...".
 """
 
 from __future__ import annotations
@@ -47,7 +54,14 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from drake_uav.identification.effects import Effect, effect_library, product_candidates
+from drake_uav.identification.adequacy import Adequacy, AdequacyRule, assess, coefficient_symbol
+from drake_uav.identification.effects import (
+    PRODUCT_KEYS,
+    Effect,
+    base_signals,
+    effect_library,
+    product_candidates,
+)
 from drake_uav.identification.errors_in_variables import (
     BlockMoments,
     PropagatedNoise,
@@ -60,6 +74,7 @@ from drake_uav.identification.errors_in_variables import (
     solve_normal_equations,
 )
 from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.noise_floor import noise_variance_per_sample
 from drake_uav.identification.regression import RegressionResult, bcls, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
@@ -87,6 +102,8 @@ __all__ = [
 ]
 
 NO_EFFECT_MESSAGE = "no missing effect found"
+DATA_DRIVEN = "data_driven:"
+"""Name prefix of the data-driven product effects."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +126,11 @@ class EvidenceRule:
     the held-out error left with it. A coefficient whose standard deviation over the
     training or the held-out part is at most ``constant_tolerance`` times
     ``1 + |mean|`` does not vary and is not fitted.
+
+    ``named_first``: the data-driven products are scored only in a round where no named
+    effect is kept (each family at its own Bonferroni level); False puts both in one pool,
+    one level over all, where a product ranks ahead of a named effect only when its
+    held-out gain is larger by ``min_pse_reduction``.
     """
 
     p_value: float = 1e-3
@@ -120,6 +142,10 @@ class EvidenceRule:
     min_share_of_variation: float = 0.01
     min_share_of_error: float = 0.1
     constant_tolerance: float = 1e-9
+    named_first: bool = True
+    adequacy: AdequacyRule = AdequacyRule()
+    """When the final fit's error is too far above the noise floor to call the model
+    complete (:mod:`~drake_uav.identification.adequacy`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -252,6 +278,14 @@ class DiscoveryResult:
     """Every held-out decision on a passing candidate, in the order made."""
     skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
     """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
+    adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
+    """Fitted coefficient -> its final fit's error against the noise floor."""
+
+    @property
+    def incomplete(self) -> dict[str, Adequacy]:
+        """The coefficients whose final error the sensor noise does not explain: the model
+        is incomplete there (:class:`~drake_uav.identification.adequacy.Adequacy`)."""
+        return {k: a for k, a in self.adequacy.items() if a.incomplete}
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -264,11 +298,18 @@ class DiscoveryResult:
 
     @property
     def message(self) -> str:
-        """One line: the effects found, or that none was."""
+        """One line: the effects found, or that none was; and where the model is still
+        incomplete ("the model is incomplete for C_D: held-out error 2.1x the noise
+        floor, ...")."""
+        incomplete = "; ".join(f"{coefficient_symbol(k)}: {a.explanation}"
+                               for k, a in self.incomplete.items())
         if not self.found:
-            return NO_EFFECT_MESSAGE
-        return "missing effect(s) found: " + ", ".join(
+            return f"the model is incomplete for {incomplete}" if incomplete else \
+                NO_EFFECT_MESSAGE
+        found = "missing effect(s) found: " + ", ".join(
             f"{f.name} ({', '.join(f.coefficients)})" for f in self.found)
+        return f"{found}; the model is still incomplete for {incomplete}" if incomplete \
+            else found
 
     def rms_change(self) -> dict[str, tuple[float, float]]:
         """Held-out equation-error RMS (before, after) per coefficient."""
@@ -324,10 +365,11 @@ def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | _Per
     for signal in sources:
         step = STEPS[signal]
         up = function(variants(signal, step))
+        if signal not in AIR_DATA_SOURCES and all(np.array_equal(up[k], v)
+                                                  for k, v in columns.items()):
+            continue
         down = function(variants(signal, -step))
-        derivative = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
-        if signal in AIR_DATA_SOURCES or any(np.any(d) for d in derivative.values()):
-            jac[signal] = derivative
+        jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
     return columns, jac
 
 
@@ -478,13 +520,13 @@ def _column_space(X: np.ndarray) -> np.ndarray:
     return X @ (vt[keep].T / s[keep])
 
 
-def _is_redundant(basis: np.ndarray, column: np.ndarray) -> bool:
-    """True when ``column`` is (nearly) in the span of the orthonormal ``basis``, or zero."""
-    norm = np.linalg.norm(column)
-    if norm == 0.0 or not np.isfinite(norm):
-        return True
-    r = column - basis @ (basis.T @ column)
-    return np.linalg.norm(r) < 1e-3 * norm
+def _redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """(m,) True where a column of ``columns`` (N, m) is (nearly) in the span of the
+    orthonormal ``basis``, or zero."""
+    norm = np.linalg.norm(columns, axis=0)
+    r = columns - basis @ (basis.T @ columns)
+    with np.errstate(invalid="ignore"):
+        return ~np.isfinite(norm) | (norm == 0.0) | (np.linalg.norm(r, axis=0) < 1e-3 * norm)
 
 
 def _errors(z: np.ndarray, prediction: np.ndarray, theta, C_xx, c_xz) -> tuple[float, float]:
@@ -551,43 +593,89 @@ class _Columns:
                         {s: {k: j[k] for k in names} for s, j in self.jacobians.items()})
 
 
-def _score(name: str, coefficient: str, base: _RoundBase, candidate: _Columns,
-           rule: EvidenceRule, n_tests: int) -> Evidence | None:
-    columns = [k for k, v in candidate.columns.items() if not _is_redundant(base.basis, v)]
-    if not columns:
-        return None
+def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _RoundBase],
+                 pool: _Candidates, rule: EvidenceRule, n_tests: int) -> list[Evidence]:
+    """The evidence for each named effect on each coefficient of ``pairs``, in that order
+    (an effect none of whose columns is new to the design is left out). The candidates of
+    one coefficient with as many columns are scored together."""
+    groups: dict[tuple[str, int], list[tuple[int, str, _Columns]]] = {}
+    for index, (effect, k) in enumerate(pairs):
+        candidate = pool.named(effect, k, bases[k].design.noise.variance)
+        redundant = _redundant(bases[k].basis, np.column_stack(list(candidate.columns.values())))
+        columns = [c for c, r in zip(candidate.columns, redundant, strict=True) if not r]
+        if columns:
+            groups.setdefault((k, len(columns)), []).append(
+                (index, effect.name, candidate.pick(columns)))
+    scored = {}
+    for (k, q), members in groups.items():
+        shape = (len(bases[k].design.z), q)
+        candidates = [c for _, _, c in members]
+        X_new = np.stack([_stacked(c.columns, c.columns, shape) for c in candidates], axis=1)
+        J_new = {s: np.stack([_stacked(c.jacobians.get(s), c.columns, shape)
+                              for c in candidates], axis=1)
+                 for s in dict.fromkeys(s for c in candidates for s in c.jacobians)}
+        evidence = _score_batch([name for _, name, _ in members],
+                                [tuple(c.columns) for c in candidates], k, bases[k], X_new,
+                                J_new, rule, n_tests)
+        scored.update((index, ev) for (index, _, _), ev in zip(members, evidence, strict=True)
+                      if ev is not None)
+    return [scored[i] for i in sorted(scored)]
+
+
+def _stacked(values: Mapping[str, np.ndarray] | None, names, shape) -> np.ndarray:
+    """The columns ``names`` of ``values`` as one array of ``shape`` (None: zeros)."""
+    return np.zeros(shape) if values is None else np.column_stack([values[c] for c in names])
+
+
+def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coefficient: str,
+                 base: _RoundBase, X_new: np.ndarray, J_new: Mapping[str, np.ndarray],
+                 rule: EvidenceRule, n_tests: int) -> list[Evidence | None]:
+    """The evidence for m candidates of q columns each, scored together: ``X_new`` and the
+    ``J_new`` sensitivities (N, m, q); None where the extended design is not well posed."""
     design = base.design
-    n, p = design.X.shape
-    q = len(columns)
-    X_new = np.column_stack([candidate.columns[k] for k in columns])
-    J_new = {s: np.column_stack([j[k] for k in columns]) for s, j in candidate.jacobians.items()}
+    p, q = design.X.shape[1], X_new.shape[2]
     blocks = base.blocks.extended(design.X, design.z, design.noise, X_new, J_new)
     A, b, C_xx, c_xz = blocks.total()
-    if not is_well_posed(A):
-        return None
-
-    def predict(theta):
-        return design.X @ theta[..., :p].T + X_new @ theta[..., p:].T
-
-    errors = _held_out_errors(blocks, design.z, predict)
+    posed = is_well_posed(A)
+    theta_folds = solve_normal_equations(*blocks.held_in())
+    errors = _batch_fold_errors(blocks, design.X, X_new, design.z, theta_folds)
     # Improvement in the noise-corrected error, relative to the observed error.
     gain = base.fold_errors[1] - errors[1]
-    reduction = float(np.mean(gain / base.fold_errors[0]))
-    improved = int(np.sum(gain > 0))
+    reduction = np.mean(gain / base.fold_errors[0], axis=-1)
+    improved = np.sum(gain > 0, axis=-1)
     theta = solve_normal_equations(A, b)
-    observed1, corrected1 = _errors(design.z, predict(theta), theta, C_xx, c_xz)
-    drop = max(base.sse[1] - corrected1, 0.0)
+    r = design.z[:, None] - design.X @ theta[:, :p].T - np.einsum("nmq,mq->nm", X_new,
+                                                                   theta[:, p:])
+    observed1 = np.einsum("nm,nm->m", r, r)
+    corrected1 = observed1 - noise_error_energy(theta, C_xx, c_xz)
+    drop = np.maximum(base.sse[1] - corrected1, 0.0)
     dof = max(base.n_eff - p - q, 1.0)
     f_stat = drop / q / (observed1 / dof)
     p_value = _f_survival(f_stat, q, dof)
-    delta_bic = base.n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) + q * np.log(
-        base.n_eff)
-    passed = (p_value < rule.p_value / max(n_tests, 1)
-              and reduction >= rule.min_pse_reduction
-              and improved >= rule.min_folds
-              and delta_bic < 0)
-    return Evidence(name, coefficient, tuple(columns), reduction, improved, float(f_stat),
-                    p_value, float(delta_bic), passed)
+    delta_bic = base.n_eff * np.log(np.maximum(base.sse[0] - drop, 1e-300) / base.sse[0]) \
+        + q * np.log(base.n_eff)
+    passed = ((p_value < rule.p_value / max(n_tests, 1)) & (reduction >= rule.min_pse_reduction)
+              & (improved >= rule.min_folds) & (delta_bic < 0))
+    return [Evidence(names[i], coefficient, columns[i], float(reduction[i]), int(improved[i]),
+                     float(f_stat[i]), float(p_value[i]), float(delta_bic[i]), bool(passed[i]))
+            if posed[i] else None for i in range(len(names))]
+
+
+def _batch_fold_errors(blocks: BlockMoments, X: np.ndarray, X_new: np.ndarray, z: np.ndarray,
+                       theta: np.ndarray) -> np.ndarray:
+    """(2, m, K): observed and noise-corrected held-out squared error of each blocked fold
+    (:func:`_errors`) for m extensions ``X_new`` (N, m, q) of ``X`` (N, p), whose fits on
+    the other folds are ``theta`` (m, K, p + q)."""
+    p = X.shape[1]
+    out = np.empty((2, *theta.shape[:2]))
+    for k, (a, b) in enumerate(zip(blocks.edges[:-1], blocks.edges[1:], strict=True)):
+        fit = theta[:, k]
+        r = z[a:b, None] - X[a:b] @ fit[:, :p].T - np.einsum("nmq,mq->nm", X_new[a:b],
+                                                             fit[:, p:])
+        out[0, :, k] = np.einsum("nm,nm->m", r, r)
+        out[1, :, k] = out[0, :, k] - noise_error_energy(fit, blocks.noise_xx[:, k],
+                                                         blocks.noise_xz[:, k])
+    return out
 
 
 def _fit(coefficient: str, train: _Design, test: _Design, rate: float) -> CoefficientFit:
@@ -620,6 +708,10 @@ def _product_name(signals: tuple[str, ...]) -> str:
     return "*".join(signals)
 
 
+_PRODUCT_NAMES = tuple(_product_name(k) for k in PRODUCT_KEYS)
+_PRODUCT_INDEX = {n: i for i, n in enumerate(_PRODUCT_NAMES)}
+
+
 class _Candidates:
     """Candidate columns on the training samples, each computed once per discovery.
 
@@ -631,6 +723,7 @@ class _Candidates:
         self.variants = _Perturbations(train)
         self.params = params
         self._cache: dict[tuple[str, str], _Columns] = {}
+        self._matrices: dict[tuple[str, str], tuple[np.ndarray, dict[str, np.ndarray]]] = {}
 
     def _get(self, key: tuple[str, str], function: ColumnFunction, variance) -> _Columns:
         if key not in self._cache:
@@ -643,10 +736,35 @@ class _Candidates:
         return self._get((effect.name, coefficient),
                          _effect_function(effect, self.params, coefficient), variance)
 
+    @staticmethod
+    def product_names(used: set[str]) -> list[str]:
+        """The data-driven products not tried yet."""
+        return [n for n in _PRODUCT_NAMES if f"{DATA_DRIVEN}{n}" not in used]
+
+    def product_matrix(self, coefficient: str, variance
+                       ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Every data-driven product column for ``coefficient`` as one (N, m) array in
+        :data:`PRODUCT_KEYS` order, and their sensitivities to each source (N, m), by the
+        product rule on the base signals' sensitivities."""
+        key = (DATA_DRIVEN, coefficient)
+        if key not in self._matrices:
+            base = self._get(("base_signals", coefficient), lambda smp: base_signals(
+                smp.aligned(coefficient), self.params), variance)
+            # Rows are signals here (gathers of contiguous rows); the results are transposed.
+            x = np.stack(list(base.columns.values()))
+            names = list(base.columns)
+            a, b = ([names.index(k[i]) for k in PRODUCT_KEYS] for i in (0, 1))
+            jacobians = {s: np.stack([j[n] for n in names]) for s, j in base.jacobians.items()}
+            self._matrices[key] = ((x[a] * x[b]).T, {s: (j[a] * x[b] + x[a] * j[b]).T
+                                                     for s, j in jacobians.items()})
+        return self._matrices[key]
+
     def products(self, coefficient: str, variance) -> _Columns:
-        """Every data-driven product column for ``coefficient``."""
-        return self._get(("data_driven", coefficient),
-                         _product_function(self.params, coefficient), variance)
+        """The columns of :meth:`product_matrix` by name."""
+        columns, jacobians = self.product_matrix(coefficient, variance)
+        return _Columns({n: columns[:, i] for i, n in enumerate(_PRODUCT_NAMES)},
+                        {s: {n: j[:, i] for i, n in enumerate(_PRODUCT_NAMES)}
+                         for s, j in jacobians.items()})
 
 
 def discover(samples: AeroSamples, params: FixedWingParams,
@@ -689,15 +807,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
         bases = {k: _round_base(search.designs[k], edges) for k in fitted}
-        pairs = [(e, k) for e in effects if e.name not in used for k in e.coefficients
-                 if k in bases]
-        evidence = [ev for e, k in pairs if (ev := _score(
-            e.name, k, bases[k], search.pool.named(e, k, bases[k].design.noise.variance),
-            rule, len(pairs))) is not None]
-        new = search.accept_best(evidence, used)
-        if new is None and fallback:
-            evidence += _score_products(bases, search.pool, rule, used)
-            new = search.accept_best(evidence, used)
+        evidence, new = _round(search, bases, used, fallback)
         evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
         rounds.append(tuple(evidence))
         if new is None:
@@ -707,9 +817,59 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     found = search.final_check(found)
     final = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
     found = [_with_parameters(f, final) for f in found]
+    adequacy = {k: _adequacy(final[k], (train, search.designs[k]), (test, search.tests[k]),
+                             params, search.scales[k], rule.adequacy) for k in fitted}
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
-                           checks=tuple(search.checks), skipped=skipped)
+                           checks=tuple(search.checks), skipped=skipped, adequacy=adequacy)
+
+
+def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, _Design],
+              test: tuple[AeroSamples, _Design], params: FixedWingParams, scale: float,
+              rule: AdequacyRule) -> Adequacy:
+    """The final fit's error against its noise floor on the training part and the
+    held-out tail (:func:`~drake_uav.identification.adequacy.assess`)."""
+    k, theta = fit.coefficient, fit.result.estimate
+    parts = []
+    for (samples, design), residual in ((train, fit.result.residual),
+                                        (test, fit.holdout_residual)):
+        variance = noise_variance_per_sample(samples, k, params, design.noise, theta)
+        parts.append((samples.time, residual,
+                      np.sum(list(variance.values()), axis=0) + np.zeros(len(samples))))
+    signals = {}
+    for view in (train[0].aligned(k), test[0].aligned(k)):
+        logged = {**{name: np.broadcast_to(value, view.time.shape)
+                     for name, value in view.condition._asdict().items()},
+                  "throttle": view.throttle, **view.signals}
+        for name, value in logged.items():
+            signals.setdefault(name, []).append(value)
+    return assess(k, parts[0], parts[1], {n: np.concatenate(v) for n, v in signals.items()},
+                  scale, rule)
+
+
+def _round(search: _Search, bases: Mapping[str, _RoundBase], used: set[str],
+           fallback: bool) -> tuple[list[Evidence], FoundEffect | None]:
+    """One round of the loop: the evidence of every candidate scored and the effect
+    accepted (None: nothing passed and was kept).
+
+    Named effects first (:attr:`EvidenceRule.named_first`): the data-driven products are
+    scored only when no named effect is kept, each family at its own family-wise level.
+    Otherwise both form one pool at one level over all of them.
+    """
+    rule, pool = search.rule, search.pool
+    pairs = [(e, k) for e in search.effects if e.name not in used for k in e.coefficients
+             if k in bases]
+    products = pool.product_names(used) if fallback else []
+    n_products = len(products) * len(bases)
+    n_named = len(pairs) + (0 if rule.named_first else n_products)
+    evidence = _score_named(pairs, bases, pool, rule, n_named)
+    if not rule.named_first:
+        evidence += _score_products(bases, pool, rule, products, n_named)
+    new = search.accept_best(evidence, used)
+    if new is None and products and rule.named_first:
+        evidence += _score_products(bases, pool, rule, products, n_products)
+        new = search.accept_best(evidence, used)
+    return evidence, new
 
 
 def check_coefficients(coefficients: Sequence[str]) -> None:
@@ -760,7 +920,7 @@ class _Search:
         """The best passing effect not tried yet that the held-out check keeps on at least
         one coefficient, its columns added there; None if there is none. Every effect tried
         joins ``used``."""
-        ranked = sorted((e for e in evidence if e.passed), key=lambda e: -e.pse_reduction)
+        ranked = sorted((e for e in evidence if e.passed), key=self._rank)
         for name in dict.fromkeys(e.effect for e in ranked):
             if name in used:
                 continue
@@ -779,6 +939,13 @@ class _Search:
             if kept:
                 return _found(name, effect, kept)
         return None
+
+    def _rank(self, evidence: Evidence) -> float:
+        """Sort key of a passing candidate: minus its held-out gain; a data-driven product,
+        one choice among many, ranks ahead of a named effect only when it gains
+        :attr:`EvidenceRule.min_pse_reduction` more."""
+        margin = self.rule.min_pse_reduction if evidence.effect.startswith(DATA_DRIVEN) else 0.0
+        return margin - evidence.pse_reduction
 
     def check(self, name: str, k: str, without: tuple[_Design, _Design],
               with_effect: tuple[_Design, _Design], stage: str) -> HeldOutCheck:
@@ -854,27 +1021,29 @@ def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effe
             test.extended(held_out.columns, held_out.jacobians, prefix=prefix))
 
 
-def _score_products(bases, pool: _Candidates, rule, used) -> list[Evidence]:
-    names = [_product_name(k) for k in product_candidates(pool.variants.samples, pool.params)]
-    n_tests = len(names) * len(bases)
+def _score_products(bases, pool: _Candidates, rule, names, n_tests) -> list[Evidence]:
+    """The evidence for every data-driven product ``names`` on every coefficient of
+    ``bases``, each coefficient's scored together."""
     out = []
     for k, base in bases.items():
-        products = pool.products(k, base.design.noise.variance)
-        for name in names:
-            effect_name = f"data_driven:{name}"
-            if effect_name in used:
-                continue
-            ev = _score(effect_name, k, base, products.pick([name]), rule, n_tests)
-            if ev is not None:
-                out.append(ev)
-    return out
+        columns, jacobians = pool.product_matrix(k, base.design.noise.variance)
+        index = [_PRODUCT_INDEX[n] for n in names]
+        index = [i for i, r in zip(index, _redundant(base.basis, columns[:, index]),
+                                   strict=True) if not r]
+        if index:
+            out += _score_batch([f"{DATA_DRIVEN}{_PRODUCT_NAMES[i]}" for i in index],
+                                [(_PRODUCT_NAMES[i],) for i in index], k, base,
+                                columns[:, index, None],
+                                {s: j[:, index, None] for s, j in jacobians.items()}, rule,
+                                n_tests)
+    return [e for e in out if e is not None]
 
 
-def _f_survival(f_stat: float, dfn: float, dfd: float) -> float:
-    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom."""
+def _f_survival(f_stat, dfn: float, dfd: float) -> np.ndarray:
+    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom (elementwise)."""
     from scipy.special import fdtrc
 
-    return float(fdtrc(dfn, dfd, f_stat))
+    return np.asarray(fdtrc(dfn, dfd, f_stat), dtype=float)
 
 
 def _found(name: str, effect: Effect | None, accepted: list[Evidence]) -> FoundEffect:

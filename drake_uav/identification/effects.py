@@ -42,6 +42,8 @@ __all__ = [
     "effect_library",
     "product_candidates",
     "base_signals",
+    "BASE_SIGNALS",
+    "PRODUCT_KEYS",
     "LONGITUDINAL",
     "LATERAL",
     "FORCES",
@@ -263,20 +265,23 @@ def effect_library() -> list[Effect]:
     ]
 
 
+BASE_SIGNALS = {"alpha": "alpha", "beta": "beta", "p_hat": "p", "q_hat": "q", "r_hat": "r",
+                "elevator": "elevator", "aileron": "aileron", "rudder": "rudder", "Tc": "Tc"}
+"""Names of the data-driven base signals -> the coefficient model's regressor signals."""
+
+PRODUCT_KEYS = tuple(itertools.combinations_with_replacement(BASE_SIGNALS, 2))
+"""The pairs of :data:`BASE_SIGNALS` whose products are the data-driven candidates."""
+
+
 def base_signals(samples: AeroSamples, params: FixedWingParams) -> dict[str, np.ndarray]:
     """Signals whose products form the data-driven fallback candidates."""
     signals = _normalised(samples, params)
-    names = {"alpha": "alpha", "beta": "beta", "p_hat": "p", "q_hat": "q", "r_hat": "r",
-             "elevator": "elevator", "aileron": "aileron", "rudder": "rudder", "Tc": "Tc"}
-    return {name: signals[signal] for name, signal in names.items()}
+    return {name: signals[signal] for name, signal in BASE_SIGNALS.items()}
 
 
 def product_candidates(samples: AeroSamples, params: FixedWingParams
                        ) -> dict[tuple[str, ...], np.ndarray]:
-    """Squares and pairwise products of :func:`base_signals`, keyed by the signal names."""
+    """Squares and pairwise products of :func:`base_signals`, keyed by the signal names
+    (:data:`PRODUCT_KEYS`)."""
     signals = base_signals(samples, params)
-    names = list(signals)
-    out: dict[tuple[str, ...], np.ndarray] = {}
-    for a, b in itertools.combinations_with_replacement(names, 2):
-        out[(a, b)] = signals[a] * signals[b]
-    return out
+    return {(a, b): signals[a] * signals[b] for a, b in PRODUCT_KEYS}

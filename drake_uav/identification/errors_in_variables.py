@@ -194,43 +194,62 @@ class BlockMoments:
         added columns, ``J_new`` their (N, q) sensitivities to each noise source (a source
         missing: the columns do not depend on it; one ``X`` does not depend on counts
         when ``noise.variance`` knows it). Only the new rows of the moments are computed.
+
+        ``X_new`` (N, m, q) and ``J_new`` values of the same shape are m alternative
+        extensions at once (the candidates of a search): every array of the result then
+        has a leading axis m.
         """
-        p, q = X.shape[1], X_new.shape[1]
-        K = len(self.edges) - 1
-        xx = np.zeros((K, p + q, p + q))
+        batch = X_new.ndim == 3
+        if not batch:
+            X_new, J_new = X_new[:, None, :], {s: J[:, None, :] for s, J in J_new.items()}
+        m, q = X_new.shape[1:]
+        p = X.shape[1]
+        xx = np.zeros((m, len(self.edges) - 1, p + q, p + q))
         noise_xx = np.zeros_like(xx)
-        xx[:, :p, :p], noise_xx[:, :p, :p] = self.xx, self.noise_xx
-        xz = np.concatenate([self.xz, np.zeros((K, q))], axis=1)
-        noise_xz = np.concatenate([self.noise_xz, np.zeros((K, q))], axis=1)
+        xx[..., :p, :p], noise_xx[..., :p, :p] = self.xx, self.noise_xx
+        xz = np.zeros(xx.shape[:-1])
+        noise_xz = np.zeros_like(xz)
+        xz[..., :p], noise_xz[..., :p] = self.xz, self.noise_xz
+        sources = [(noise.variance[s], added, noise.regressors.get(s), noise.observation.get(s))
+                   for s, added in J_new.items() if s in noise.variance]
         for k, (a, b) in enumerate(zip(self.edges[:-1], self.edges[1:], strict=True)):
-            new = X_new[a:b].T
-            xx[k, p:, :p], xx[k, p:, p:] = new @ X[a:b], new @ X_new[a:b]
-            xz[k, p:] = new @ z[a:b]
-            for source, added in J_new.items():
-                if source not in noise.variance:
-                    continue
-                J = noise.regressors.get(source)
-                var, new_j = noise.variance[source], added[a:b].T
-                if J is not None:
-                    noise_xx[k, p:, :p] += var * (new_j @ J[a:b])
-                noise_xx[k, p:, p:] += var * (new_j @ added[a:b])
-                jz = noise.observation.get(source)
-                if jz is not None:
-                    noise_xz[k, p:] += var * (new_j @ jz[a:b])
-        for m in (xx, noise_xx):
-            m[:, :p, p:] = np.swapaxes(m[:, p:, :p], 1, 2)
-        return BlockMoments(self.edges, xx, xz, noise_xx, noise_xz)
+            _add_new_rows(xx[:, k], xz[:, k], 1.0, X_new[a:b], X[a:b], z[a:b])
+            for var, added, J, jz in sources:
+                _add_new_rows(noise_xx[:, k], noise_xz[:, k], var, added[a:b],
+                              None if J is None else J[a:b], None if jz is None else jz[a:b])
+        for moments in (xx, noise_xx):
+            moments[..., :p, p:] = np.swapaxes(moments[..., p:, :p], -1, -2)
+        if batch:
+            return BlockMoments(self.edges, xx, xz, noise_xx, noise_xz)
+        return BlockMoments(self.edges, xx[0], xz[0], noise_xx[0], noise_xz[0])
 
     def total(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Over all rows: the compensated normal equations ``(A, b)`` and the noise
-        moments ``(C_xx, c_xz)``."""
-        C_xx, c_xz = self.noise_xx.sum(axis=0), self.noise_xz.sum(axis=0)
-        return self.xx.sum(axis=0) - C_xx, self.xz.sum(axis=0) - c_xz, C_xx, c_xz
+        moments ``(C_xx, c_xz)`` (with the leading axis of a batch)."""
+        C_xx, c_xz = self.noise_xx.sum(axis=-3), self.noise_xz.sum(axis=-2)
+        return self.xx.sum(axis=-3) - C_xx, self.xz.sum(axis=-2) - c_xz, C_xx, c_xz
 
     def held_in(self) -> tuple[np.ndarray, np.ndarray]:
-        """(K, n, n) and (K, n): the compensated normal equations without block k."""
+        """(K, n, n) and (K, n): the compensated normal equations without block k (with
+        the leading axis of a batch)."""
         A, b, _, _ = self.total()
-        return A - (self.xx - self.noise_xx), b - (self.xz - self.noise_xz)
+        return (A[..., None, :, :] - (self.xx - self.noise_xx),
+                b[..., None, :] - (self.xz - self.noise_xz))
+
+
+def _add_new_rows(xx: np.ndarray, xz: np.ndarray, weight: float, new: np.ndarray,
+                  old: np.ndarray | None, z: np.ndarray | None) -> None:
+    """Adds ``weight`` times the products of the new columns ``new`` (n, m, q) with the
+    old ones ``old`` (n, p), with themselves and with ``z`` (n,) to the rows ``p:`` of the
+    (m, p + q, p + q) ``xx`` and the entries ``p:`` of the (m, p + q) ``xz`` (None: zero)."""
+    n, m, q = new.shape
+    p = xx.shape[-1] - q
+    flat = new.reshape(n, m * q)
+    if old is not None:
+        xx[:, p:, :p] += weight * (flat.T @ old).reshape(m, q, p)
+    xx[:, p:, p:] += weight * np.einsum("nmi,nmj->mij", new, new)
+    if z is not None:
+        xz[:, p:] += weight * (flat.T @ z).reshape(m, q)
 
 
 def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -248,15 +267,21 @@ def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def is_well_posed(A: np.ndarray, tolerance: float = 1e-8) -> bool:
+def is_well_posed(A: np.ndarray, tolerance: float = 1e-8):
     """True when the compensated normal matrix ``A`` is safely positive definite.
 
     Removing the noise moments can make a nearly collinear design indefinite: its
-    columns are then not separable from the regressor noise.
+    columns are then not separable from the regressor noise. A stack (..., n, n) gives
+    an array of answers.
     """
-    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
-    return bool(np.min(np.diag(A)) > 0 and
-                np.linalg.eigvalsh(A / np.outer(scale, scale))[0] > tolerance)
+    A = np.asarray(A, dtype=float)
+    diagonal = np.diagonal(A, axis1=-2, axis2=-1)
+    scale = np.sqrt(np.maximum(diagonal, 1e-300))
+    equilibrated = A / (scale[..., :, None] * scale[..., None, :])
+    finite = np.isfinite(equilibrated).all(axis=(-2, -1))
+    smallest = np.linalg.eigvalsh(np.where(finite[..., None, None], equilibrated, 0.0))[..., 0]
+    posed = finite & (diagonal.min(axis=-1) > 0) & (smallest > tolerance)
+    return bool(posed) if A.ndim == 2 else posed
 
 
 def moment_scores(X, z, theta, noise: PropagatedNoise) -> np.ndarray:
@@ -272,10 +297,16 @@ def moment_scores(X, z, theta, noise: PropagatedNoise) -> np.ndarray:
     return psi
 
 
-def noise_error_energy(theta, C_xx, c_xz) -> float:
+def noise_error_energy(theta, C_xx, c_xz):
     """Expected regressor-noise part ``theta^T C_xx theta - 2 theta^T c_xz`` of the observed
-    squared error ``|z - X theta|^2`` (noise moments from :meth:`PropagatedNoise.moments`)."""
-    return float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
+    squared error ``|z - X theta|^2`` (noise moments from :meth:`PropagatedNoise.moments`).
+
+    Stacks (m, n), (m, n, n), (m, n) give the (m,) energies of m fits."""
+    theta = np.asarray(theta)
+    if theta.ndim == 1:
+        return float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
+    return (np.einsum("...i,...ij,...j->...", theta, C_xx, theta)
+            - 2.0 * np.einsum("...i,...i->...", theta, c_xz))
 
 
 # ----------------------------------------------------------------------------- covariance
