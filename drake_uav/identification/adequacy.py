@@ -107,10 +107,14 @@ class Adequacy:
         return ", ".join(parts)
 
     def summary(self) -> dict:
-        """JSON-ready fields."""
-        return {"ratio": self.ratio, "train_ratio": self.train_ratio,
+        """JSON-ready fields (a ratio without a floor is None)."""
+
+        def finite(value: float) -> float | None:
+            return value if np.isfinite(value) else None
+
+        return {"ratio": finite(self.ratio), "train_ratio": finite(self.train_ratio),
                 "above_floor": self.above_floor, "differs": self.differs,
-                "limit": self.limit, "train_limit": self.train_limit,
+                "limit": finite(self.limit), "train_limit": finite(self.train_limit),
                 "incomplete": self.incomplete,
                 "segments_s": [list(s) for s in self.segments],
                 "correlations": [list(c) for c in self.correlations]}

@@ -92,13 +92,16 @@ class IdentificationRun:
         """JSON-ready summary: effects with evidence, errors before/after, parameters.
 
         Run-level keys: ``source, aircraft, data (spans, air data, notes), message,
-        samples, holdout_start_s, effects, equation_error_rms_holdout,
+        samples, holdout_start_s, effects, equation_error_rms_holdout (with each
+        coefficient's ``adequacy``: its error against the noise floor, whether the model is
+        incomplete there and where, :class:`~drake_uav.identification.adequacy.Adequacy`),
         reconstruction_mae_holdout, reconstruction_divergences,
         measured_coefficient_sigma_monte_carlo, parameters``; each entry of ``effects`` has
         ``name, kind, explanation, coefficients, evidence, parameters``.
         """
         d = self.discovery
-        rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0}
+        rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0,
+                   **({"adequacy": d.adequacy[k].summary()} if k in d.adequacy else {})}
                for k, (b, a) in d.rms_change().items()}
         mae_b, mae_a = self.reconstruction_before.mae, self.reconstruction_after.mae
         return {

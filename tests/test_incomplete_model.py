@@ -1,0 +1,199 @@
+"""When no candidate explains an error the sensor noise does not, the result says the model is
+incomplete and where; named effects and data-driven products can compete in one pool."""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic_flight import synthetic_samples
+
+import drake_uav
+from drake_uav.cli import main
+from drake_uav.diagrams import fly
+from drake_uav.identification.adequacy import assess
+from drake_uav.identification.discovery import (
+    NO_EFFECT_MESSAGE,
+    EvidenceRule,
+    FoundEffect,
+    discover,
+)
+from drake_uav.identification.main_job import identify
+from drake_uav.io.flight_log import FlightLog
+from drake_uav.model.air_data import dynamic_pressure
+from drake_uav.vehicles.fixed_wing import aerosonde
+
+pytestmark = pytest.mark.filterwarnings("ignore:identify_thrust")  # thrust/C_X confounding
+
+SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
+PARAMS = aerosonde()
+DRAG_DRIFT = 0.015
+"""Growth of the drag coefficient over the flight: a third of C_D0 (icing, a loosening
+fairing)."""
+
+
+# ----------------------------------------------------------------------------- the rule
+
+
+def _parts(rng, n, train_scale=1.0, test_scale=1.0, floor=1e-4, ramp=0.0):
+    """(train, test) of ``assess``: white residuals of ``scale`` times the floor, plus a
+    ramp over the whole flight (70 % training)."""
+    time = np.arange(n) * 0.02
+    residual = rng.normal(0.0, np.sqrt(floor), n) * np.where(time < 0.7 * time[-1],
+                                                             train_scale, test_scale)
+    residual = residual + ramp * (time / time[-1] - 0.35)
+    cut = int(0.7 * n)
+    variance = np.full(n, floor)
+    return ((time[:cut], residual[:cut], variance[:cut]),
+            (time[cut:], residual[cut:], variance[cut:]))
+
+
+def test_a_residual_at_its_floor_is_no_finding():
+    for seed in range(20):
+        train, test = _parts(np.random.default_rng(seed), 5000)
+        adequacy = assess("CD", train, test, {}, scale=0.01)
+        assert not adequacy.incomplete, adequacy
+        assert 0.9 < adequacy.ratio < 1.1 and adequacy.limit > 1.15
+
+
+def test_an_error_above_the_floor_or_growing_on_the_held_out_tail_is_found():
+    above = assess("CD", *_parts(np.random.default_rng(1), 5000, 1.5, 1.5), {}, scale=0.01)
+    assert above.above_floor and not above.differs
+    assert above.ratio == pytest.approx(1.5, abs=0.05)
+    grows = assess("CD", *_parts(np.random.default_rng(1), 5000, 1.0, 1.3), {}, scale=0.01)
+    assert grows.differs and grows.incomplete
+    assert grows.train_ratio == pytest.approx(1.0, abs=0.05)
+
+
+def test_where_the_residual_is_largest_and_what_it_follows():
+    rng = np.random.default_rng(2)
+    train, test = _parts(rng, 6000, ramp=0.05)
+    throttle = np.concatenate([train[0], test[0]]) * 0.01 + rng.normal(0, 0.1, 6000)
+    adequacy = assess("CD", train, test, {"throttle": throttle, "noise": rng.normal(size=6000)},
+                      scale=0.01)
+    assert adequacy.incomplete
+    assert adequacy.segments[0][1] == pytest.approx(test[0][-1])  # the end of the flight
+    assert [name for name, _ in adequacy.correlations[:2]] == ["time", "throttle"]
+    assert adequacy.correlations[0][1] > 0.5
+    assert "largest at" in adequacy.explanation and "time (0." in adequacy.explanation
+
+
+def test_noiseless_or_negligible_errors_are_no_finding():
+    """Exact sensors leave a floor of zero and a smoothing error: nothing to call. An excess
+    below 1 % of the coefficient's variation does not matter (the evidence rule's share)."""
+    train, test = _parts(np.random.default_rng(3), 5000, floor=0.0)
+    assert not assess("CD", train, test, {}, scale=0.01).incomplete
+    train, test = _parts(np.random.default_rng(3), 5000, 1.5, 1.5, floor=1e-10)
+    assert not assess("CD", train, test, {}, scale=0.01).incomplete
+    assert assess("CD", train, test, {}, scale=1e-5).incomplete
+
+
+# ----------------------------------------------------------------------------- flights
+
+
+def _with_drag_drift(log: FlightLog, total: float) -> FlightLog:
+    """``log`` whose accelerometers read a drag coefficient that grows linearly by ``total``
+    over the flight (the aircraft's response to the extra drag is left out: at a third of
+    C_D0 over two minutes the safety pilot's throttle absorbs it)."""
+    t = log.time
+    drag = total * (t - t[0]) / (t[-1] - t[0]) * dynamic_pressure(
+        log["airspeed"], PARAMS.rho) * PARAMS.S / PARAMS.mass
+    alpha = log["alpha"]
+    return log.with_measured({"imu_ax": log["imu_ax"] - drag * np.cos(alpha),
+                              "imu_az": log["imu_az"] - drag * np.sin(alpha)})
+
+
+@pytest.fixture(scope="module")
+def clean_flight():
+    """120 s, default sensors, light turbulence."""
+    return fly(PARAMS, turbulence="light", seed=5, duration=120.0)
+
+
+@pytest.fixture(scope="module")
+def drift_run(clean_flight):
+    return identify(_with_drag_drift(clean_flight, DRAG_DRIFT), PARAMS)
+
+
+def test_a_drifting_drag_coefficient_makes_the_model_incomplete_on_cd(drift_run):
+    """Tuned on seeds 100-109 (C_D held-out error 1.6-1.9 times its floor, 1.1-1.2 on the
+    training part; all ten found)."""
+    result = drift_run.discovery
+    assert not result.found
+    assert list(result.incomplete) == ["CD"]
+    drag = result.incomplete["CD"]
+    assert drag.ratio > 1.4 and drag.differs
+    assert drag.segments[0][1] == pytest.approx(drift_run.samples.time[-1])
+    assert drag.correlations[0][0] == "time"
+    assert result.message.startswith(
+        f"the model is incomplete for C_D: held-out error {drag.ratio:.2g}x the noise floor")
+    assert "correlates with time (0." in result.message
+    rms = drift_run.summary()["equation_error_rms_holdout"]
+    assert [k for k, e in rms.items() if e["adequacy"]["incomplete"]] == ["CD"]
+    assert rms["CD"]["adequacy"]["ratio"] == pytest.approx(drag.ratio)
+
+
+@pytest.mark.parametrize("seed", [5, 6, 7])
+def test_clean_flights_are_not_called_incomplete(seed, clean_flight):
+    """No false call on 70 clean flights of the tuning seeds (100-139 of 60 s, 100-129 of
+    120 s: largest held-out ratio 1.16 against limits of 1.18 and more)."""
+    log = clean_flight if seed == 5 else fly(PARAMS, turbulence="light", seed=seed,
+                                              duration=60.0)
+    result = identify(log, PARAMS).discovery
+    assert not result.incomplete, {k: a.explanation for k, a in result.incomplete.items()}
+    assert result.message == NO_EFFECT_MESSAGE
+    assert all(a.ratio < a.limit for a in result.adequacy.values())
+
+
+def test_found_effects_and_an_incomplete_model_are_both_said():
+    params, samples, _ = synthetic_samples(seed=4, duration=60.0)
+    result = discover(samples, params)
+    assert result.message == NO_EFFECT_MESSAGE
+    drag = dataclasses.replace(result.adequacy["CD"], ratio=2.0, above_floor=True,
+                               segments=((40.0, 60.0, 2.5),), correlations=(("time", 0.6),))
+    incomplete = dataclasses.replace(result, adequacy={**result.adequacy, "CD": drag})
+    said = ("C_D: held-out error 2x the noise floor, largest at 40-60 s, correlates with "
+            "time (0.60)")
+    assert incomplete.message == f"the model is incomplete for {said}"
+    stall = FoundEffect("stall_onset", "", "aerodynamic", ("CL",), (), {})
+    assert dataclasses.replace(incomplete, found=(stall,)).message == (
+        f"missing effect(s) found: stall_onset (CL); the model is still incomplete for {said}")
+
+
+def test_the_command_line_says_where_the_model_is_incomplete(clean_flight, tmp_path, capsys):
+    path = tmp_path / "drift.csv"
+    _with_drag_drift(clean_flight, DRAG_DRIFT).save(path)
+    assert main(["identify", str(path), "--out", str(tmp_path / "report")]) == 0
+    assert "the model is incomplete for C_D: held-out error" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert summary["equation_error_rms_holdout"]["CD"]["adequacy"]["incomplete"]
+    assert summary["message"].startswith("the model is incomplete for C_D")
+
+
+# ----------------------------------------------------------------------------- one pool
+
+
+def test_in_one_pool_a_product_that_fits_much_better_wins_the_first_round():
+    """Lift growing with (Tc - mean)^2: with named effects first, stall_onset stands in for
+    it in the first round (gain 0.15) and is dropped at the end; in one pool the Tc^2
+    product (gain 0.89) wins that round. The effects found are the same."""
+    params, samples, _ = synthetic_samples(seed=102, duration=60.0)
+    tc = samples.condition.thrust_coefficient
+    data = dataclasses.replace(samples, coefficients={
+        **samples.coefficients, "CL": samples.coefficients["CL"] + 0.5 * (tc - tc.mean()) ** 2})
+    named_first, pooled = (discover(data, params, rule=EvidenceRule(named_first=first))
+                           for first in (True, False))
+    assert [c.effect for c in named_first.checks if c.stage == "round"][0] == "stall_onset"
+    assert [c.effect for c in pooled.checks] == ["data_driven:Tc*Tc", "thrust_propwash"]
+    assert {f.name for f in pooled.found} == {f.name for f in named_first.found}
+
+
+def test_in_one_pool_a_near_tie_goes_to_the_named_effect():
+    """The bundled flight's first 90 s: the elevator x T_c product gains 0.2005 on C_D, the
+    propeller slipstream 0.2003; a product must gain min_pse_reduction more to win."""
+    log = FlightLog.load(SAMPLE).slice(0.0, 90.0)
+    result = identify(log, PARAMS, rule=EvidenceRule(named_first=False)).discovery
+    first = result.rounds[0]
+    assert first[0].effect.startswith("data_driven:") and first[0].coefficient == "CD"
+    assert "thrust_propwash" in [f.name for f in result.found]
+    assert not any(f.name.startswith("data_driven:") for f in result.found)
