@@ -704,6 +704,19 @@ def _product_function(params: FixedWingParams, coefficient: str,
     return products
 
 
+def _product_rule(x: np.ndarray, jacobian: np.ndarray, a: np.ndarray, b: np.ndarray
+                  ) -> np.ndarray:
+    """(m, N) sensitivities of the products ``x[a] * x[b]`` of the signals ``x`` (n, N)
+    whose sensitivities are ``jacobian`` (n, N): ``j_a x_b + x_a j_b``, computed only
+    where a factor depends on the source (most depend on one or two of them)."""
+    out = np.zeros((len(a), x.shape[1]))
+    depends = np.any(jacobian != 0.0, axis=1)
+    for first, second in ((a, b), (b, a)):
+        rows = np.flatnonzero(depends[first])
+        out[rows] += jacobian[first[rows]] * x[second[rows]]
+    return out
+
+
 def _product_name(signals: tuple[str, ...]) -> str:
     return "*".join(signals)
 
@@ -753,10 +766,10 @@ class _Candidates:
             # Rows are signals here (gathers of contiguous rows); the results are transposed.
             x = np.stack(list(base.columns.values()))
             names = list(base.columns)
-            a, b = ([names.index(k[i]) for k in PRODUCT_KEYS] for i in (0, 1))
-            jacobians = {s: np.stack([j[n] for n in names]) for s, j in base.jacobians.items()}
-            self._matrices[key] = ((x[a] * x[b]).T, {s: (j[a] * x[b] + x[a] * j[b]).T
-                                                     for s, j in jacobians.items()})
+            a, b = (np.array([names.index(k[i]) for k in PRODUCT_KEYS]) for i in (0, 1))
+            self._matrices[key] = ((x[a] * x[b]).T, {
+                s: _product_rule(x, np.stack([j[n] for n in names]), a, b).T
+                for s, j in base.jacobians.items()})
         return self._matrices[key]
 
     def products(self, coefficient: str, variance) -> _Columns:
