@@ -12,9 +12,11 @@ workers' Dask setting, and the command line's for the one-process run; a thread 
 in the environment wins in both). Prints both wall times, their ratio (target <= 0.6 with 2
 workers on 2 cores), how much CPU other processes took meanwhile (on Linux; with other load
 the ratio says little), and checks that both give the same rows bit for bit (outside the
-wall-time column).
+wall-time column). ``--repeats N`` runs each mode N times, alternating, and keeps each
+mode's best wall time.
 
     python benchmarks/bench_campaigns.py [--flights 40] [--workers 2] [--duration 60]
+                                         [--repeats 1]
 """
 
 from __future__ import annotations
@@ -93,30 +95,38 @@ def main() -> None:
     parser.add_argument("--flights", type=int, default=40, help="runs (seeds 0..N-1)")
     parser.add_argument("--workers", type=int, default=2, help="LocalCluster workers")
     parser.add_argument("--duration", type=float, default=60.0, help="flight duration [s]")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="runs of each mode, alternating; each mode's best is kept")
     parser.add_argument("--child", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
         _one_mode(args)
         return
     load = os.getloadavg()[0]
+    modes = {"one process": 0, f"LocalCluster, {args.workers} workers": args.workers}
+    timed: dict[str, list[dict]] = {label: [] for label in modes}
     with tempfile.TemporaryDirectory() as tmp:
-        modes = {"one process": (Path(tmp) / "serial.parquet", 0),
-                 f"LocalCluster, {args.workers} workers": (Path(tmp) / "parallel.parquet",
-                                                           args.workers)}
-        timed = {label: _timed(args, out, workers) for label, (out, workers) in modes.items()}
-        tables = [read_results(out) for out, _ in modes.values()]
+        for repeat in range(args.repeats):
+            for k, (label, workers) in enumerate(modes.items()):
+                out = Path(tmp) / f"mode{k}_{repeat}.parquet"
+                timed[label].append({**_timed(args, out, workers), "table": read_results(out)})
+    best = {label: min(runs, key=lambda t: t["wall"]) for label, runs in timed.items()}
     print(f"\n{args.flights} main-job runs ({args.duration:g} s flights), {os.cpu_count()} cores,"
           f" load average {load:.1f} before / {os.getloadavg()[0]:.1f} after")
-    for (label, t), table in zip(timed.items(), tables, strict=True):
-        runs = table.column("wall_time_s").to_pylist()
+    for label, t in best.items():
+        runs = t["table"].column("wall_time_s").to_pylist()
         print(f"  {label:24s}: {t['wall']:8.1f} s  (a run: {sum(runs) / len(runs):.2f} s mean;"
               f" CPU {t['cpu_self']:.1f} s here + {t['cpu_children']:.1f} s in workers;"
               f" other processes {t['others']:.1f} CPU s)")
-    serial, parallel = (t["wall"] for t in timed.values())
+        if args.repeats > 1:
+            print("  " + " " * 24 + "  every run: " + ", ".join(
+                f"{r['wall']:.1f} s (others {r['others']:.1f})" for r in timed[label]))
+    serial, parallel = (t["wall"] for t in best.values())
     print(f"  ratio                   : {parallel / serial:8.3f}  (target <= 0.6 with 2 "
           f"workers; other processes' CPU above 2 % of the wall time makes it say little)")
-    print(f"  rows identical          : {results_equal(*tables)}; errors "
-          f"{' / '.join(str(t['errors']) for t in timed.values())}")
+    tables = [r["table"] for runs in timed.values() for r in runs]
+    print(f"  rows identical          : {all(results_equal(tables[0], t) for t in tables)};"
+          f" errors {' / '.join(str(t['errors']) for t in best.values())}")
     detected = sum(tables[0].column("metric.detected").to_pylist())
     print(f"  propwash drag detected  : {detected}/{args.flights}")
     figure("campaign_cluster_to_one_process_wall", parallel / serial, "ratio", "lower")
