@@ -9,7 +9,8 @@ Where the runs go:
 
 * ``workers=None`` (default): a Dask ``LocalCluster`` with one worker process
   per core, one thread per worker (numerical libraries single-threaded, so the
-  rows do not depend on how many runs share a core);
+  rows do not depend on how many runs share a core), Dask settings
+  :data:`LOCAL_CLUSTER_CONFIG`;
 * ``workers=N``: a ``LocalCluster`` of N workers;
 * ``scheduler="tcp://host:8786"``: an existing Dask cluster;
 * ``workers=0``: every run in this process, one after the other (no Dask).
