@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -184,7 +185,14 @@ class HeldOutCheck:
     """The held-out decision on one effect for one coefficient (:class:`EvidenceRule`).
 
     Both fits are made on the training part; the errors and the contribution are read
-    on the held-out tail.
+    on the held-out tail. Two predictions are judged. The bias-compensated fit's, right
+    for the aircraft's parameters, must improve, once the noise of the sources only the
+    effect's columns depend on is set aside: a true term on a regressor with noise of its
+    own (alpha-dot differentiated from the vane) passes that noise into the prediction
+    at full strength. Noise the effect shares with the other columns (the air data)
+    earns it nothing: an over-estimated variance would credit any column that depends on
+    it. The least-squares fit's, the best predictor of the measured coefficient from the
+    measured regressors, which no noise model enters, must improve as much.
     """
 
     effect: str
@@ -202,41 +210,36 @@ class HeldOutCheck:
     kept: bool
     min_gain: float = 0.0
     """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
-    noise_without: float = 0.0
-    """Regressor-noise part of the held-out mean-square error without the effect [-]: what
-    the sensor noise of the regressors, carried through the fit, adds to it
+    own_noise: float = 0.0
+    """Mean square that the noise sources only the effect's columns depend on add to the
+    held-out error of the fit with it [-]
     (:func:`~drake_uav.identification.errors_in_variables.noise_error_energy`)."""
-    noise_with: float = 0.0
-    """The same with the effect [-]."""
-
-    @property
-    def corrected_without(self) -> float:
-        """Held-out RMS without the effect and without its regressor-noise part [-]: the
-        error of the prediction of the true coefficient, which the decision compares."""
-        return float(np.sqrt(max(self.rms_without**2 - self.noise_without, 0.0)))
-
-    @property
-    def corrected_with(self) -> float:
-        """The same with the effect [-]."""
-        return float(np.sqrt(max(self.rms_with**2 - self.noise_with, 0.0)))
+    prediction_gain: float = float("inf")
+    """Held-out mean-square reduction of the least-squares prediction with the effect,
+    fraction of the one without [-]."""
 
     @property
     def gain(self) -> float:
-        """Held-out prediction-error (mean-square) reduction without the regressor-noise
-        part, fraction of the observed PSE without the effect [-] (the folds' measure)."""
+        """Held-out prediction-error (mean-square) reduction without the noise of the
+        effect's own sources, fraction of the PSE without the effect [-]."""
         if self.rms_without <= 0:
             return 0.0
-        return (self.corrected_without**2 - self.corrected_with**2) / self.rms_without**2
+        return 1.0 - (self.rms_with**2 - self.own_noise) / self.rms_without**2
 
     @property
     def reason(self) -> str:
         """Why the effect was not kept on the coefficient ("" when it was)."""
-        if self.corrected_with > self.corrected_without:
-            return (f"its held-out error rises with it ({self.corrected_without:.4g} -> "
-                    f"{self.corrected_with:.4g})")
+        if self.gain < 0.0:
+            return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
+                    f"{self.rms_with:.4g}"
+                    + (f", {np.sqrt(max(self.rms_with**2 - self.own_noise, 0.0)):.4g} without "
+                       "the noise of its own sources)" if self.own_noise else ")"))
         if self.gain < self.min_gain:
             return (f"its held-out prediction error falls by {100 * self.gain:.2g} %, less "
                     f"than {100 * self.min_gain:.2g} %")
+        if self.prediction_gain < self.min_gain:
+            return (f"the held-out error of its least-squares prediction falls by "
+                    f"{100 * self.prediction_gain:.2g} %, less than {100 * self.min_gain:.2g} %")
         if self.contribution < self.threshold:
             return (f"its held-out contribution {self.contribution:.2g} is below "
                     f"{self.threshold:.2g}")
@@ -964,14 +967,15 @@ class _Search:
               with_effect: tuple[_Design, _Design], stage: str) -> HeldOutCheck:
         """The held-out decision on effect ``name`` for coefficient ``k``: each pair of
         (training, held-out) designs fitted on the first and evaluated on the second."""
-        rms_without, prediction_without, noise_without = _held_out_prediction(*without)
-        rms_with, prediction_with, noise_with = _held_out_prediction(*with_effect)
-        contribution = float(np.sqrt(np.mean((prediction_with - prediction_without) ** 2)))
+        before, after = (_HeldOut.of(*designs, f"{name}:") for designs in (without, with_effect))
+        contribution = float(np.sqrt(np.mean((after.prediction - before.prediction) ** 2)))
         threshold = max(self.rule.min_share_of_variation * self.scales[k],
-                        self.rule.min_share_of_error * rms_with)
-        check = HeldOutCheck(name, k, stage, rms_without, rms_with, contribution, threshold,
+                        self.rule.min_share_of_error * after.rms)
+        check = HeldOutCheck(name, k, stage, before.rms, after.rms, contribution, threshold,
                              kept=False, min_gain=self.rule.min_pse_reduction,
-                             noise_without=noise_without, noise_with=noise_with)
+                             own_noise=after.own_noise,
+                             prediction_gain=1.0 - (after.least_squares_rms
+                                                    / before.least_squares_rms) ** 2)
         return dataclasses.replace(check, kept=not check.reason)
 
     def final_check(self, found: Sequence[FoundEffect]) -> list[FoundEffect]:
@@ -990,7 +994,7 @@ class _Search:
                 failing = [c for c in checks if not c.kept]
                 if not failing:
                     break
-                worst = min(failing, key=lambda c: c.corrected_without)
+                worst = min(failing, key=lambda c: c.rms_without)
                 self.checks.append(worst)
                 dropped.add((worst.effect, k))
                 prefix = f"{worst.effect}:"
@@ -999,13 +1003,33 @@ class _Search:
         return [f for f in (_keep(f, dropped) for f in found) if f is not None]
 
 
-def _held_out_prediction(train: _Design, test: _Design) -> tuple[float, np.ndarray, float]:
-    """Held-out equation-error RMS and prediction of the fit of ``train`` on ``test``, and
-    the regressor-noise part of the mean-square error (see :func:`_errors`)."""
-    theta = train.solve()
-    prediction = test.X @ theta
-    noise = noise_error_energy(theta, *test.noise.moments()) / len(test.z)
-    return float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction, noise
+class _HeldOut(NamedTuple):
+    """A design fitted on the training part and read on the held-out tail."""
+
+    rms: float
+    """Held-out RMS of the bias-compensated fit [-]."""
+    prediction: np.ndarray
+    """Its held-out prediction."""
+    own_noise: float
+    """Mean square that the noise sources only the columns named ``prefix...`` depend on
+    add to its error [-]."""
+    least_squares_rms: float
+    """Held-out RMS of the least-squares fit [-]."""
+
+    @classmethod
+    def of(cls, train: _Design, test: _Design, prefix: str) -> _HeldOut:
+        theta = train.solve()
+        prediction = test.X @ theta
+        own = np.array([name.startswith(prefix) for name in test.names])
+        noise = test.noise
+        sources = {s: J for s, J in noise.regressors.items()
+                   if own.any() and not np.any(J[:, ~own])}
+        own_noise = noise_error_energy(theta, *PropagatedNoise(
+            noise.columns, sources, noise.observation, noise.variance).moments())
+        least_squares = solve_normal_equations(train.X.T @ train.X, train.X.T @ train.z)
+        return cls(float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction,
+                   float(own_noise) / len(test.z),
+                   float(np.sqrt(np.mean((test.z - test.X @ least_squares) ** 2))))
 
 
 def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | None:
