@@ -647,8 +647,7 @@ def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coeff
     reduction = np.mean(gain / base.fold_errors[0], axis=-1)
     improved = np.sum(gain > 0, axis=-1)
     theta = solve_normal_equations(A, b)
-    r = design.z[:, None] - design.X @ theta[:, :p].T - np.einsum("nmq,mq->nm", X_new,
-                                                                   theta[:, p:])
+    r = design.z[:, None] - design.X @ theta[:, :p].T - (X_new * theta[:, p:]).sum(axis=-1)
     observed1 = np.einsum("nm,nm->m", r, r)
     corrected1 = observed1 - noise_error_energy(theta, C_xx, c_xz)
     drop = np.maximum(base.sse[1] - corrected1, 0.0)
@@ -673,8 +672,7 @@ def _batch_fold_errors(blocks: BlockMoments, X: np.ndarray, X_new: np.ndarray, z
     out = np.empty((2, *theta.shape[:2]))
     for k, (a, b) in enumerate(zip(blocks.edges[:-1], blocks.edges[1:], strict=True)):
         fit = theta[:, k]
-        r = z[a:b, None] - X[a:b] @ fit[:, :p].T - np.einsum("nmq,mq->nm", X_new[a:b],
-                                                             fit[:, p:])
+        r = z[a:b, None] - X[a:b] @ fit[:, :p].T - (X_new[a:b] * fit[:, p:]).sum(axis=-1)
         out[0, :, k] = np.einsum("nm,nm->m", r, r)
         out[1, :, k] = out[0, :, k] - noise_error_energy(fit, blocks.noise_xx[:, k],
                                                          blocks.noise_xz[:, k])

@@ -247,7 +247,7 @@ def _add_new_rows(xx: np.ndarray, xz: np.ndarray, weight: float, new: np.ndarray
     flat = new.reshape(n, m * q)
     if old is not None:
         xx[:, p:, :p] += weight * (flat.T @ old).reshape(m, q, p)
-    xx[:, p:, p:] += weight * np.einsum("nmi,nmj->mij", new, new)
+    xx[:, p:, p:] += weight * np.matmul(new.transpose(1, 2, 0), new.transpose(1, 0, 2))
     if z is not None:
         xz[:, p:] += weight * (flat.T @ z).reshape(m, q)
 

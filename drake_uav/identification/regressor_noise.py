@@ -35,6 +35,7 @@ of the samples with the source moved by :data:`STEPS` (:func:`perturbed`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 
 import numpy as np
@@ -63,6 +64,7 @@ DERIVATIVES = {"alphadot": "alpha", "p_dot": "p", "q_dot": "q", "r_dot": "r"}
 _RATES = ("p", "q", "r")
 
 
+@functools.lru_cache(maxsize=32)
 def smoothing_gains(step: float, window: float = ISOLATION_WINDOW) -> tuple[float, float]:
     """``(sum h^2, sum d^2 [1/s^2])`` of the isolation's Savitzky-Golay smoothing ``h`` and
     derivative ``d`` for a sample ``step`` [s]: white noise of variance ``v`` leaves
