@@ -13,9 +13,10 @@ The loop (:func:`discover`):
    (correlated residuals carry less information than their sample count), and
    the change in BIC;
 4. accept the best candidate that passes every test of :class:`EvidenceRule`
-   on the coefficients where the held-out tail agrees (its error, without its
-   regressor-noise part, does not rise, the effect's contribution matters:
-   :class:`HeldOutCheck`), add its columns there, and repeat until nothing passes;
+   on the coefficients where the held-out tail agrees (its error falls, once the
+   noise of sources only its columns carry is set aside, and so does the
+   least-squares prediction's; its contribution matters: :class:`HeldOutCheck`),
+   add its columns there, and repeat until nothing passes;
    when no named effect is kept, try the data-driven fallback (products of
    signals), which reports the signals involved (or, with
    :attr:`EvidenceRule.named_first` off, both in one pool);
@@ -121,7 +122,9 @@ class EvidenceRule:
     :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
     prediction error falls with it by at least ``min_pse_reduction`` (the gain the
     folds must show on average, so that cross-validation and the held-out tail ask
-    the same of an effect) and its contribution there (RMS of the
+    the same of an effect), for the bias-compensated fit (the noise of sources only
+    the effect's columns carry set aside) and the least-squares one alike, and its
+    contribution there (RMS of the
     change it makes to the prediction) reaches both ``min_share_of_variation`` of the
     coefficient's standard deviation over the flight and ``min_share_of_error`` of
     the held-out error left with it. A coefficient whose standard deviation over the
