@@ -1,13 +1,13 @@
 """The main job on realistic autopilot logs (issue acceptance seeds 0-4, 180 s flights,
 light turbulence, default sensors, an elevator rolling moment C_l += 0.02 delta_e).
 
-What holds and is asserted here: the vaneless alpha and beta stay within 0.5 deg mean
-absolute error of the truth on every seed; the vane CSV of the same flight gives
-exactly the injected effect on at least 4 of 5 seeds; the .bin and .ulg name the
-injected effect first on every seed. What does not hold yet, measured by
-``benchmarks/bench_realistic_logs.py``: on the .bin and .ulg an extra
-``actuator_time_delay`` (on CY, Cn) is named on 4 of these 5 seeds, so the exact
-finding of the CSV is matched on 1 of 5.
+Asserted: the vaneless alpha and beta stay within 0.5 deg mean absolute error of the
+truth on every seed; `drake-uav identify FILE` with no option finds exactly the
+injected effect (nothing else) on the .bin and on the .ulg, and the vane CSV of the
+same flight likewise, on at least 4 of 5 seeds each; the .bin and .ulg give the
+same findings as the CSV on at least 4 of 5. Measured on these seeds
+(``benchmarks/bench_realistic_logs.py --seeds 0:5``): 5/5, 5/5, 4/5 and 4/5 (the
+CSV names ``control_nonlinearity`` instead on seed 3).
 """
 
 import pytest
@@ -35,7 +35,15 @@ def test_the_vane_csv_finds_exactly_the_injected_effect(runs):
 
 
 @pytest.mark.slow
-def test_the_autopilot_logs_name_the_injected_effect_first(runs):
+def test_the_autopilot_logs_find_exactly_the_injected_effect(runs):
     for kind in ("bin", "ulg"):
-        firsts = [run[f"found_{kind}"].split(",")[0] for run in runs]
-        assert firsts == ["control_cross_coupling"] * len(runs), (kind, firsts)
+        exact = [run[f"exact_{kind}"] for run in runs]
+        assert sum(exact) >= 4, (kind, [run[f"found_{kind}"] for run in runs])  # 1 miss in 5
+
+
+@pytest.mark.slow
+def test_the_autopilot_logs_agree_with_the_vane_csv(runs):
+    for kind in ("bin", "ulg"):
+        same = [run[f"same_as_csv_{kind}"] for run in runs]
+        assert sum(same) >= 4, (kind, [(run[f"found_{kind}"], run["found_csv"])
+                                       for run in runs])  # tolerates 1 disagreement in 5
