@@ -23,7 +23,7 @@ from drake_uav.estimation.air_data_models import MIN_START_AIRSPEED
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, filter_pass
 from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
 from drake_uav.estimation.noise import sensor_std
-from drake_uav.estimation.signals import ATTITUDE, GPS_VELOCITY, IMU, LOG_CHANNELS
+from drake_uav.estimation.signals import ATTITUDE, GPS_VELOCITY, IMU, LOG_CHANNELS, Cumulative
 from drake_uav.estimation.smoother import rts_smooth
 from drake_uav.estimation.vaneless_models import COEFFICIENT_NAMES, VanelessAirDataModel
 from drake_uav.io.flight_log import FlightLog, FlightLogError
@@ -208,10 +208,8 @@ def _step_inputs(time: np.ndarray, inputs: np.ndarray, steps: np.ndarray) -> np.
     out = inputs[steps].copy()
     if len(steps) < 2 or np.all(np.diff(steps) == 1):
         return out
-    imu = inputs[:, 0:6]
-    areas = np.zeros_like(imu)
-    areas[1:] = np.cumsum(0.5 * (imu[1:] + imu[:-1]) * np.diff(time)[:, None], axis=0)
-    out[1:, 0:6] = np.diff(areas[steps], axis=0) / np.diff(time[steps])[:, None]
+    areas = Cumulative(time, inputs[:, 0:6]).values[steps]
+    out[1:, 0:6] = np.diff(areas, axis=0) / np.diff(time[steps])[:, None]
     return out
 
 

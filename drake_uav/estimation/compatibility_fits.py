@@ -9,12 +9,12 @@ drive it over the same window,
     y(t1) - y(t0) = integral_{t0 - tau}^{t1 - tau} (u(t) - X(t) theta) dt + e,
 
 linear in the calibration parameters ``theta`` (biases) for a given skew ``tau`` [s] of
-the measured group (its samples are ``tau`` late). :class:`Cumulative` holds the running
-integrals, read at any shifted time by linear interpolation, so a skew costs one
-interpolation per window. :func:`shift_fit` finds the skew by least squares over a grid
-around a coarse guess (:func:`coarse_lag`, the peak of a cross-correlation), refines it
-between grid points with a parabola through the residual sums, and fits the linear
-parameters at that skew.
+the measured group (its samples are ``tau`` late).
+:class:`~drake_uav.estimation.signals.Cumulative` holds the running integrals, read at
+any shifted time by linear interpolation, so a skew costs one interpolation per window.
+:func:`shift_fit` finds the skew by least squares over a grid around a coarse guess
+(:func:`coarse_lag`, the peak of a cross-correlation), refines it between grid points
+with a parabola through the residual sums, and fits the linear parameters at that skew.
 
 Uncertainty. The residuals of these relations are correlated in time (integrated sensor
 noise, overlapping windows, gusts for the air data), so the usual ``s^2 (X^T X)^-1``
@@ -37,7 +37,7 @@ from scipy import stats
 
 from drake_uav.estimation.signals import is_new_sample
 
-__all__ = ["Cumulative", "ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
+__all__ = ["ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
            "correlation_time", "correlated_covariance", "larger_errors", "grid_minimum",
            "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
@@ -59,34 +59,6 @@ def fresh_times(time: np.ndarray, values: np.ndarray) -> np.ndarray:
     new = np.ones(len(time), bool)
     new[1:] = np.any(is_new_sample(values[1:], values[:-1]), axis=1)
     return np.flatnonzero(new)
-
-
-class Cumulative:
-    """Running integrals of sampled signals [unit s], read at any time in the log's span.
-
-    ``values`` (N, m) sampled at ``time`` (N) [s]. ``held`` signals (commands) keep each
-    sample until the next one (rectangle rule, the sample acting after its time stamp);
-    the others vary linearly between samples (trapezoid rule).
-    """
-
-    def __init__(self, time: np.ndarray, values: np.ndarray, held: bool = False):
-        self.time = np.asarray(time, float)
-        v = np.asarray(values, float).reshape(len(self.time), -1)
-        step = np.diff(self.time)[:, None]
-        increments = v[:-1] * step if held else 0.5 * (v[1:] + v[:-1]) * step
-        self.values = np.vstack([np.zeros((1, v.shape[1])), np.cumsum(increments, axis=0)])
-
-    def at(self, t: np.ndarray) -> np.ndarray:
-        """Integrals from the first sample to the times ``t`` (n) [s]: (n, m); times
-        outside the span are clamped to it."""
-        t = np.clip(np.asarray(t, float), self.time[0], self.time[-1])
-        i = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, len(self.time) - 2)
-        w = ((t - self.time[i]) / (self.time[i + 1] - self.time[i]))[:, None]
-        return self.values[i] * (1.0 - w) + self.values[i + 1] * w
-
-    def between(self, start: np.ndarray, end: np.ndarray, shift: float = 0.0) -> np.ndarray:
-        """Integrals over the windows ``[start - shift, end - shift]`` [s]: (n, m)."""
-        return self.at(np.asarray(end) - shift) - self.at(np.asarray(start) - shift)
 
 
 @dataclasses.dataclass(frozen=True)

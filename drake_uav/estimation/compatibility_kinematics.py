@@ -27,7 +27,6 @@ import functools
 import numpy as np
 
 from drake_uav.estimation.compatibility_fits import (
-    Cumulative,
     ParameterFit,
     coarse_lag,
     fresh_times,
@@ -35,6 +34,7 @@ from drake_uav.estimation.compatibility_fits import (
     shift_fit,
     wrap,
 )
+from drake_uav.estimation.signals import Cumulative
 from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.fixed_wing import body_gravity
 from drake_uav.model.rotations import euler_rates, euler_to_rotmat, rotate

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "Cumulative",
     "HELD_FRACTION",
     "unheld",
     "IMU",
@@ -82,3 +83,30 @@ def unheld(time: np.ndarray, values: np.ndarray) -> np.ndarray:
         return values
     return np.interp(time, np.asarray(time, float)[fresh], values[fresh])
 
+
+class Cumulative:
+    """Running integrals of sampled signals [unit s], read at any time in the log's span.
+
+    ``values`` (N, m) sampled at ``time`` (N) [s]. ``held`` signals (commands) keep each
+    sample until the next one (rectangle rule, the sample acting after its time stamp);
+    the others vary linearly between samples (trapezoid rule).
+    """
+
+    def __init__(self, time: np.ndarray, values: np.ndarray, held: bool = False):
+        self.time = np.asarray(time, float)
+        v = np.asarray(values, float).reshape(len(self.time), -1)
+        step = np.diff(self.time)[:, None]
+        increments = v[:-1] * step if held else 0.5 * (v[1:] + v[:-1]) * step
+        self.values = np.vstack([np.zeros((1, v.shape[1])), np.cumsum(increments, axis=0)])
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """Integrals from the first sample to the times ``t`` (n) [s]: (n, m); times
+        outside the span are clamped to it."""
+        t = np.clip(np.asarray(t, float), self.time[0], self.time[-1])
+        i = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, len(self.time) - 2)
+        w = ((t - self.time[i]) / (self.time[i + 1] - self.time[i]))[:, None]
+        return self.values[i] * (1.0 - w) + self.values[i + 1] * w
+
+    def between(self, start: np.ndarray, end: np.ndarray, shift: float = 0.0) -> np.ndarray:
+        """Integrals over the windows ``[start - shift, end - shift]`` [s]: (n, m)."""
+        return self.at(np.asarray(end) - shift) - self.at(np.asarray(start) - shift)
