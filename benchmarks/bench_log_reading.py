@@ -203,17 +203,24 @@ def _report(label: str, size: float, samples: int, wall: float, cpu: float) -> N
           f"{size / 1e6 / wall:.0f} MB/s")
 
 
+def _timed_read(path: Path, write, read, kind: str, args) -> tuple[int, float, float]:
+    """Writes the log at ``path`` unless it exists, reads it ``args.repeat`` times with
+    ``read`` and prints the best; returns (file size [B], best wall [s], its CPU [s])."""
+    if not path.exists():
+        write(path, 60.0 * args.minutes, args.rate)
+    size = path.stat().st_size
+    print(f"{kind}: {path.name}, {size / 1e6:.0f} MB")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log, wall, cpu = best_of(args.repeat, lambda: read(path))
+    _report(f"{read.__name__} (best of {args.repeat})", size, len(log), wall, cpu)
+    return size, wall, cpu
+
+
 def bench_bin(folder: Path, args) -> None:
     """read_ardupilot on the ``.bin`` against pymavlink."""
     path = folder / f"plane_{args.minutes:g}min_{args.rate:g}hz.bin"
-    if not path.exists():
-        write_bin(path, 60.0 * args.minutes, args.rate)
-    size = path.stat().st_size
-    print(f"ArduPlane .bin: {path.name}, {size / 1e6:.0f} MB")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        log, wall, cpu = best_of(args.repeat, lambda: read_ardupilot(path))
-    _report(f"read_ardupilot (best of {args.repeat})", size, len(log), wall, cpu)
+    size, wall, cpu = _timed_read(path, write_bin, read_ardupilot, "ArduPlane .bin", args)
     imu_total = 2 * int(60.0 * args.minutes * args.rate)
     peer_wall, peer_cpu, timed, index = pymavlink_imu(path, args.peer_messages, imu_total)
     print(f"  pymavlink DFReader_binary + recv_match(type='IMU'): {peer_wall:.1f} s wall, "
@@ -231,14 +238,7 @@ def bench_bin(folder: Path, args) -> None:
 def bench_ulg(folder: Path, args) -> None:
     """read_px4 on the ``.ulg`` against pyulog's parse."""
     path = folder / f"px4_{args.minutes:g}min_{args.rate:g}hz.ulg"
-    if not path.exists():
-        write_ulg(path, 60.0 * args.minutes, args.rate)
-    size = path.stat().st_size
-    print(f"PX4 .ulg: {path.name}, {size / 1e6:.0f} MB")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        log, wall, cpu = best_of(args.repeat, lambda: read_px4(path))
-    _report(f"read_px4 (best of {args.repeat})", size, len(log), wall, cpu)
+    size, wall, cpu = _timed_read(path, write_ulg, read_px4, "PX4 .ulg", args)
     messages, peer_wall, peer_cpu = best_of(args.repeat, lambda: pyulog_parse(path))
     print(f"  pyulog ULog(path), every topic: best wall {peer_wall:.2f} s, CPU "
           f"{peer_cpu:.2f} s ({messages} messages); ratio read_px4 / pyulog "
