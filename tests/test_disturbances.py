@@ -52,3 +52,21 @@ def test_no_increment_keeps_the_trim():
     Simulator(diagram, context).AdvanceTo(3.0)
     air = plant.GetOutputPort("air_data").Eval(plant.GetMyContextFromRoot(context))
     assert air[0] == pytest.approx(25.0, abs=1e-6)
+
+
+def test_an_increment_of_condition_and_time_reads_the_simulation_time():
+    """``f(condition, t)`` gets the time [s]; ``lambda c, k=k:`` closures still get the
+    condition alone."""
+    times = []
+    params, level, plant, effect, diagram, context = _closed_loop(
+        lambda c, t: times.append(t) or (0, 0.001 * t, 0, 0, 0, 0))
+    port = effect.GetOutputPort("wrench")
+    context.SetTime(40.0)
+    wrench = port.Eval(effect.GetMyContextFromRoot(context))
+    dCX, dCZ = lift_drag_to_body(0.0, 0.04, level.alpha)
+    np.testing.assert_allclose(wrench[[0, 2]], 0.5 * params.rho * 25.0**2 * params.S
+                               * np.array([dCX, dCZ]), rtol=1e-12)
+    assert times == [40.0]
+    *_, effect, _, context = _closed_loop(lambda c, k=0.0: (0, k, 0, 0, 0, 0))
+    context.SetTime(40.0)
+    assert not effect.GetOutputPort("wrench").Eval(effect.GetMyContextFromRoot(context)).any()

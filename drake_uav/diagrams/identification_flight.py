@@ -473,8 +473,9 @@ def build_identification_flight(
             hold loops) with ``pilot_gains``.
         integrator: Drake integration scheme; fixed step = sensor base period.
         disturbance: an effect the aircraft model lacks, put into the physics: a
-            function ``f(AeroCondition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``
-            (:class:`AerodynamicIncrement`) or a constant body wrench (6: N, N m).
+            function ``f(AeroCondition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``, or
+            ``f(AeroCondition, t)`` reading the time t [s] too (a drifting derivative;
+            :class:`AerodynamicIncrement`), or a constant body wrench (6: N, N m).
         actuator_delay: pure delay [s] between the logged commands and the
             surfaces (rounded to whole sample periods, at least two).
         extend: ``extend(builder, ports)`` adds systems to the flight before it is

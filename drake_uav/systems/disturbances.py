@@ -9,6 +9,7 @@ model, so that identification has to find it in the data.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 
 import numpy as np
@@ -20,8 +21,9 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["AerodynamicIncrement"]
 
-IncrementFunction = Callable[[AeroCondition], tuple]
-"""``f(condition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``; condition fields are floats."""
+IncrementFunction = Callable[[AeroCondition], tuple] | Callable[[AeroCondition, float], tuple]
+"""``f(condition) -> (dCL, dCD, dCY, dCl, dCm, dCn)``, or ``f(condition, t)`` with the
+simulation time t [s]; condition fields are floats."""
 
 
 class AerodynamicIncrement(LeafSystem):
@@ -44,9 +46,12 @@ class AerodynamicIncrement(LeafSystem):
     ``increment(condition)`` returns ``(dCL, dCD, dCY, dCl, dCm, dCn)``; the
     condition (:meth:`FixedWingModel.aero_condition`) carries the air data,
     body rates, surfaces (saturated as in the plant) and the thrust coefficient of
-    the params' propulsion model. The wrench is ``qbar S`` times the increments
-    in body axes: ``(dC_X, dC_Z)`` from ``(dCL, dCD)`` at alpha, the moments
-    scaled by the span (roll, yaw) and the chord (pitch).
+    the params' propulsion model. An increment with a second required parameter,
+    ``increment(condition, t)``, also reads the simulation time t [s] (a derivative
+    that drifts over the flight: icing, fuel burn, a loosening surface); the arity is
+    read once, here. The wrench is ``qbar S`` times the increments in body axes:
+    ``(dC_X, dC_Z)`` from ``(dCL, dCD)`` at alpha, the moments scaled by the span
+    (roll, yaw) and the chord (pitch).
     """
 
     def __init__(self, params: FixedWingParams, increment: IncrementFunction):
@@ -54,6 +59,7 @@ class AerodynamicIncrement(LeafSystem):
         self._params = params
         self._model = FixedWingModel(params)
         self._increment = increment
+        self._reads_time = _takes_time(increment)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._state = self.DeclareVectorInputPort("state", 13)
         self._controls = self.DeclareVectorInputPort("controls", 4)
@@ -64,7 +70,17 @@ class AerodynamicIncrement(LeafSystem):
         cond = self._model.aero_condition(self._air.Eval(context).tolist(),
                                           self._state.Eval(context)[10:13].tolist(),
                                           self._controls.Eval(context).tolist())
-        dCL, dCD, dCY, dCl, dCm, dCn = self._increment(cond)
+        time = (context.get_time(),) if self._reads_time else ()
+        dCL, dCD, dCY, dCl, dCm, dCn = self._increment(cond, *time)
         dCX, dCZ = lift_drag_to_body(dCL, dCD, cond.alpha)
         output.SetFromVector(self._model.dynamic_pressure_area(cond.airspeed) * np.array(
             [dCX, dCY, dCZ, prm.b * dCl, prm.c * dCm, prm.b * dCn]))
+
+
+def _takes_time(increment: IncrementFunction) -> bool:
+    """True when ``increment`` has a second positional parameter without a default (the
+    time [s]); ``lambda c, k=k: ...`` closures read the condition only."""
+    required = [p for p in inspect.signature(increment).parameters.values()
+                if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+                and p.default is p.empty]
+    return len(required) >= 2
