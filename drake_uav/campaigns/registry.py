@@ -17,7 +17,8 @@ __all__ = ["Scenario", "register_scenario", "scenario", "scenario_names"]
 Scenario = Callable[[int, dict], Mapping[str, Any]]
 
 _SCENARIOS: dict[str, Scenario] = {}
-_BUILT_IN = ("drake_uav.campaigns.scenarios", "drake_uav.campaigns.realistic_logs")
+_BUILT_IN = ("drake_uav.campaigns.scenarios", "drake_uav.campaigns.realistic_logs",
+             "drake_uav.campaigns.discovery_cases")
 
 
 def register_scenario(name: str, function: Scenario | None = None):

@@ -208,6 +208,18 @@ class SensorSuiteParams:
         return cls(imu=imu, pitot=PitotParams(air_density=air_density),
                    base_rate_hz=base_rate_hz).validate()
 
+    @classmethod
+    def research_grade(cls, air_density: float = 1.225,
+                       base_rate_hz: float = 100.0) -> SensorSuiteParams:
+        """A research-grade IMU and air-data boom: accelerometer 0.02 m/s^2, gyro 0.1 deg/s,
+        vanes 0.1 deg, dynamic pressure 2 Pa (1-sigma white noise); GPS, attitude and baro
+        as in the default suite. Low-cost levels are 2.5x (accelerometer), 3.5x (gyro),
+        6x (vanes) and 5x (dynamic pressure) these."""
+        return cls(imu=ImuParams(accel=ChannelErrors(0.02), gyro=ChannelErrors(math.radians(0.1))),
+                   vanes=VaneParams(angles=ChannelErrors(math.radians(0.1))),
+                   pitot=PitotParams(dynamic_pressure=ChannelErrors(2.0), air_density=air_density),
+                   base_rate_hz=base_rate_hz).validate()
+
     def sensors(self) -> dict[str, _Sampling]:
         """The fitted sensors by name, in output order."""
         return {n: getattr(self, n) for n in _SENSORS if getattr(self, n) is not None}

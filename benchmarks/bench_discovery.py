@@ -1,0 +1,162 @@
+"""Campaign: how often the main job names an undeclared effect exactly, and how often it
+names one that is not there.
+
+The ``discovery`` scenario (:mod:`drake_uav.campaigns.discovery_cases`) flies 120 s
+identification flights of the aerosonde with one effect the catalog model lacks, sized
+as a share of the variation of the coefficient it acts on, and runs the main job on the
+measured channels alone (no truth, no simulator metadata). For every sensor suite
+(default low-cost, research-grade) and turbulence level (light, moderate) it prints, per
+effect and size, the exact-detection rate (the injected effect and nothing else) with
+its 95 % Wilson interval, partial detections, misses, and the median share of the
+excess held-out error over the noise floor explained where detected; and on clean
+flights the false-discovery rate (flights with any finding).
+
+    python benchmarks/bench_discovery.py [--seeds 0:20] [--clean-seeds 0:40]
+        [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
+        [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
+
+Results are kept in Parquet under ``--out``; an interrupted run resumes there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import contextlib
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from figures import figure
+
+from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
+from drake_uav.campaigns.discovery_cases import INJECTED, SUITES
+from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
+
+TARGETS = {("research", 0.2): 0.9, ("default", 0.3): 0.7}
+"""Exact-detection rates the campaign is held to (suite, size) -> rate; false-discovery
+rate on clean flights <= 5 % everywhere; >= 70 % of the excess error explained."""
+
+
+def _rate(flags) -> str:
+    k, n = int(np.sum(flags)), len(flags)
+    low, high = wilson_interval(k, n) if n else (float("nan"), float("nan"))
+    return f"{k}/{n} ({low:.2f}-{high:.2f})"
+
+
+def _rows(path: Path) -> list[dict]:
+    return [{k.removeprefix("metric.").removeprefix("param."): v for k, v in row.items()}
+            for row in read_results(path).to_pylist()]
+
+
+def _run(name: str, campaign: Campaign, out: Path, scheduler: str | None) -> list[dict]:
+    path = out / f"{name}.parquet"
+    run_campaign(campaign, path, workers=0, scheduler=scheduler, progress=True)
+    return _rows(path)
+
+
+@contextlib.contextmanager
+def _cluster(workers: int):
+    """The address of one Dask cluster for every campaign (its workers keep their imports
+    and calibration), or None to run in this process."""
+    if workers == 0:
+        yield None
+        return
+    import dask
+    from dask.distributed import LocalCluster
+
+    with dask.config.set(LOCAL_CLUSTER_CONFIG), LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+            scheduler_kwargs={"dashboard": False}) as cluster:
+        yield cluster.scheduler_address
+
+
+def _report_setting(suite: str, turbulence: str, effect_rows: list[dict],
+                    clean_rows: list[dict], sizes) -> None:
+    print(f"\n== {suite} sensors, {turbulence} turbulence ==")
+    clean = [r for r in clean_rows if r["suite"] == suite and r["turbulence"] == turbulence]
+    named = collections.Counter(n for r in clean for n in str(r["found"]).split(",") if n)
+    print(f"clean flights with a finding (false-discovery rate): "
+          f"{_rate([r['any_finding'] for r in clean])}; named: "
+          + (", ".join(f"{n} x{c}" for n, c in named.most_common()) or "none"))
+    figure(f"discovery_fdr_{suite}_{turbulence}",
+           float(np.mean([r["any_finding"] for r in clean])), "1", "lower")
+    for size in sizes:
+        rows = [r for r in effect_rows if r["suite"] == suite and r["turbulence"] == turbulence
+                and r["size"] == size]
+        if not rows:
+            continue
+        print(f"  size {size:.0%} of the coefficient's variation")
+        for effect in sorted({r["effect"] for r in rows}, key=list(INJECTED).index):
+            mine = [r for r in rows if r["effect"] == effect]
+            explained = [r["excess_explained"] for r in mine if not r["missed"]
+                         and np.isfinite(r.get("excess_explained", np.nan))]
+            others = collections.Counter(n for r in mine for n in str(r["found"]).split(",")
+                                         if n and n != INJECTED[effect].expected)
+            print(f"    {effect:20s} exact {_rate([r['exact'] for r in mine]):18s} partial "
+                  f"{sum(r['partial'] for r in mine):2d} missed {sum(r['missed'] for r in mine):2d}"
+                  f"  realised size {np.median([r['size_realised'] for r in mine]):.2f}"
+                  + (f"  excess explained (median) {np.median(explained):.2f}"
+                     if explained else "")
+                  + (("  also named: " + ", ".join(f"{n} x{c}" for n, c in others.most_common()))
+                     if others else ""))
+        exact = [r["exact"] for r in rows]
+        findings = sum(len([n for n in str(r["found"]).split(",") if n]) for r in rows)
+        false = sum(r["false_findings"] for r in rows)
+        explained = [r["excess_explained"] for r in rows if not r["missed"]
+                     and np.isfinite(r.get("excess_explained", np.nan))]
+        target = TARGETS.get((suite, size))
+        print(f"    all effects: exact {_rate(exact)}"
+              + (f" (target >= {target:.0%})" if target else "")
+              + f"; false findings {false} of {findings} findings; excess explained where "
+              f"detected: median {np.median(explained):.2f}, >= 0.7 in "
+              f"{_rate([e >= 0.7 for e in explained])}" if explained else "")
+        figure(f"discovery_exact_{suite}_{turbulence}_{round(size * 100)}",
+               float(np.mean(exact)), "1", "higher")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="0:20", help="seeds of the effect flights START:END")
+    parser.add_argument("--clean-seeds", default="0:40", help="seeds of the clean flights")
+    parser.add_argument("--sizes", default="0.3,0.2,0.1",
+                        help="effect sizes (shares), run in this order")
+    parser.add_argument("--effects", default="all", help=f"comma list of {', '.join(INJECTED)}")
+    parser.add_argument("--suites", default="default,research", help=", ".join(SUITES))
+    parser.add_argument("--turbulence", default="light,moderate")
+    parser.add_argument("--workers", type=int, default=2, help="0: in this process")
+    parser.add_argument("--out", default="benchmarks/results/discovery",
+                        help="folder of the Parquet results (resumable)")
+    args = parser.parse_args()
+    effects = list(INJECTED) if args.effects == "all" else args.effects.split(",")
+    sizes = [float(s) for s in args.sizes.split(",")]
+    suites, turbulence = args.suites.split(","), args.turbulence.split(",")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    grid = {"suite": suites, "turbulence": turbulence}
+    effect_rows = []
+    with _cluster(args.workers) as scheduler:
+        clean = _run("clean", Campaign("discovery", seeds=parse_seeds(args.clean_seeds),
+                                       grid=grid, fixed={"effect": "none"}), out, scheduler)
+        for size in sizes:  # the sizes in the order given, each over every effect
+            for effect in effects:
+                effect_rows += _run(f"{effect}_{round(size * 100)}", Campaign(
+                    "discovery", seeds=parse_seeds(args.seeds), grid=grid,
+                    fixed={"effect": effect, "size": size}), out, scheduler)
+    wall = time.perf_counter() - start
+    failed = [r for r in clean + effect_rows if r["status"] != "ok"]
+    print(f"{len(clean) + len(effect_rows) - len(failed)} runs finished, {len(failed)} failed, "
+          f"{wall:.0f} s wall on {args.workers or 1} worker(s), load {os.getloadavg()[0]:.1f}")
+    for row in failed[:10]:
+        print(f"  {row.get('effect')} seed {row['seed']}: {row['status']} {row.get('error', '')}")
+    ok = [r for r in effect_rows if r["status"] == "ok"]
+    clean_ok = [r for r in clean if r["status"] == "ok"]
+    for suite in suites:
+        for level in turbulence:
+            _report_setting(suite, level, ok, clean_ok, sizes)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,284 @@
+"""Scenario ``discovery``: does the main job name an undeclared effect, and only it?
+
+One identification flight (:func:`drake_uav.diagrams.fly`, the aerosonde, 120 s) with
+one effect the catalog model lacks put into the physics or the sensors, then the main
+job (:func:`drake_uav.identification.main_job.identify`) with the catalog model, reading
+only what a real log holds. An effect's size is the share it adds to the variation of
+the coefficient it acts on: ``size = std(term) / std(coefficient)`` over the flight, the
+coefficient being the catalog model's along the true trajectory (the truth channels) and
+the term the effect's change of the measured coefficient. The strength that gives a size
+is calibrated once per turbulence level on clean flights of their own seeds
+(:data:`CALIBRATION_SEEDS`), never on the campaign's; each run reports the size it
+realised on its own flight.
+
+A run's findings are the calibration errors the data-compatibility check corrected
+followed by the effects the discovery loop found. ``exact``: the findings are exactly
+the injected effect; ``partial``: it is among them with others; ``false_findings``:
+findings other than it (on a clean flight, every finding).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from drake_uav.campaigns.registry import register_scenario
+from drake_uav.diagrams import fly
+from drake_uav.identification.main_job import IdentificationRun, identify
+from drake_uav.identification.noise_floor import held_out_noise_floor
+from drake_uav.io.flight_log import FlightLog
+from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
+from drake_uav.model.isolation import differentiate
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+from drake_uav.vehicles.loading import load_fixed_wing
+from drake_uav.vehicles.sensors import SensorSuiteParams
+
+__all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "findings",
+           "unit_strength_ratio", "discovery"]
+
+CALIBRATION_SEEDS = (1000, 1001, 1002)
+"""Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
+
+SUITES = {"default": lambda rho: SensorSuiteParams.seed_table7(air_density=rho),
+          "research": lambda rho: SensorSuiteParams.research_grade(air_density=rho)}
+"""Sensor suites by name: the low-cost default (Vaiopoulos 2017, Table 7) and a
+research-grade IMU and air-data boom."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Injection:
+    """An effect put into a flight, what the job should call it, and its size's yardstick."""
+
+    expected: str
+    """The finding that names it (an effect or a calibration error)."""
+    coefficient: str
+    """The coefficient whose variation its size is measured against."""
+    term: Callable[[AeroCondition, FlightLog, FixedWingParams], np.ndarray]
+    """Its change of the measured coefficient at strength 1, along a flight's truth."""
+    flight: Callable[[float, FixedWingParams], dict] = lambda strength, params: {}
+    """Options of :func:`fly` (``disturbance``, ``actuator_delay``, ``aircraft``)."""
+    sensors: Callable[[FlightLog, float], FlightLog] | None = None
+    """A change of the logged sensors (a calibration error), at a strength."""
+    strength_step: float = 0.0
+    """Smallest realisable step of the strength (a delay in whole sample periods)."""
+
+
+def _increment(index: int, shape: Callable[[AeroCondition], object]):
+    """Fly options: a coefficient increment ``strength * shape`` on (CL, CD, CY, Cl, Cm, Cn)."""
+    def options(strength, params):
+        def increment(condition):
+            out = [0.0] * 6
+            out[index] = strength * shape(condition)
+            return tuple(out)
+        return {"disturbance": increment}
+    return options
+
+
+def _drift(index: int, duration_of: Callable[[], float]):
+    """Fly options: a coefficient growing linearly from 0 by ``strength`` over the flight."""
+    def options(strength, params):
+        duration = duration_of()
+
+        def increment(condition, t):
+            out = [0.0] * 6
+            out[index] = strength * t / duration
+            return tuple(out)
+        return {"disturbance": increment}
+    return options
+
+
+def _body_force_x(strength, params):
+    return {"disturbance": np.array([strength, 0.0, 0.0, 0.0, 0.0, 0.0])}
+
+
+def _qbar_s_of(airspeed: np.ndarray, params: FixedWingParams) -> np.ndarray:
+    """Dynamic pressure times wing area [N]."""
+    return 0.5 * params.rho * airspeed**2 * params.S
+
+
+def _force_x_on_drag(condition, flight, params):
+    """Drag change of a 1 N body force along +x."""
+    force = 1.0 / _qbar_s_of(condition.airspeed, params)
+    return body_to_lift_drag(force, 0.0 * force, condition.alpha)[1]
+
+
+def _alphadot_term(condition, flight, params):
+    return differentiate(flight.time, condition.alpha) * params.c / (2.0 * condition.airspeed)
+
+
+def _delay_term(condition, flight, params):
+    """Pitching-moment change of a 1 s delay of the elevator, to first order."""
+    return -params.derivative("Cm_elevator") * differentiate(flight.time, condition.elevator)
+
+
+_AIR_DATA = ("pitot_qbar", "pitot_airspeed", "vane_alpha", "vane_beta")
+
+
+def _air_data_late(log: FlightLog, skew: float) -> FlightLog:
+    """The air-data channels (pitot, vanes) logged ``skew`` [s] late against the IMU."""
+    t = log.time
+    return log.with_measured({n: np.interp(t - skew, t, log[n]) for n in _AIR_DATA})
+
+
+def _skew_term(condition, flight, params):
+    """Lift change of a 1 s air-data skew, to first order (alpha read late)."""
+    return -params.derivative("CL_alpha") * differentiate(flight.time, condition.alpha)
+
+
+_FLIGHT_DURATION = 120.0
+
+
+def _index(coefficient: str) -> int:
+    return COEFFICIENTS.index(coefficient)
+
+
+INJECTED: dict[str, Injection] = {
+    "propwash_drag": Injection(
+        "thrust_propwash", "CD", lambda c, f, p: c.thrust_coefficient,
+        _increment(_index("CD"), lambda c: c.thrust_coefficient)),
+    "stall_onset": Injection(
+        "stall_onset", "CL", lambda c, f, p: -c.alpha**3,
+        _increment(_index("CL"), lambda c: -c.alpha**3)),
+    "elevator_roll": Injection(
+        "control_cross_coupling", "Cl", lambda c, f, p: c.elevator,
+        _increment(_index("Cl"), lambda c: c.elevator)),
+    "elevator_squared": Injection(
+        "control_nonlinearity", "Cm", lambda c, f, p: c.elevator**2,
+        _increment(_index("Cm"), lambda c: c.elevator**2)),
+    "roll_yaw_rate_pitch": Injection(
+        "rate_coupling", "Cm", lambda c, f, p: c.p * c.r * (p.b / (2 * c.airspeed)) ** 2,
+        lambda k, p: _increment(_index("Cm"), lambda c: c.p * c.r * (
+            p.b / (2 * c.airspeed)) ** 2)(k, p)),
+    "alphadot_pitch": Injection(
+        "unsteady_alphadot", "Cm", _alphadot_term,
+        lambda k, p: {"aircraft": p.with_derivatives(Cm_alphadot=k)}),
+    "servo_delay": Injection(
+        "actuator_time_delay", "Cm", _delay_term,
+        lambda k, p: {"actuator_delay": k}, strength_step=0.01),
+    "tow_force": Injection(
+        "constant_body_force", "CD", _force_x_on_drag, _body_force_x),
+    "drag_drift": Injection(
+        "coefficient_drift", "CD", lambda c, f, p: (f.time - f.time[0]) / _FLIGHT_DURATION,
+        _drift(_index("CD"), lambda: _FLIGHT_DURATION)),
+    "air_data_skew": Injection(
+        "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late),
+}
+"""The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
+alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
+elevator and throttle delay; a 1 N tow force along +x body; C_D growing by 1 over the
+flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
+groups: a calibration error the data-compatibility check names)."""
+
+
+def _condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
+    """The aerodynamic condition along a flight's truth channels (the plant's surfaces)."""
+    airspeed = flight["airspeed"]
+    thrust = params.propulsion.thrust_torque(airspeed, flight["throttle"], params.rho)[0]
+    return AeroCondition(airspeed, flight["alpha"], flight["beta"], flight["p"], flight["q"],
+                         flight["r"], flight["elevator"], flight["aileron"], flight["rudder"],
+                         thrust_coefficient=thrust / _qbar_s_of(airspeed, params))
+
+
+def _coefficients(flight: FlightLog, condition: AeroCondition) -> dict[str, np.ndarray]:
+    """The catalog model's coefficients along the true trajectory (the truth channels)."""
+    lift, drag = body_to_lift_drag(flight["CX"], flight["CZ"], condition.alpha)
+    return {"CL": lift, "CD": drag, "CY": flight["CY"], "Cl": flight["Cl"],
+            "Cm": flight["Cm"], "Cn": flight["Cn"]}
+
+
+def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWingParams
+                        ) -> float:
+    """``std(coefficient) / std(term at strength 1)`` over a flight's truth: the strength
+    that gives a size of 1."""
+    condition = _condition(flight, params)
+    term = np.broadcast_to(injection.term(condition, flight, params), flight.time.shape)
+    return float(np.std(_coefficients(flight, condition)[injection.coefficient])
+                 / np.std(term))
+
+
+@functools.cache
+def _calibration(turbulence: str) -> dict[str, float]:
+    """Median unit-strength ratio of every injection over the calibration flights."""
+    params = load_fixed_wing("aerosonde")
+    flights = [fly(params, turbulence=turbulence, seed=s, duration=_FLIGHT_DURATION)
+               for s in CALIBRATION_SEEDS]
+    return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
+            for key, injection in INJECTED.items()}
+
+
+def _strength(injection: Injection, key: str, size: float, turbulence: str) -> float:
+    strength = size * _calibration(turbulence)[key]
+    if injection.strength_step:
+        strength = max(round(strength / injection.strength_step), 1) * injection.strength_step
+    return strength
+
+
+def findings(run: IdentificationRun) -> list[str]:
+    """The calibration errors the compatibility check corrected, then the effects found."""
+    corrected = [e.name for e in run.compatibility.applied] if run.compatibility else []
+    return corrected + [f.name for f in run.discovery.found]
+
+
+def _realised_size(injection: Injection, flight: FlightLog, params: FixedWingParams,
+                   strength: float) -> float:
+    return strength / unit_strength_ratio(injection, flight, params)
+
+
+@register_scenario("discovery")
+def discovery(seed: int, params: dict) -> dict:
+    """One flight with an undeclared effect (or none), then the main job.
+
+    Parameters (defaults): ``effect`` (a key of :data:`INJECTED` or "none"), ``size``
+    (0.3, share of the coefficient's variation), ``suite`` ("default" or "research"),
+    ``turbulence`` ("light").
+
+    Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
+    ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
+    held-out RMS of its coefficient ``rms_before`` / ``rms_after``, its noise floor
+    ``floor`` and ``excess_explained`` (NaN when the error was at the floor).
+    """
+    key = params.get("effect", "none")
+    if key != "none" and key not in INJECTED:
+        raise ValueError(f"discovery: effect {key!r} unknown (known: none, {', '.join(INJECTED)})")
+    size = float(params.get("size", 0.3))
+    turbulence = params.get("turbulence", "light")
+    catalog = load_fixed_wing("aerosonde")
+    options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
+               "duration": _FLIGHT_DURATION,
+               "sensors": SUITES[params.get("suite", "default")](catalog.rho)}
+    injection = INJECTED.get(key)
+    strength = 0.0
+    if injection is not None:
+        strength = _strength(injection, key, size, turbulence)
+        options.update(injection.flight(strength, catalog))
+    log = fly(**options)
+    truth = log
+    if injection is not None and injection.sensors is not None:
+        log = injection.sensors(log, strength)
+    run = identify(_measured_only(log), catalog, seed=seed)
+    found = findings(run)
+    expected = injection.expected if injection else None
+    metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),
+               "strength": strength}
+    if injection is None:
+        return metrics | {"any_finding": bool(found)}
+    metrics |= {"exact": found == [expected], "partial": expected in found and len(found) > 1,
+                "missed": expected not in found,
+                "size_realised": _realised_size(injection, truth, catalog, strength)}
+    if injection.sensors is None:
+        floor = held_out_noise_floor(run.samples, run.discovery, catalog)[injection.coefficient]
+        explained = floor.excess_explained
+        metrics |= {"rms_before": floor.before, "rms_after": floor.after, "floor": floor.floor,
+                    "excess_explained": math.nan if explained is None else explained}
+    return metrics
+
+
+def _measured_only(log: FlightLog) -> FlightLog:
+    """The log as an autopilot would write it: measured channels, no truth, no metadata
+    (no true sensor noise, no command rate)."""
+    names = log.measured_names
+    return FlightLog(log.time, {n: log[n] for n in names}, units={n: log.unit(n) for n in names})
