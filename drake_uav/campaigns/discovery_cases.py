@@ -11,10 +11,11 @@ is calibrated once per turbulence level on clean flights of their own seeds
 (:data:`CALIBRATION_SEEDS`), never on the campaign's; each run reports the size it
 realised on its own flight.
 
-A run's findings are the calibration errors the data-compatibility check corrected
-followed by the effects the discovery loop found. ``exact``: the findings are exactly
-the injected effect; ``partial``: it is among them with others; ``false_findings``:
-findings other than it (on a clean flight, every finding).
+A run's findings are :attr:`IdentificationRun.findings`: the calibration errors the
+data-compatibility check corrected, then the effects the discovery loop found.
+``exact``: the findings are exactly the injected effect; ``partial``: it is among them
+with others; ``false_findings``: findings other than it (on a clean flight, every
+finding).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
-from drake_uav.identification.main_job import IdentificationRun, identify
+from drake_uav.identification.main_job import identify
 from drake_uav.identification.noise_floor import held_out_noise_floor
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
@@ -37,8 +38,8 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
-__all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "findings",
-           "unit_strength_ratio", "discovery"]
+__all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
+           "discovery"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -217,12 +218,6 @@ def _strength(injection: Injection, key: str, size: float, turbulence: str) -> f
     return strength
 
 
-def findings(run: IdentificationRun) -> list[str]:
-    """The calibration errors the compatibility check corrected, then the effects found."""
-    corrected = [e.name for e in run.compatibility.applied] if run.compatibility else []
-    return corrected + [f.name for f in run.discovery.found]
-
-
 def _realised_size(injection: Injection, flight: FlightLog, params: FixedWingParams,
                    strength: float) -> float:
     return strength / unit_strength_ratio(injection, flight, params)
@@ -260,7 +255,7 @@ def discovery(seed: int, params: dict) -> dict:
     if injection is not None and injection.sensors is not None:
         log = injection.sensors(log, strength)
     run = identify(_measured_only(log), catalog, seed=seed)
-    found = findings(run)
+    found = list(run.findings)
     expected = injection.expected if injection else None
     metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),
                "strength": strength}

@@ -92,12 +92,13 @@ class IdentificationRun:
         """JSON-ready summary: effects with evidence, errors before/after, parameters.
 
         Run-level keys: ``source, aircraft, data (spans, air data, notes), message,
-        samples, holdout_start_s, effects, equation_error_rms_holdout (with each
-        coefficient's ``adequacy``: its error against the noise floor, whether the model is
-        incomplete there and where, :class:`~drake_uav.identification.adequacy.Adequacy`),
-        reconstruction_mae_holdout, reconstruction_divergences,
-        measured_coefficient_sigma_monte_carlo, parameters``; each entry of ``effects`` has
-        ``name, kind, explanation, coefficients, evidence, parameters``.
+        findings (:attr:`findings`), samples, holdout_start_s, effects,
+        equation_error_rms_holdout (with each coefficient's ``adequacy``: its error against
+        the noise floor, whether the model is incomplete there and where,
+        :class:`~drake_uav.identification.adequacy.Adequacy`), reconstruction_mae_holdout,
+        reconstruction_divergences, measured_coefficient_sigma_monte_carlo, parameters``;
+        each entry of ``effects`` has ``name, kind, explanation, coefficients, evidence,
+        parameters``.
         """
         d = self.discovery
         rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0,
@@ -109,6 +110,7 @@ class IdentificationRun:
             "aircraft": self.params.name,
             "data": None if self.data is None else self.data.summary(),
             "message": d.message,
+            "findings": list(self.findings),
             "samples": len(self.samples),
             "holdout_start_s": d.holdout_start,
             "effects": [_effect_summary(f) for f in d.found],
