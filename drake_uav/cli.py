@@ -105,6 +105,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if kind in ("bin", "ulg"):
         # A servo's full throw is the aircraft's full deflection (docs/flight_logs.md).
         options["deflections"] = params.limits.deflections()
+        options["extra_channels"] = [f for f in (args.extra_channels or "").split(",") if f]
+    elif args.extra_channels:
+        raise ValueError("--extra-channels: names fields of .bin and .ulg logs; every "
+                         "non-canonical column of a CSV or Parquet log is an extra channel")
     if kind == "bin" and segment is not None:
         options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
@@ -324,6 +328,10 @@ def _identify_parser(sub) -> None:
                             "topic and field), e.g. VANE.AoA,VANE.SSA")
     ident.add_argument("--vane-unit", choices=("deg", "rad"), default="deg",
                        help="unit of the vane fields (default: deg)")
+    ident.add_argument("--extra-channels", metavar="MSG.FIELD,...",
+                       help="more logged fields (.bin message or .ulg topic and field) tested "
+                            "as candidate explanations, beside the battery voltage and current "
+                            "and the ESC speed, e.g. BAT.Temp,RPM.rpm2")
     ident.add_argument("--seed", type=int, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.add_argument("--air-data", choices=("auto", "vanes", "estimate", "ahrs"),

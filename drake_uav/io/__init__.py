@@ -8,6 +8,10 @@
   units of :data:`CHANNELS`. The ``.bin`` and ``.ulg`` readers
   (:mod:`drake_uav.io.ardupilot`, :mod:`drake_uav.io.px4`) load on first use,
   because pymavlink and pyulog are slow to import.
+* :func:`extra_channels`: the measured channels beyond the canonical ones (a tension,
+  a battery voltage, ...) with their units; every non-canonical CSV column, a default
+  set of physical signals of ``.bin`` and ``.ulg`` logs and the fields named with
+  ``extra_channels=`` (:mod:`drake_uav.io.extras`).
 * :class:`FieldSource` (a custom logged field as a channel) and
   :class:`ActuatorMapping` (servo outputs to surface deflections and throttle)
   configure the binary readers.
@@ -16,6 +20,7 @@ See docs/flight_logs.md.
 """
 
 from drake_uav.io.csv_log import read_csv
+from drake_uav.io.extras import extra_channels
 from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError, register_unit
 from drake_uav.io.readers import read_log
 from drake_uav.io.streams import (
@@ -40,6 +45,7 @@ __all__ = [
     "FlightLogError",
     "Stream",
     "align_streams",
+    "extra_channels",
     "read_csv",
     "read_log",
     "register_unit",

@@ -18,6 +18,8 @@ RCOU       C<n> (SERVOn_FUNCTION)    SERVOn_MIN/MAX/TRIM/REVERSED    cmd_*
 XKF2/NKF2  VWN VWE                   m/s                             est_wind_n est_wind_e
 RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
 AOA        AOA SSA                   deg -> rad (AHRS estimate)      ahrs_alpha ahrs_beta
+BAT        Volt Curr                 V, A (extra channels)           BAT.Volt BAT.Curr
+ESC        RPM                       rev/min -> rad/s (extra)        ESC.RPM
 =========  ========================  ==============================  =====================
 
 IMU, ATT and RCOU are required streams: a gap or a hole of invalid samples
@@ -32,13 +34,20 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from drake_uav.io.ardupilot_params import mode_name, servo_mapping, vehicle_type
 from drake_uav.io.dataflash import DataFlash
+from drake_uav.io.extras import (
+    ARDUPILOT_EXTRAS,
+    ESTIMATED_CHANNELS,
+    extra_streams,
+    parse_extra_fields,
+    wanted_fields,
+)
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
 from drake_uav.model.geodesy import ned_from_geodetic
@@ -53,10 +62,7 @@ _INSTANCE_MESSAGES = {"IMU": ("IMU", "IMU2", "IMU3"), "GPS": ("GPS", "GPS2"),
                       "XKF2": ("XKF2",), "NKF2": ("NKF2", "NKF7"), "RPM": ("RPM",)}
 """Message -> the messages of instances 0, 1, ... in logs without an instance field."""
 _INSTANCE_COLUMNS = {"XKF2": "C", "NKF2": "C"}
-AHRS_CHANNELS = {"ahrs_alpha": ("rad", "angle of attack estimated by ArduPlane's AHRS (not "
-                                       "a sensor)"),
-                 "ahrs_beta": ("rad", "sideslip angle estimated by ArduPlane's AHRS (not a "
-                                      "sensor)")}
+AHRS_CHANNELS = ESTIMATED_CHANNELS
 """Channels of ArduPlane's logged ``AOA`` message: name -> (unit, meaning)."""
 _LOG_BITMASK_IMU = 128  # MASK_LOG_IMU of ArduPlane and ArduCopter
 
@@ -261,7 +267,8 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
                    extra: Mapping[str, FieldSource] | None = None, instance: int = 0,
                    max_gap: float = 0.5, allow_truncated: bool = True,
                    deflections: Mapping[str, float] | None = None,
-                   segment: tuple[float, float] | None = None) -> FlightLog:
+                   segment: tuple[float, float] | None = None,
+                   extra_channels: Sequence[str] = ()) -> FlightLog:
     """Reads an ArduPilot DataFlash ``.bin`` log into a FlightLog (canonical channels).
 
     Args:
@@ -282,6 +289,9 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
             [rad] at the servo's MAX (or MIN) PWM or full demand; 25 deg by default.
         segment: (t0, t1) [s since boot] to read, None: the whole log. Optional
             streams are judged inside it (a GPS fixed before ``t0`` is kept).
+        extra_channels: more fields as extra channels, ``"MESSAGE.Field"`` (first
+            instance, unit from the log's FMTU where it is known, else ``1``), beside
+            the default :data:`~drake_uav.io.extras.ARDUPILOT_EXTRAS`.
 
     Raises:
         FlightLogError: not a DataFlash log, corrupt, a TimeMS log (unsupported
@@ -310,7 +320,7 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     if gps is not None:
         streams.append(gps[0])
         metadata["gps_origin_lat_lon_alt"] = gps[1]
-    streams += _extra_streams(log, extra)
+    streams += _extra_streams(log, extra) + _logged_extras(log, extra_channels)
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata, span=segment)
 
@@ -365,3 +375,24 @@ def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Str
             {c: s.unit for c, s in sources.items()}, hold=hold,
             fields={c: f"{message}.{s.field}" for c, s in sources.items()}))
     return streams
+
+
+def _logged_extras(log: DataFlash, named: Sequence[str]) -> list[Stream]:
+    """Optional streams of the default extra channels the log has and of the ``named``
+    fields (FlightLogError naming one the log lacks), one per message, first instance."""
+
+    def has(message, field):
+        return log.has(message) and field in log.fields(message)
+
+    def unit(message, field):  # the log's FMTU, when it has one
+        fmt = log.formats[message]
+        return fmt.units[fmt.colhash[field]] if fmt.units else None
+
+    def read(message, fields):
+        fmt = log.formats[message]
+        column = fmt.instance_field or next((c for c in ("I", "Inst", "Instance")
+                                             if c in fmt.colhash), None)
+        return log.read(message, fields, column, None if column is None else 0)
+
+    wanted = wanted_fields(ARDUPILOT_EXTRAS, parse_extra_fields(named), has, unit, log.source)
+    return extra_streams(wanted, read)

@@ -11,6 +11,9 @@
 * A ``time`` column is required (any position). Canonical channel names and
   their SI units are :data:`drake_uav.io.readers.CHANNELS`; ``truth/<name>``
   columns become truth channels (as written by :meth:`FlightLog.save`).
+* Every other column is an extra channel (a tension, a voltage, a payload signal):
+  its name made a valid channel name (``load cell`` -> ``load_cell``), its unit
+  ``1`` when the header gives none (``payload`` instead of ``payload [1]``).
 * Units may be any variant of :data:`UNIT_VARIANTS` (``deg``, ``deg/s``, ``g``,
   ``km/h``, ``kt``, ``ms``, ``us``, ``%``, ``hPa``, ...): values are converted to
   SI on reading. A canonical channel must carry a unit of its own quantity;
@@ -34,7 +37,7 @@ import numpy as np
 from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError
 from drake_uav.io.streams import CHANNELS
 
-__all__ = ["UNIT_VARIANTS", "read_csv", "resolve_unit"]
+__all__ = ["UNIT_VARIANTS", "channel_name", "read_csv", "resolve_unit"]
 
 _KNOT = 1852.0 / 3600.0
 UNIT_VARIANTS: dict[str, tuple[str, float]] = {
@@ -56,6 +59,7 @@ UNIT_VARIANTS: dict[str, tuple[str, float]] = {
 _LOWER = {k.lower(): k for k in UNIT_VARIANTS}
 _HEADER = re.compile(r"^(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]$")
 _TRUTH = "truth/"
+_NOT_IN_NAME = re.compile(r"[^A-Za-z0-9_.]")
 _CANONICAL = {"time": ("s", "sample time"), **CHANNELS}
 
 
@@ -91,14 +95,29 @@ def _text(line: bytes, source: str, number: int) -> str:
                              ) from None
 
 
+def channel_name(text: str) -> str:
+    """A column name as a channel name: each character a channel name cannot hold
+    becomes ``_`` (``load cell`` -> ``load_cell``), a leading digit gets a ``_``."""
+    name = _NOT_IN_NAME.sub("_", text)
+    return f"_{name}" if name[:1].isdigit() else name
+
+
 def _header(line: str, source: str) -> list[tuple[str, str]]:
+    """(channel name, unit) per column; a column that is not canonical may come without
+    a unit (``1``) and its name is made a valid channel name (:func:`channel_name`)."""
     columns = []
     for i, field in enumerate(line.split(",")):
-        match = _HEADER.match(field.strip())
-        if not match or not match["name"]:
-            raise FlightLogError(f"{source}: column {i + 1} header {field.strip()!r} is not "
+        text = field.strip()
+        match = _HEADER.match(text)
+        name, unit = (match["name"], match["unit"].strip()) if match else (text, "1")
+        truth = name.startswith(_TRUTH)
+        bare = name.removeprefix(_TRUTH)
+        if not bare or (not match and ("[" in text or "]" in text or bare in _CANONICAL)):
+            raise FlightLogError(f"{source}: column {i + 1} header {text!r} is not "
                                  "'name [unit]'")
-        columns.append((match["name"], match["unit"].strip()))
+        if bare not in _CANONICAL:
+            name = _TRUTH * truth + channel_name(bare)
+        columns.append((name, unit))
     names = [n for n, _ in columns]
     for name in names:
         if names.count(name) > 1:

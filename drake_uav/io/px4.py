@@ -23,6 +23,8 @@ actuator_servos/motors
 wind (or wind_estimate)   windspeed_north, _east          est_wind_n est_wind_e
 (opt.)
 rpm (opt.)                indicated_frequency_rpm         motor_speed
+battery_status (opt.)     voltage_v current_a             battery_status.voltage_v ...
+esc_status (opt.)         esc[0].esc_rpm (rev/min)        esc_status.esc0.esc_rpm
 ========================  ==============================  ==============================
 
 Required: the IMU, the attitude and (but on a multicopter) the commands; *the
@@ -37,11 +39,17 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from drake_uav.io.extras import (
+    PX4_EXTRAS,
+    extra_streams,
+    parse_extra_fields,
+    wanted_fields,
+)
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.px4_actuators import ACTUATOR_TOPICS, actuator_plan, actuator_streams
 from drake_uav.io.px4_metadata import MULTICOPTER_TYPES, px4_metadata
@@ -185,7 +193,8 @@ def _rate(time: np.ndarray) -> float:
 def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None,
              airspeed: str = "true", extra: Mapping[str, FieldSource] | None = None,
              instance: int = 0, max_gap: float = 0.5, allow_truncated: bool = True,
-             deflections: Mapping[str, float] | None = None) -> FlightLog:
+             deflections: Mapping[str, float] | None = None,
+             extra_channels: Sequence[str] = ()) -> FlightLog:
     """Reads a PX4 ``.ulg`` log into a FlightLog (canonical channels).
 
     Args:
@@ -208,6 +217,9 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
         deflections: surface ("elevator", "aileron", "rudder") -> full deflection
             [rad] at a demand of 1 or a full servo throw (the aircraft's limits);
             25 deg unless given. Not used with an ``ActuatorMapping``.
+        extra_channels: more fields as extra channels, ``"topic.field"`` (multi-id 0,
+            unit ``1``: a ULog carries no units), beside the default
+            :data:`~drake_uav.io.extras.PX4_EXTRAS`.
 
     Metadata: ``vehicle_type``, ``firmware``, ``flight_modes``, ``vtol_state``
     (VTOLs), ``imu_rate_hz``, ``parameters``, ``actuators`` and the alignment's
@@ -223,7 +235,9 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
     if airspeed not in _AIRSPEED_FIELDS:
         raise ValueError(f"airspeed: 'true' or 'indicated', got {airspeed!r}")
     extra = {name: source.validate() for name, source in (extra or {}).items()}
+    named = parse_extra_fields(extra_channels)
     topics = sorted({*_TOPICS, *(s.message for s in extra.values()),
+                     *(t for t, _, _ in PX4_EXTRAS), *(t for t, _ in named),
                      *([actuators.message] if isinstance(actuators, ActuatorMapping) else [])})
     log = ULogFile(path, topics, allow_truncated)
     metadata = {"format": "PX4 ULog", "instance": instance, "airspeed": airspeed,
@@ -238,7 +252,7 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
     sources, metadata["actuators"] = actuator_plan(log, actuators, mav_type, deflections)
     streams = [gyro, _attitude(log), *actuator_streams(log, sources),
                *_air_and_position_streams(log, airspeed, mav_type not in MULTICOPTER_TYPES),
-               *_extra_streams(log, extra, instance)]
+               *_extra_streams(log, extra, instance), *_logged_extras(log, named)]
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
 
@@ -278,3 +292,12 @@ def _extra_streams(log: ULogFile, extra: Mapping[str, FieldSource], instance: in
             {c: s.unit for c, s in sources.items()}, hold=hold,
             fields={c: f"{topic}.{s.field}" for c, s in sources.items()}))
     return streams
+
+
+def _logged_extras(log: ULogFile, named: Sequence[tuple[str, str]]) -> list[Stream]:
+    """Optional streams of the default extra channels the log has and of the ``named``
+    (topic, field) pairs (FlightLogError naming one the log lacks), multi-id 0."""
+    wanted = wanted_fields(PX4_EXTRAS, named,
+                           lambda topic, field: log.has(topic) and field in log.fields(topic),
+                           lambda topic, field: None, log.source)
+    return extra_streams(wanted, lambda topic, fields: log.get(topic, fields))
