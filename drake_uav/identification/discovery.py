@@ -86,6 +86,11 @@ from drake_uav.identification.regressor_noise import (
     source_variances,
 )
 from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
+from drake_uav.identification.vector_effects import (
+    JointSearch,
+    VectorEffect,
+    vector_effect_library,
+)
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -787,13 +792,17 @@ class _Candidates:
 def discover(samples: AeroSamples, params: FixedWingParams,
              effects: Sequence[Effect] | None = None, rule: EvidenceRule | None = None,
              coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
-             progress=None) -> DiscoveryResult:
+             progress=None, vector_effects: Sequence[VectorEffect] | None = None
+             ) -> DiscoveryResult:
     """Runs the residual -> effect -> refit loop on ``samples``.
 
     ``effects`` defaults to :func:`effect_library`; ``coefficients`` are fitted in
     the order of :data:`~drake_uav.model.coefficients.COEFFICIENTS`, except those that
     do not vary (:attr:`DiscoveryResult.skipped`); ``progress(message)`` is called at
-    each round. Raises ``ValueError`` for an unknown coefficient, samples too few for
+    each round; ``vector_effects`` (default
+    :func:`~drake_uav.identification.vector_effects.vector_effect_library`) are the forces
+    tested jointly on the coefficients they move. Raises ``ValueError`` for an unknown
+    coefficient, samples too few for
     the evidence tests, or when no coefficient varies.
     """
     rule = rule or EvidenceRule()
@@ -816,6 +825,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                      _Candidates(train, params), _Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
+    vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
+                          samples)
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
@@ -824,7 +835,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
         bases = {k: _round_base(search.designs[k], edges) for k in fitted}
-        evidence, new = _round(search, bases, used, fallback)
+        evidence, new = _round(search, bases, used, fallback, vectors)
         evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
         rounds.append(tuple(evidence))
         if new is None:
@@ -833,7 +844,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
 
     found = search.final_check(found)
     final = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
-    found = [_with_parameters(f, final) for f in found]
+    found = vectors.with_parameters(search, [_with_parameters(f, final) for f in found])
     adequacy = {k: _adequacy(final[k], (train, search.designs[k]), (test, search.tests[k]),
                              params, search.scales[k], rule.adequacy) for k in fitted}
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
@@ -865,28 +876,32 @@ def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, _Design],
 
 
 def _round(search: _Search, bases: Mapping[str, _RoundBase], used: set[str],
-           fallback: bool) -> tuple[list[Evidence], FoundEffect | None]:
+           fallback: bool, vectors: JointSearch) -> tuple[list[Evidence], FoundEffect | None]:
     """One round of the loop: the evidence of every candidate scored and the effect
     accepted (None: nothing passed and was kept).
 
     Named effects first (:attr:`EvidenceRule.named_first`): the data-driven products are
     scored only when no named effect is kept, each family at its own family-wise level.
-    Otherwise both form one pool at one level over all of them.
+    Otherwise both form one pool at one level over all of them. The vector effects are
+    named effects with one joint test each (:meth:`JointSearch.accept` says which goes
+    first); their evidence is listed per coefficient, after the others.
     """
     rule, pool = search.rule, search.pool
     pairs = [(e, k) for e in search.effects if e.name not in used for k in e.coefficients
              if k in bases]
     products = pool.product_names(used) if fallback else []
     n_products = len(products) * len(bases)
-    n_named = len(pairs) + (0 if rule.named_first else n_products)
+    n_named = (len(pairs) + len(vectors.candidates(used))
+               + (0 if rule.named_first else n_products))
     evidence = _score_named(pairs, bases, pool, rule, n_named)
     if not rule.named_first:
         evidence += _score_products(bases, pool, rule, products, n_named)
-    new = search.accept_best(evidence, used)
+    joint = vectors.score(search, bases, rule, n_named, used)
+    new = vectors.accept(search, joint, evidence, used, search.accept_best)
     if new is None and products and rule.named_first:
         evidence += _score_products(bases, pool, rule, products, n_products)
         new = search.accept_best(evidence, used)
-    return evidence, new
+    return evidence + [e for j in joint for e in j.evidence()], new
 
 
 def check_coefficients(coefficients: Sequence[str]) -> None:

@@ -1,0 +1,584 @@
+"""Vector effects: one force along a direction the log defines, tested jointly on every
+coefficient it moves.
+
+A vector effect is a force ``F(t) = m(t) d(t)`` acting at a body point ``r``: ``d`` a unit
+vector the log defines (a body axis; against the air-relative velocity, i.e. along the
+drag; against the GPS velocity; towards a fixed NED point; a logged vector), ``m`` a
+fitted constant [N] or a fitted gain times a logged channel (a load cell, a current).
+In equation error it adds ``F / (qbar S)`` to the force coefficients (``C_X, C_Y, C_Z``,
+hence ``C_L, C_D, C_Y``) and, when it acts away from the reference point, ``r x F`` over
+``qbar S b`` (``qbar S c``) to ``C_l, C_n`` (``C_m``). With ``u = m r`` the effect is
+linear in its few parameters ``(m, u_x, u_y, u_z)``, shared by all those coefficients.
+
+They are estimated jointly with every coefficient's own columns: the stacked,
+bias-compensated normal equations of the coefficients, each weighted by the inverse of
+its residual's long-run variance per sample, solved for the shared parameters by block
+elimination of each coefficient's columns (the equation-error estimation of several
+outputs sharing parameters, Klein & Morelli 2006, ch. 5 and 6; Frisch-Waugh-Lovell).
+One partial F-test with as many degrees of freedom as parameters, blocked
+cross-validation of the weighted sum of the coefficients' held-out errors and the BIC
+decide (:class:`~drake_uav.identification.discovery.EvidenceRule`, in the same family-wise
+Bonferroni count as the per-coefficient candidates); the held-out rules
+(:class:`~drake_uav.identification.discovery.HeldOutCheck`) then decide coefficient by
+coefficient. An accepted effect enters each coefficient it is kept on as one column, its
+jointly estimated shape; its reported parameters come from a joint refit against the
+final fits, with a sandwich covariance over all the coefficients' scores.
+
+Competition with the per-coefficient named effects: a round's passing candidates are
+compared by the held-out error they remove, summed over the coefficients they move in
+units of each coefficient's own error (a per-coefficient effect: over the coefficients it
+passed on). A force acting behind the centre of gravity then comes out as one effect on
+``C_Y`` and ``C_n``, not as a side force on ``C_Y`` plus a yawing-moment term elsewhere.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from drake_uav.identification.errors_in_variables import (
+    is_well_posed,
+    long_run_covariance,
+    noise_error_energy,
+)
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.residuals import effective_sample_size
+from drake_uav.model.coefficients import body_to_lift_drag
+from drake_uav.model.rotations import euler_to_rotmat
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+if TYPE_CHECKING:
+    from drake_uav.identification.discovery import EvidenceRule, FoundEffect
+
+__all__ = ["VectorEffect", "JointEvidence", "JointSearch", "vector_effect",
+           "vector_effect_library", "DIRECTIONS", "ATTITUDE", "GPS_VELOCITY", "GPS_POSITION"]
+
+ATTITUDE = ("roll", "pitch", "yaw")
+"""``AeroSamples.signals`` of the attitude [rad] (body -> NED)."""
+GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
+"""``AeroSamples.signals`` of the GPS velocity, NED [m/s]."""
+GPS_POSITION = ("gps_pn", "gps_pe", "gps_pd")
+"""``AeroSamples.signals`` of the GPS position, NED [m]."""
+
+_MOMENT_AXIS = {"Cl": 0, "Cm": 1, "Cn": 2}
+_FORCES = ("CL", "CD", "CY")
+_ARMS = ("Fr_x", "Fr_y", "Fr_z")
+"""The moment parameters ``u = m r`` [N m] (their column is ``e_j x F``)."""
+
+Direction = Callable[[AeroSamples], np.ndarray]
+"""``direction(samples) -> (N, 3)`` body-axis unit vectors."""
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+
+
+def _ned_to_body(samples: AeroSamples, v: np.ndarray) -> np.ndarray:
+    """NED vectors (N, 3) in body axes at each sample's attitude."""
+    rotation = euler_to_rotmat(np.array([samples.signals[s] for s in ATTITUDE]))
+    return np.einsum("ijn,ni->nj", rotation, v)
+
+
+def _body_axis(axis: int) -> Direction:
+    return lambda samples: np.broadcast_to(np.eye(3)[axis], (len(samples), 3))
+
+
+def _against_air_velocity(samples: AeroSamples) -> np.ndarray:
+    a, b = samples.condition.alpha, samples.condition.beta
+    return -np.column_stack([np.cos(a) * np.cos(b), np.sin(b), np.sin(a) * np.cos(b)])
+
+
+def _against_ground_velocity(samples: AeroSamples) -> np.ndarray:
+    v = np.column_stack([samples.signals[s] for s in GPS_VELOCITY])
+    return -_ned_to_body(samples, _unit(v))
+
+
+def _towards(point: Sequence[float]) -> Direction:
+    def direction(samples):
+        p = np.column_stack([samples.signals[s] for s in GPS_POSITION])
+        return _ned_to_body(samples, _unit(np.asarray(point, dtype=float) - p))
+    return direction
+
+
+def _logged(names: Sequence[str], frame: str) -> Direction:
+    def direction(samples):
+        v = _unit(np.column_stack([samples.signals[s] for s in names]))
+        return v if frame == "body" else _ned_to_body(samples, v)
+    return direction
+
+
+DIRECTIONS = {
+    "body_x": "along the body x axis",
+    "body_y": "along the body y axis",
+    "body_z": "along the body z axis",
+    "air_velocity": "against the air-relative velocity (a drag)",
+    "ground_velocity": "against the GPS velocity",
+    "towards_point": "towards a fixed NED point",
+    "logged": "along a logged vector",
+}
+"""Direction kinds -> what the unit vector is (a negative magnitude reverses it)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class VectorEffect:
+    """A force along a direction the log defines (see the module docstring)."""
+
+    name: str
+    explanation: str
+    direction: str
+    """Kind, a key of :data:`DIRECTIONS`."""
+    unit_vectors: Direction
+    signals: tuple[str, ...] = ()
+    """``AeroSamples.signals`` the direction needs."""
+    magnitude: str | None = None
+    """``AeroSamples.signals`` channel the force is proportional to (None: constant)."""
+    lever_arm: bool = False
+    """Fit the application point (its moment on ``C_l, C_m, C_n``); False: at the
+    reference point (the centre of gravity)."""
+
+    def available(self, samples: AeroSamples) -> bool:
+        """True when the samples carry every signal the effect needs."""
+        needed = self.signals + ((self.magnitude,) if self.magnitude else ())
+        return all(s in samples.signals for s in needed)
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """Linear parameters: ``F`` the magnitude [N] (or gain [N per channel unit]) and,
+        with a lever arm, ``Fr_x, Fr_y, Fr_z`` = F times the application point [N m]."""
+        return ("F", *_ARMS) if self.lever_arm else ("F",)
+
+    def columns(self, samples: AeroSamples, params: FixedWingParams,
+                coefficient: str) -> dict[str, np.ndarray]:
+        """Regressor columns of every parameter on ``coefficient`` (zeros where it does not
+        enter)."""
+        view = samples.aligned(coefficient)
+        zero = np.zeros(len(view))
+        out = dict.fromkeys(self.parameters, zero)
+        if coefficient not in _FORCES and not (coefficient in _MOMENT_AXIS and self.lever_arm):
+            return out
+        force = np.array(self.unit_vectors(view), dtype=float)
+        if self.magnitude:
+            force = force * np.asarray(view.signals[self.magnitude], dtype=float)[:, None]
+        per_unit = 1.0 / (view.dynamic_pressure * params.S)
+        if coefficient in _FORCES:
+            cx, cy, cz = (force * per_unit[:, None]).T
+            lift, drag = body_to_lift_drag(cx, cz, view.condition.alpha)
+            out["F"] = {"CL": lift, "CD": drag, "CY": cy}[coefficient]
+        else:
+            axis = _MOMENT_AXIS[coefficient]
+            length = params.c if coefficient == "Cm" else params.b
+            for j, name in enumerate(_ARMS):
+                out[name] = np.cross(np.eye(3)[j], force)[:, axis] * per_unit / length
+        return out
+
+
+def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bool = False,
+                  point: Sequence[float] | None = None, logged: Sequence[str] = (),
+                  frame: str = "body", name: str | None = None) -> VectorEffect:
+    """A :class:`VectorEffect` of a direction kind (:data:`DIRECTIONS`).
+
+    ``magnitude``: a logged channel the force is proportional to (None: constant);
+    ``lever_arm``: fit the application point; ``point``: the NED point [m] of
+    ``"towards_point"``; ``logged``, ``frame``: the three channels and their frame
+    (``"body"`` or ``"ned"``) of ``"logged"``.
+    """
+    if direction not in DIRECTIONS:
+        raise ValueError(f"direction: one of {', '.join(DIRECTIONS)}, got {direction!r}")
+    if direction.startswith("body_"):
+        unit, signals = _body_axis("xyz".index(direction[-1])), ()
+    elif direction == "air_velocity":
+        unit, signals = _against_air_velocity, ()
+    elif direction == "ground_velocity":
+        unit, signals = _against_ground_velocity, GPS_VELOCITY + ATTITUDE
+    elif direction == "towards_point":
+        if point is None or len(point) != 3:
+            raise ValueError("towards_point: give the point, NED [m]")
+        unit, signals = _towards(point), GPS_POSITION + ATTITUDE
+    else:
+        if len(logged) != 3 or frame not in ("body", "ned"):
+            raise ValueError("logged: give three channels and a frame 'body' or 'ned'")
+        unit = _logged(logged, frame)
+        signals = tuple(logged) + (ATTITUDE if frame == "ned" else ())
+    where = "acting away from the centre of gravity" if lever_arm else "at the centre of gravity"
+    size = f"proportional to the logged {magnitude}" if magnitude else "of constant magnitude"
+    name = name or "_".join(filter(None, ("force", direction, magnitude,
+                                          "off_cg" if lever_arm else None)))
+    return VectorEffect(name, f"a force {size} {DIRECTIONS[direction]}, {where}", direction,
+                        unit, signals, magnitude, lever_arm)
+
+
+def vector_effect_library(magnitudes: Sequence[str | None] = (None,)) -> list[VectorEffect]:
+    """The vector effects the discovery loop tries, for each magnitude of ``magnitudes``
+    (None: constant; a name: that logged channel).
+
+    A force along a body axis at the centre of gravity is the per-coefficient
+    ``constant_body_force``: here a body-axis force always has its lever arm.
+    """
+    out = []
+    for magnitude in magnitudes:
+        out += [vector_effect(f"body_{a}", magnitude=magnitude, lever_arm=True) for a in "xyz"]
+        out += [vector_effect(d, magnitude=magnitude, lever_arm=arm)
+                for d in ("air_velocity", "ground_velocity") for arm in (False, True)]
+    return out
+
+
+# ----------------------------------------------------------------------------- joint fit
+
+
+def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A^-1 B`` for stacks of normal matrices, equilibrated to a unit diagonal
+    (least squares when singular)."""
+    scale = np.sqrt(np.maximum(np.diagonal(A, axis1=-2, axis2=-1), 1e-300))
+    E = A / (scale[..., :, None] * scale[..., None, :])
+    try:
+        return np.linalg.solve(E, B / scale[..., :, None]) / scale[..., :, None]
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(E) @ (B / scale[..., :, None]) / scale[..., :, None]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Block:
+    """One coefficient's compensated normal equations ``(A, b)`` of ``[X | V_k]``: ``p``
+    own columns, then the shared parameters ``index`` (of the effect's) entering it."""
+
+    A: np.ndarray
+    b: np.ndarray
+    p: int
+    index: np.ndarray
+    weight: float
+
+
+def _joint_solve(blocks: Sequence[_Block], q: int
+                 ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
+    """The shared parameters ``phi`` (..., q), each coefficient's own ``theta`` (..., p)
+    and the reduced normal matrix (..., q, q): the weighted stacked normal equations with
+    every coefficient's columns eliminated (Schur complements)."""
+    lead = blocks[0].A.shape[:-2]
+    S, s = np.zeros((*lead, q, q)), np.zeros((*lead, q))
+    parts = []
+    for blk in blocks:
+        p, i = blk.p, blk.index
+        Axv, bx = blk.A[..., :p, p:], blk.b[..., :p]
+        sol = _solve(blk.A[..., :p, :p], np.concatenate([Axv, bx[..., None]], axis=-1))
+        Avx = np.swapaxes(Axv, -1, -2)
+        S[..., i[:, None], i[None, :]] += blk.weight * (blk.A[..., p:, p:] - Avx @ sol[..., :-1])
+        s[..., i] += blk.weight * (blk.b[..., p:] - (Avx @ sol[..., -1:])[..., 0])
+        parts.append(sol)
+    phi = _solve(S, s[..., None])[..., 0]
+    thetas = [sol[..., -1] - (sol[..., :-1] @ phi[..., blk.index, None])[..., 0]
+              for sol, blk in zip(parts, blocks, strict=True)]
+    return phi, thetas, S
+
+
+@dataclasses.dataclass(frozen=True)
+class JointEvidence:
+    """The joint test of one vector effect over the coefficients it moves."""
+
+    effect: VectorEffect
+    coefficients: tuple[str, ...]
+    parameters: tuple[str, ...]
+    """The shared parameters tested (the degrees of freedom of the test)."""
+    estimate: np.ndarray
+    """Their joint estimate on the training part."""
+    pse_reduction: float
+    """Mean over the folds of the held-out error removed, summed over the coefficients in
+    units of each one's error (:attr:`total` is the same mean taken per coefficient)."""
+    folds_improved: int
+    reductions: Mapping[str, float]
+    """Per coefficient: mean relative reduction of its held-out error over the folds."""
+    improved: Mapping[str, int]
+    f_statistic: float
+    p_value: float
+    delta_bic: float
+    passed: bool
+
+    @property
+    def total(self) -> float:
+        """Held-out error removed, summed over the coefficients in units of each one's
+        error: the key it competes on."""
+        return float(sum(self.reductions.values()))
+
+    def evidence(self, coefficients: Sequence[str] | None = None) -> list:
+        """One :class:`~drake_uav.identification.discovery.Evidence` per coefficient
+        (the joint statistics, the coefficient's own held-out reduction)."""
+        from drake_uav.identification.discovery import Evidence
+
+        return [Evidence(self.effect.name, k, self.parameters, self.reductions[k],
+                         self.improved[k], self.f_statistic, self.p_value, self.delta_bic,
+                         self.passed)
+                for k in (coefficients or self.coefficients)]
+
+
+def _f_survival(f: float, dfn: float, dfd: float) -> float:
+    from scipy.special import fdtrc
+
+    return float(fdtrc(dfn, dfd, f))
+
+
+class JointSearch:
+    """The vector effects of one discovery: their columns, their joint evidence in each
+    round, their acceptance against the per-coefficient candidates and their parameters.
+
+    ``search`` arguments are the discovery's ``_Search`` (its designs, held-out check and
+    sample variants); ``bases`` its round bases (design, effective sample size, fold
+    errors, block moments, basis).
+    """
+
+    def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples):
+        self.effects = [e for e in effects if e.available(samples)]
+        self._train: dict[tuple[str, str], tuple[dict, dict]] = {}
+
+    # -- columns
+
+    def _columns(self, search, effect: VectorEffect, k: str, test: bool = False):
+        """(columns, jacobians) of ``effect`` on coefficient ``k`` (training part, or
+        the held-out tail), the parameters that do not enter ``k`` left out."""
+        from drake_uav.identification.discovery import _columns_and_jacobians
+
+        key = (effect.name, k)
+        if test or key not in self._train:
+            variants = search.test_variants if test else search.pool.variants
+            design = (search.tests if test else search.designs)[k]
+            columns, jac = _columns_and_jacobians(
+                lambda smp: effect.columns(smp, search.pool.params, k), variants,
+                design.noise.variance)
+            names = [n for n, v in columns.items() if np.any(v != 0.0)]
+            out = ({n: columns[n] for n in names},
+                   {s: {n: j[n] for n in names} for s, j in jac.items()})
+            if test:
+                return out
+            self._train[key] = out
+        return self._train[key]
+
+    def candidates(self, used: set[str]) -> list[VectorEffect]:
+        """The effects not tried yet."""
+        return [e for e in self.effects if e.name not in used]
+
+    # -- evidence
+
+    def score(self, search, bases: Mapping, rule: EvidenceRule, n_tests: int,
+              used: set[str]) -> list[JointEvidence]:
+        """The joint evidence of every vector effect not tried yet."""
+        out = []
+        for effect in self.candidates(used):
+            evidence = self._score(search, effect, bases, rule, n_tests)
+            if evidence is not None:
+                out.append(evidence)
+        return out
+
+    def _score(self, search, effect, bases, rule, n_tests) -> JointEvidence | None:
+        moved = {}
+        for k in bases:
+            columns = self._columns(search, effect, k)[0]
+            if columns:
+                V = np.column_stack(list(columns.values()))
+                basis = bases[k].basis
+                rest = np.linalg.norm(V - basis @ (basis.T @ V), axis=0)
+                names = [n for n, r, v in zip(columns, rest, np.linalg.norm(V, axis=0),
+                                              strict=True) if r >= 1e-3 * v]
+                if names:
+                    moved[k] = names
+        parameters = tuple(n for n in effect.parameters if any(n in v for v in moved.values()))
+        if not parameters:
+            return None
+        q = len(parameters)
+        blocks, extended = [], {}
+        for k, names in moved.items():
+            design = bases[k].design
+            columns, jac = self._columns(search, effect, k)
+            V = np.column_stack([columns[n] for n in names])
+            J = {s: np.column_stack([j[n] for n in names]) for s, j in jac.items()}
+            moments = bases[k].blocks.extended(design.X, design.z, design.noise, V, J)
+            A, b, _, _ = moments.total()
+            index = np.array([parameters.index(n) for n in names])
+            # First pass: each coefficient weighted by its residual's variance.
+            blocks.append(_Block(A, b, design.X.shape[1], index, len(V) / bases[k].sse[0]))
+            extended[k] = (V, moments)
+        phi, thetas, S = _joint_solve(blocks, q)
+        if not is_well_posed(S):
+            return None
+        # Second pass: by the long-run variance of the residual with the effect (under
+        # the null hypothesis the same as without it; with it, not inflated by the effect).
+        fits = {}
+        for i, (k, blk, theta) in enumerate(zip(moved, blocks, thetas, strict=True)):
+            V, _ = extended[k]
+            design = bases[k].design
+            r = design.z - design.X @ theta - V @ phi[blk.index]
+            n_eff = float(effective_sample_size(r))
+            blocks[i] = dataclasses.replace(blk, weight=n_eff / float(r @ r))
+            fits[k] = n_eff
+        phi, thetas, _ = _joint_solve(blocks, q)
+        phi_folds, theta_folds, _ = _joint_solve(
+            [_Block(*extended[k][1].held_in(), blk.p, blk.index, blk.weight)
+             for k, blk in zip(moved, blocks, strict=True)], q)
+        drop_w = observed_w = dof = bic = 0.0
+        reductions, improved = {}, {}
+        relative = 0.0
+        for k, blk, theta, theta_k in zip(moved, blocks, thetas, theta_folds, strict=True):
+            base, (V, moments), n_eff = bases[k], extended[k], fits[k]
+            design = base.design
+            _, _, C_xx, c_xz = moments.total()
+            r = design.z - design.X @ theta - V @ phi[blk.index]
+            observed = float(r @ r)
+            drop = base.sse[1] - (observed - noise_error_energy(
+                np.concatenate([theta, phi[blk.index]]), C_xx, c_xz))
+            drop_w += blk.weight * drop
+            observed_w += blk.weight * observed
+            dof += n_eff - blk.p
+            bic += n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) \
+                + q / len(moved) * np.log(n_eff)
+            gain = np.empty(len(moments.edges) - 1)
+            for f, (a, b) in enumerate(zip(moments.edges[:-1], moments.edges[1:], strict=True)):
+                fit = np.concatenate([theta_k[f], phi_folds[f][blk.index]])
+                rf = design.z[a:b] - design.X[a:b] @ fit[:blk.p] - V[a:b] @ fit[blk.p:]
+                gain[f] = base.fold_errors[1][f] - (float(rf @ rf) - noise_error_energy(
+                    fit, moments.noise_xx[f], moments.noise_xz[f]))
+            relative = relative + gain / base.fold_errors[0]
+            reductions[k] = float(np.mean(gain / base.fold_errors[0]))
+            improved[k] = int(np.sum(gain > 0))
+        dof = max(dof - q, 1.0)
+        f_stat = max(drop_w, 0.0) / q / (observed_w / dof)
+        p_value = _f_survival(f_stat, q, dof)
+        reduction, folds_improved = float(np.mean(relative)), int(np.sum(relative > 0))
+        passed = (p_value < rule.p_value / max(n_tests, 1) and reduction >= rule.min_pse_reduction
+                  and folds_improved >= rule.min_folds and bic < 0)
+        return JointEvidence(effect, tuple(moved), parameters, phi, reduction, folds_improved,
+                             reductions, improved, float(f_stat), p_value, float(bic),
+                             bool(passed))
+
+    # -- acceptance
+
+    def accept(self, search, joint: Sequence[JointEvidence], named: Sequence, used: set[str],
+               accept_named: Callable) -> FoundEffect | None:
+        """The round's winner, or None. A passing vector effect that removes more held-out
+        error than every passing per-coefficient effect (:attr:`JointEvidence.total`; a
+        per-coefficient effect's summed over the coefficients it passed on) is tried first,
+        then the per-coefficient effects (``accept_named(named, used)``), then the other
+        passing vector effects. Every effect tried joins ``used``."""
+        passing = sorted((j for j in joint if j.passed), key=lambda j: -j.total)
+        totals: dict[str, float] = {}
+        for e in named:
+            if e.passed and e.effect not in used:
+                totals[e.effect] = totals.get(e.effect, 0.0) + e.pse_reduction
+        best = max(totals.values(), default=-np.inf)
+        for j in (j for j in passing if j.total > best):
+            found = self._accept(search, j, used)
+            if found is not None:
+                return found
+        found = accept_named(named, used)
+        for j in passing:
+            if found is not None:
+                break
+            if j.effect.name not in used:
+                found = self._accept(search, j, used)
+        return found
+
+    def _accept(self, search, joint: JointEvidence, used: set[str]) -> FoundEffect | None:
+        """The held-out decisions on ``joint`` coefficient by coefficient; its shape column
+        added where kept."""
+        from drake_uav.identification.discovery import FoundEffect
+
+        effect = joint.effect
+        used.add(effect.name)
+        kept = []
+        for k in joint.coefficients:
+            current = (search.designs[k], search.tests[k])
+            extended = (self._with_shape(search, joint, k, current[0]),
+                        self._with_shape(search, joint, k, current[1], test=True))
+            check = search.check(effect.name, k, current, extended, "round")
+            search.checks.append(check)
+            if check.kept:
+                search.designs[k], search.tests[k] = extended
+                kept.append(k)
+        if not kept:
+            return None
+        return FoundEffect(effect.name, effect.explanation, "aerodynamic", tuple(kept),
+                           tuple(joint.evidence(kept)), {})
+
+    def _with_shape(self, search, joint: JointEvidence, k: str, design, test: bool = False):
+        """``design`` with the effect's column on ``k`` at its joint estimate (one column
+        ``<effect>:joint``, its scale refitted with the coefficient)."""
+        columns, jac = self._columns(search, joint.effect, k, test)
+        weights = {n: joint.estimate[joint.parameters.index(n)] for n in columns
+                   if n in joint.parameters}
+
+        def combine(values):
+            return sum(w * values[n] for n, w in weights.items())
+
+        return design.extended({"joint": combine(columns)},
+                               {s: {"joint": combine(j)} for s, j in jac.items()},
+                               prefix=f"{joint.effect.name}:")
+
+    # -- parameters
+
+    def with_parameters(self, search, found: Sequence[FoundEffect]) -> list[FoundEffect]:
+        """``found`` with every vector effect's parameters from a joint refit against the
+        final fits of the coefficients it is kept on (:meth:`parameters`)."""
+        effects = {e.name: e for e in self.effects}
+        return [dataclasses.replace(f, parameters=self.parameters(search, effects[f.name],
+                                                                  f.coefficients))
+                if f.name in effects else f for f in found]
+
+    def parameters(self, search, effect: VectorEffect, coefficients: Sequence[str]
+                   ) -> dict[str, tuple[float, float]]:
+        """Estimate and sigma of the effect's parameters, jointly over ``coefficients``:
+        ``F`` the magnitude [N] (gain [N per unit] of a logged magnitude), ``Fr_x`` ...
+        F times the application point [N m] where a moment coefficient carries it, and the
+        application point ``r_x`` ... [m] (delta method) where F is estimated too.
+
+        The coefficients' own columns are refitted with them; the covariance is the
+        sandwich of all the estimating equations (each coefficient's and the weighted
+        shared ones) with the long-run covariance of their per-sample scores.
+        """
+        prefix = f"{effect.name}:"
+        designs, names = {}, {}
+        for k in coefficients:
+            columns, jac = self._columns(search, effect, k)
+            final = search.designs[k]
+            residual = final.z - final.X @ final.solve()
+            weight = effective_sample_size(residual) / float(residual @ residual)
+            designs[k] = (final.without(prefix).extended(columns, jac), weight)
+            names[k] = list(columns)
+        parameters = tuple(n for n in effect.parameters if any(n in v for v in names.values()))
+        q = len(parameters)
+        blocks = []
+        for k, (design, weight) in designs.items():
+            A, b = design.moments()
+            index = np.array([parameters.index(n) for n in names[k]])
+            blocks.append(_Block(A, b, A.shape[0] - len(index), index, weight))
+        phi, thetas, _ = _joint_solve(blocks, q)
+        offsets = np.cumsum([0] + [blk.p for blk in blocks])
+        n_params = int(offsets[-1]) + q
+        jacobian = np.zeros((n_params, n_params))
+        scores = np.zeros((len(search.designs[coefficients[0]].z), n_params))
+        shared = int(offsets[-1]) + np.arange(q)
+        for (design, _), blk, theta, start in zip(designs.values(), blocks, thetas, offsets[:-1],
+                                                  strict=True):
+            own = start + np.arange(blk.p)
+            phi_k = shared[blk.index]
+            p = blk.p
+            jacobian[np.ix_(own, own)] = blk.A[:p, :p]
+            jacobian[np.ix_(own, phi_k)] = blk.A[:p, p:]
+            jacobian[np.ix_(phi_k, own)] += blk.weight * blk.A[p:, :p]
+            jacobian[np.ix_(phi_k, phi_k)] += blk.weight * blk.A[p:, p:]
+            psi = design.scores(np.concatenate([theta, phi[blk.index]]))
+            scores[:, own] = psi[:, :p]
+            scores[:, phi_k] += blk.weight * psi[:, p:]
+        scale = np.sqrt(np.maximum(np.abs(np.diag(jacobian)), 1e-300))
+        inverse = np.linalg.pinv(jacobian / np.outer(scale, scale)) / np.outer(scale, scale)
+        covariance = (inverse @ long_run_covariance(scores) @ inverse.T)[np.ix_(shared, shared)]
+        out = {n: (float(phi[i]), float(np.sqrt(max(covariance[i, i], 0.0))))
+               for i, n in enumerate(parameters)}
+        if "F" in parameters:
+            f = parameters.index("F")
+            for i, n in enumerate(parameters):
+                if n in _ARMS:
+                    gradient = np.zeros(q)
+                    gradient[i], gradient[f] = 1.0 / phi[f], -phi[i] / phi[f] ** 2
+                    out[f"r_{n[-1]}"] = (float(phi[i] / phi[f]),
+                                         float(np.sqrt(max(gradient @ covariance @ gradient,
+                                                           0.0))))
+        return out
