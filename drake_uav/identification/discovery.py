@@ -826,7 +826,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
     vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
-                          samples)
+                          samples, _columns_and_jacobians, Evidence, FoundEffect)
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
@@ -901,7 +901,7 @@ def _round(search: _Search, bases: Mapping[str, _RoundBase], used: set[str],
     if new is None and products and rule.named_first:
         evidence += _score_products(bases, pool, rule, products, n_products)
         new = search.accept_best(evidence, used)
-    return evidence + [e for j in joint for e in j.evidence()], new
+    return evidence + vectors.evidence(joint), new
 
 
 def check_coefficients(coefficients: Sequence[str]) -> None:

@@ -51,7 +51,7 @@ from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 if TYPE_CHECKING:
-    from drake_uav.identification.discovery import EvidenceRule, FoundEffect
+    from drake_uav.identification.discovery import Evidence, EvidenceRule, FoundEffect
 
 __all__ = ["VectorEffect", "JointEvidence", "JointSearch", "vector_effect",
            "vector_effect_library", "DIRECTIONS", "ATTITUDE", "GPS_VELOCITY", "GPS_POSITION"]
@@ -301,15 +301,6 @@ class JointEvidence:
         error: the key it competes on."""
         return float(sum(self.reductions.values()))
 
-    def evidence(self, coefficients: Sequence[str] | None = None) -> list:
-        """One :class:`~drake_uav.identification.discovery.Evidence` per coefficient
-        (the joint statistics, the coefficient's own held-out reduction)."""
-        from drake_uav.identification.discovery import Evidence
-
-        return [Evidence(self.effect.name, k, self.parameters, self.reductions[k],
-                         self.improved[k], self.f_statistic, self.p_value, self.delta_bic,
-                         self.passed)
-                for k in (coefficients or self.coefficients)]
 
 
 def _f_survival(f: float, dfn: float, dfd: float) -> float:
@@ -324,25 +315,38 @@ class JointSearch:
 
     ``search`` arguments are the discovery's ``_Search`` (its designs, held-out check and
     sample variants); ``bases`` its round bases (design, effective sample size, fold
-    errors, block moments, basis).
+    errors, block moments, basis). The discovery also hands over how it evaluates columns
+    with their noise sensitivities and its result types (this module does not import it).
     """
 
-    def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples):
+    def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples,
+                 columns_and_jacobians: Callable, evidence_type: type[Evidence],
+                 found_type: type[FoundEffect]):
         self.effects = [e for e in effects if e.available(samples)]
+        self._columns_and_jacobians = columns_and_jacobians
+        self._evidence_type, self._found_type = evidence_type, found_type
         self._train: dict[tuple[str, str], tuple[dict, dict]] = {}
+
+    def evidence(self, joint: Sequence[JointEvidence],
+                 coefficients: Sequence[str] | None = None) -> list[Evidence]:
+        """One ``Evidence`` per effect and coefficient (``coefficients``: only those): the
+        joint statistics with the coefficient's own held-out reduction."""
+        return [self._evidence_type(j.effect.name, k, j.parameters, j.reductions[k],
+                                    j.improved[k], j.f_statistic, j.p_value, j.delta_bic,
+                                    j.passed)
+                for j in joint for k in j.coefficients
+                if coefficients is None or k in coefficients]
 
     # -- columns
 
     def _columns(self, search, effect: VectorEffect, k: str, test: bool = False):
         """(columns, jacobians) of ``effect`` on coefficient ``k`` (training part, or
         the held-out tail), the parameters that do not enter ``k`` left out."""
-        from drake_uav.identification.discovery import _columns_and_jacobians
-
         key = (effect.name, k)
         if test or key not in self._train:
             variants = search.test_variants if test else search.pool.variants
             design = (search.tests if test else search.designs)[k]
-            columns, jac = _columns_and_jacobians(
+            columns, jac = self._columns_and_jacobians(
                 lambda smp: effect.columns(smp, search.pool.params, k), variants,
                 design.noise.variance)
             names = [n for n, v in columns.items() if np.any(v != 0.0)]
@@ -479,8 +483,6 @@ class JointSearch:
     def _accept(self, search, joint: JointEvidence, used: set[str]) -> FoundEffect | None:
         """The held-out decisions on ``joint`` coefficient by coefficient; its shape column
         added where kept."""
-        from drake_uav.identification.discovery import FoundEffect
-
         effect = joint.effect
         used.add(effect.name)
         kept = []
@@ -495,8 +497,8 @@ class JointSearch:
                 kept.append(k)
         if not kept:
             return None
-        return FoundEffect(effect.name, effect.explanation, "aerodynamic", tuple(kept),
-                           tuple(joint.evidence(kept)), {})
+        return self._found_type(effect.name, effect.explanation, "aerodynamic", tuple(kept),
+                                tuple(self.evidence([joint], kept)), {})
 
     def _with_shape(self, search, joint: JointEvidence, k: str, design, test: bool = False):
         """``design`` with the effect's column on ``k`` at its joint estimate (one column
