@@ -7,8 +7,8 @@ from synthetic_flight import synthetic_samples
 
 from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS, identify_samples
 
-RUN_KEYS = {"source", "aircraft", "data", "message", "samples", "holdout_start_s", "effects",
-            "equation_error_rms_holdout", "reconstruction_mae_holdout",
+RUN_KEYS = {"source", "aircraft", "data", "message", "findings", "samples", "holdout_start_s",
+            "effects", "equation_error_rms_holdout", "reconstruction_mae_holdout",
             "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
             "parameters"}
 EFFECT_KEYS = {"name", "kind", "explanation", "coefficients", "evidence", "parameters"}
@@ -26,6 +26,7 @@ def test_summary_has_each_run_level_key_once_and_effects_only_their_own(run):
     summary = run.summary()
     assert set(summary) == RUN_KEYS
     assert [e["name"] for e in summary["effects"]] == ["stall_onset"]
+    assert summary["findings"] == ["stall_onset"]
     for effect in summary["effects"]:
         assert set(effect) == EFFECT_KEYS
         assert effect["coefficients"] == ["CL"]
