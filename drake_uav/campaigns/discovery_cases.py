@@ -96,6 +96,15 @@ def _body_force_x(strength, params):
     return {"disturbance": np.array([strength, 0.0, 0.0, 0.0, 0.0, 0.0])}
 
 
+TOW_POINT_BELOW = 0.3
+"""Body z [m] of the off-centre tow force's application point (below the centre of gravity)."""
+
+
+def _tow_below_cg(strength, params):
+    """A body-x force of ``strength`` [N] at (0, 0, TOW_POINT_BELOW): moment r x F on m."""
+    return {"disturbance": np.array([strength, 0.0, 0.0, 0.0, TOW_POINT_BELOW * strength, 0.0])}
+
+
 def _qbar_s_of(airspeed: np.ndarray, params: FixedWingParams) -> np.ndarray:
     """Dynamic pressure times wing area [N]."""
     return 0.5 * params.rho * airspeed**2 * params.S
@@ -162,6 +171,8 @@ INJECTED: dict[str, Injection] = {
         lambda k, p: {"actuator_delay": k}, strength_step=0.01),
     "tow_force": Injection(
         "constant_body_force", "CD", _force_x_on_drag, _body_force_x),
+    "tow_below_cg": Injection(
+        "force_body_x_off_cg", "CD", _force_x_on_drag, _tow_below_cg),
     "drag_drift": Injection(
         "coefficient_drift", "CD", lambda c, f, p: (f.time - f.time[0]) / _FLIGHT_DURATION,
         _drift(_index("CD"), lambda: _FLIGHT_DURATION)),
@@ -170,7 +181,8 @@ INJECTED: dict[str, Injection] = {
 }
 """The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
 alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
-elevator and throttle delay; a 1 N tow force along +x body; C_D growing by 1 over the
+elevator and throttle delay; a 1 N tow force along +x body; the same force 0.3 m
+below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D growing by 1 over the
 flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
 groups: a calibration error the data-compatibility check names)."""
 
