@@ -62,6 +62,7 @@ from drake_uav.identification.effects import (
     Effect,
     base_signals,
     effect_library,
+    logged_effects,
     product_candidates,
 )
 from drake_uav.identification.errors_in_variables import (
@@ -75,14 +76,15 @@ from drake_uav.identification.errors_in_variables import (
     sandwich_covariance,
     solve_normal_equations,
 )
-from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
 from drake_uav.identification.regression import RegressionResult, bcls, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
-    STEPS,
+    noise_sources,
     observation_sensitivity,
     perturbed,
+    source_step,
     source_variances,
 )
 from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
@@ -355,7 +357,7 @@ class _Perturbations:
         if sources not in self._copies:
             moved = self.samples
             for source in sources:
-                moved = perturbed(moved, source, STEPS[source])
+                moved = perturbed(moved, source, source_step(source))
             self._copies[sources] = moved
         return self._copies[sources]
 
@@ -368,13 +370,14 @@ def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | _Per
     variants = samples if isinstance(samples, _Perturbations) else _Perturbations(samples)
     columns = dict(function(variants.samples))
     sources = [s for s in AIR_DATA_SOURCES if variance.get(s, 0.0) > 0.0]
-    others = tuple(s for s in STEPS if s not in AIR_DATA_SOURCES and variance.get(s, 0.0) > 0.0)
+    others = tuple(s for s in noise_sources(variance)
+                   if s not in AIR_DATA_SOURCES and variance[s] > 0.0)
     probe = function(variants.probe(others)) if others else columns
     if any(not np.array_equal(probe[k], v) for k, v in columns.items()):
         sources += others
     jac = {}
     for signal in sources:
-        step = STEPS[signal]
+        step = source_step(signal)
         up = function(variants(signal, step))
         if signal not in AIR_DATA_SOURCES and all(np.array_equal(up[k], v)
                                                   for k, v in columns.items()):
@@ -807,6 +810,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     """
     rule = rule or EvidenceRule()
     effects = [e for e in (effects or effect_library()) if e.available(samples)]
+    effects += logged_effects(samples)  # data-driven: scored with the products
     n = len(samples)
     n_train = int(round(n * (1.0 - rule.holdout_fraction)))
     if n_train < 20 * rule.folds or n - n_train < 20:
@@ -889,17 +893,19 @@ def _round(search: _Search, bases: Mapping[str, _RoundBase], used: set[str],
     rule, pool = search.rule, search.pool
     pairs = [(e, k) for e in search.effects if e.name not in used for k in e.coefficients
              if k in bases]
+    logged = [p for p in pairs if p[0].name.startswith(LOGGED)] if fallback else []
+    pairs = [p for p in pairs if not p[0].name.startswith(LOGGED)]
     products = pool.product_names(used) if fallback else []
-    n_products = len(products) * len(bases)
+    n_products = len(products) * len(bases) + len(logged)
     n_named = (len(pairs) + len(vectors.candidates(used))
                + (0 if rule.named_first else n_products))
     evidence = _score_named(pairs, bases, pool, rule, n_named)
     if not rule.named_first:
-        evidence += _score_products(bases, pool, rule, products, n_named)
+        evidence += _score_data_driven(bases, pool, rule, products, logged, n_named)
     joint = vectors.score(search, bases, rule, n_named, used)
     new = vectors.accept(search, joint, evidence, used, search.accept_best)
-    if new is None and products and rule.named_first:
-        evidence += _score_products(bases, pool, rule, products, n_products)
+    if new is None and (products or logged) and rule.named_first:
+        evidence += _score_data_driven(bases, pool, rule, products, logged)
         new = search.accept_best(evidence, used)
     return evidence + vectors.evidence(joint), new
 
@@ -976,7 +982,8 @@ class _Search:
         """Sort key of a passing candidate: minus its held-out gain; a data-driven product,
         one choice among many, ranks ahead of a named effect only when it gains
         :attr:`EvidenceRule.min_pse_reduction` more."""
-        margin = self.rule.min_pse_reduction if evidence.effect.startswith(DATA_DRIVEN) else 0.0
+        data_driven = evidence.effect.startswith((DATA_DRIVEN, LOGGED))
+        margin = self.rule.min_pse_reduction if data_driven else 0.0
         return margin - evidence.pse_reduction
 
     def check(self, name: str, k: str, without: tuple[_Design, _Design],
@@ -1072,6 +1079,18 @@ def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effe
     columns, held_out = columns.pick(evidence.columns), held_out.pick(evidence.columns)
     return (train.extended(columns.columns, columns.jacobians, prefix=prefix),
             test.extended(held_out.columns, held_out.jacobians, prefix=prefix))
+
+
+def _score_data_driven(bases, pool: _Candidates, rule, products, logged,
+                       n_tests: int | None = None) -> list[Evidence]:
+    """The data-driven candidates: the ``products`` and those of the log's extra channels
+    (``logged``: (effect, coefficient) pairs of
+    :func:`~drake_uav.identification.effects.logged_effects`), at one family-wise level
+    over ``n_tests``, or (None) each family at its own: the logged channels are a few
+    hypotheses the log names, the products hundreds."""
+    n_products = len(products) * len(bases) if n_tests is None else n_tests
+    return (_score_products(bases, pool, rule, products, n_products)
+            + _score_named(logged, bases, pool, rule, n_tests or len(logged)))
 
 
 def _score_products(bases, pool: _Candidates, rule, names, n_tests) -> list[Evidence]:

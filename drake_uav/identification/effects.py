@@ -19,6 +19,10 @@ dynamics).
 
 Signals some effects read from ``AeroSamples.signals``: ``height`` (height above
 ground [m]), ``roll``, ``pitch``, ``yaw`` [rad].
+
+:func:`logged_effects` turns the log's extra channels (``logged:<channel>`` signals: a
+tension, a voltage, an ESC's speed) into data-driven candidates of their own: the
+channel, and its product with alpha or beta.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
@@ -40,6 +44,8 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 __all__ = [
     "Effect",
     "effect_library",
+    "logged_effects",
+    "LOGGED_FORCE_UNITS",
     "product_candidates",
     "base_signals",
     "BASE_SIGNALS",
@@ -285,3 +291,49 @@ def product_candidates(samples: AeroSamples, params: FixedWingParams
     (:data:`PRODUCT_KEYS`)."""
     signals = base_signals(samples, params)
     return {(a, b): signals[a] * signals[b] for a, b in PRODUCT_KEYS}
+
+
+LOGGED_FORCE_UNITS = ("N", "N m")
+"""Units of a logged channel that is a force or a moment: it enters a coefficient over
+``qbar S``, so that its parameter is the share of the force along the coefficient's axis
+(or, for a moment coefficient, the arm over the reference length)."""
+
+
+def _logged_columns(key: str, main: str | None, reference: float):
+    """The column of the logged channel ``key`` (times the condition's ``main`` signal
+    less ``reference``)."""
+    def columns(samples, params, coefficient):
+        value = samples.signals[key]
+        if samples.signal_units.get(key) in LOGGED_FORCE_UNITS:
+            value = value / (samples.dynamic_pressure * samples.reference_area)
+        name = key.removeprefix(LOGGED)
+        if main is None:
+            return {name: value}
+        return {f"{name}*{main}": value * (getattr(samples.condition, main) - reference)}
+    return columns
+
+
+def logged_effects(samples: AeroSamples) -> list[Effect]:
+    """The data-driven candidates of the log's extra channels (``logged:<channel>`` in
+    ``samples.signals``): per channel, the channel itself on every coefficient and its
+    product with alpha (C_L, C_D, C_m) and with beta (C_Y, C_l, C_n); a channel in N or
+    N m enters over ``qbar S`` (:data:`LOGGED_FORCE_UNITS`).
+
+    The product takes alpha (beta) about its mean over ``samples``, one constant for the
+    training and the held-out parts alike: alpha hardly leaves its trim value, and the
+    plain product would be the channel itself again, scaled.
+    """
+    out = []
+    for key in (k for k in samples.signals if k.startswith(LOGGED)):
+        channel, unit = key.removeprefix(LOGGED), samples.signal_units.get(key, "1")
+        term = f"{channel} / (qbar S)" if unit in LOGGED_FORCE_UNITS else channel
+        what = f"the logged channel {channel} [{unit}]"
+        out.append(Effect(key, f"{what} moves the coefficient: it enters as {term}",
+                          LONGITUDINAL + LATERAL, _logged_columns(key, None, 0.0),
+                          signals=(key,)))
+        for main, coefficients in (("alpha", LONGITUDINAL), ("beta", LATERAL)):
+            mean = float(np.mean(getattr(samples.condition, main)))
+            out.append(Effect(f"{key}*{main}", f"{what} changes the coefficient's {main} "
+                              f"derivative: it enters as {term} x ({main} - {mean:.4g} rad)",
+                              coefficients, _logged_columns(key, main, mean), signals=(key,)))
+    return out

@@ -16,6 +16,14 @@ surfaces, throttle  ``cmd_elevator cmd_aileron cmd_rudder``      rad
 height (optional)   ``baro_alt``                                 m
 ==================  ===========================================  ========
 
+Every other measured channel of the log is an extra channel
+(:func:`~drake_uav.io.extras.extra_channels`: a tension, a battery voltage, an ESC's
+speed): it is carried into ``AeroSamples.signals["logged:<channel>"]`` with its unit
+and its noise (read from the data like the sensors', or declared), drawn as straight
+lines between its samples when it was held like a slow sensor, and smoothed like the
+regressors; :func:`usable_extras` leaves out, with a note, one that is constant, not
+finite or changes too rarely to regress on.
+
 The channels are resampled to a uniform rate, checked (no NaN, no gap longer
 than ``max_gap``), and passed to the coefficient isolation. Commands are taken
 as held from their time stamp to the next one (zero-order hold), which places
@@ -43,14 +51,16 @@ import numpy as np
 
 from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.estimation.signals import unheld
-from drake_uav.identification.isolation import AeroSamples, isolate_coefficients
+from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
 from drake_uav.identification.propulsion import identify_thrust
+from drake_uav.io.extras import extra_channels
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import logged_rate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
-           "native_noise_variance", "white_noise_variance", "held_commands"]
+           "native_noise_variance", "white_noise_variance", "held_commands", "usable_extras",
+           "MIN_EXTRA_CHANGES"]
 
 SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
 RATES = ("imu_p", "imu_q", "imu_r")
@@ -66,6 +76,32 @@ REQUIRED_CHANNELS = SPECIFIC_FORCE + RATES + ATTITUDE + AIR_DATA + CONTROLS
 _NOISE_SOURCES = dict(zip(
     ("airspeed", "alpha", "beta", "p", "q", "r", "ax", "ay", "az"),
     AIR_DATA + RATES + SPECIFIC_FORCE, strict=True))
+
+MIN_EXTRA_CHANGES = 20
+"""An extra channel whose value changes fewer times than this over the log is too sparse
+to regress on (a flag, a mode, a battery level logged once a minute)."""
+
+
+def usable_extras(log: FlightLog, exclude=()) -> tuple[dict[str, str], tuple[str, ...]]:
+    """The extra channels of ``log`` the main job tests (name -> unit) and one note per
+    extra channel left out: not finite, constant, or changing fewer than
+    :data:`MIN_EXTRA_CHANGES` times. ``exclude``: channels that are not extra here (the
+    flow angles in use)."""
+    usable, notes = {}, []
+    for name, unit in extra_channels(log, exclude).items():
+        values = log[name]
+        changes = int(np.count_nonzero(np.diff(values)))
+        if not np.all(np.isfinite(values)):
+            why = "it has samples that are not finite"
+        elif changes == 0:
+            why = f"it is constant ({values[0]:.6g})"
+        elif changes < MIN_EXTRA_CHANGES:
+            why = f"too sparse: its value changes {changes} times (< {MIN_EXTRA_CHANGES})"
+        else:
+            usable[name] = unit
+            continue
+        notes.append(f"extra channel {name} [{unit}] left out: {why}")
+    return usable, tuple(notes)
 
 
 def white_noise_variance(values: np.ndarray, rate_hz: float,
@@ -97,8 +133,10 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
             for name, channel in _NOISE_SOURCES.items()}
 
 
-def _at_rate(noise: dict[str, float], log: FlightLog, rate_hz: float) -> dict[str, float]:
-    """Noise variances as white noise on the ``rate_hz`` grid the isolation smooths.
+def _at_rate(noise: dict[str, float], log: FlightLog, rate_hz: float,
+             sources: dict[str, str] = _NOISE_SOURCES) -> dict[str, float]:
+    """Noise variances (by the names of ``sources``: name -> log channel) as white noise on
+    the ``rate_hz`` grid the isolation smooths.
 
     A channel logged at r < ``rate_hz`` [Hz] has independent errors only every 1/r s:
     over the smoothing window its error averages down r/``rate_hz`` times less than
@@ -106,11 +144,23 @@ def _at_rate(noise: dict[str, float], log: FlightLog, rate_hz: float) -> dict[st
     below r/2 has the variance scaled by ``rate_hz``/r.
     """
     out = dict(noise)
-    for name, channel in _NOISE_SOURCES.items():
+    for name, channel in sources.items():
         logged = logged_rate(log, channel)
         if logged is not None and 0 < logged < rate_hz:
             out[name] = noise[name] * rate_hz / logged
     return out
+
+
+def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
+                 rate_hz: float) -> dict[str, float]:
+    """Raw noise variance of each extra channel on the ``rate_hz`` grid, by its
+    ``logged:<channel>`` name: the declared standard deviation where there is one, else
+    the white floor read from the data (:func:`native_noise_variance`)."""
+    sources = {f"{LOGGED}{c}": c for c in extras}
+    declared = declared or {}
+    noise = {name: (float(declared[c]) ** 2 if c in declared else native_noise_variance(log, c))
+             for name, c in sources.items()}
+    return _at_rate(noise, log, rate_hz, sources)
 
 
 def native_noise_variance(log: FlightLog, channel: str) -> float:
@@ -150,10 +200,10 @@ def _declared_std(log: FlightLog, declared: Mapping[str, float],
     return std
 
 
-def _air_data_unheld(log: FlightLog) -> FlightLog:
-    """``log`` with held air data and height (a 10 Hz pitot held on a faster log) drawn
-    as straight lines between their samples, as they were measured."""
-    return log.with_measured({n: unheld(log.time, log[n]) for n in (*AIR_DATA, HEIGHT)
+def _air_data_unheld(log: FlightLog, extras=()) -> FlightLog:
+    """``log`` with held air data, height and ``extras`` (a 10 Hz pitot held on a faster
+    log) drawn as straight lines between their samples, as they were measured."""
+    return log.with_measured({n: unheld(log.time, log[n]) for n in (*AIR_DATA, HEIGHT, *extras)
                               if n in log})
 
 
@@ -218,7 +268,8 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
                      max_gap: float = 0.5, min_airspeed: float = 5.0,
                      flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
                      sensor_noise_std: dict[str, float] | None = None,
-                     propulsion: str = "catalog") -> AeroSamples:
+                     propulsion: str = "catalog",
+                     extras: Mapping[str, str] | None = None) -> AeroSamples:
     """Regression samples (measured coefficients and regressors) from a flight log.
 
     Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
@@ -231,6 +282,8 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     (:func:`~drake_uav.identification.propulsion.identify_thrust`: from the motor
     speed when logged, else a throttle and airspeed correction), which falls back to
     the catalog model with a warning when the flight cannot tell thrust from drag.
+    ``extras`` (channel -> unit) are the extra channels carried into the samples
+    (module docstring); None takes :func:`usable_extras` of ``log``.
     Raises :class:`FlightLogError` naming a missing channel, a non-finite sample or
     a gap.
     """
@@ -240,13 +293,17 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
+    if extras is None:
+        extras = usable_extras(log, exclude=flow_channels)[0]
+    log.require(*extras)
     noise = _at_rate(raw_noise_variance(log, _specs_for(sensor_noise_std, flow_channels),
                                         params.rho), log, rate_hz)
+    extra_noise = _extra_noise(log, extras, sensor_noise_std, rate_hz)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
-    log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]))
+    log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]), extras)
     uniform = log.resample(rate_hz=rate_hz)
     # Misplacing held commands by half a hold period would leave a spurious actuator
     # delay (or lead) in the residual: forces and moments each get their own alignment.
@@ -269,6 +326,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), controls, signals=signals,
-            raw_noise_variance=noise, moment_controls=moment_controls, **thrust)
+            raw_noise_variance={**noise, **extra_noise}, moment_controls=moment_controls,
+            logged={c: (uniform[c], unit) for c, unit in extras.items()}, **thrust)
     except ValueError as err:
         raise FlightLogError(str(err)) from None

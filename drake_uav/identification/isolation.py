@@ -51,6 +51,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
     "AeroSamples",
+    "LOGGED",
     "MOMENTS",
     "differentiate",
     "isolate_coefficients",
@@ -64,6 +65,10 @@ __all__ = [
 
 MOMENTS = ("Cl", "Cm", "Cn")
 """Coefficients measured from the angular accelerations."""
+
+LOGGED = "logged:"
+"""Prefix of the logged extra channels (a tension, a voltage) in :attr:`AeroSamples.signals`,
+:attr:`AeroSamples.noise_variance` and :attr:`AeroSamples.signal_units`."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,10 +92,11 @@ class AeroSamples:
     specific_force: np.ndarray
     """(N, 3) accelerometer [m/s^2]."""
     signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    """Any other logged signals (altitude, attitude, ...), by name, same length."""
+    """Any other logged signals (altitude, attitude, ...), by name, same length; the
+    extra channels of the log, smoothed like the regressors, as ``logged:<channel>``."""
     noise_variance: Mapping[str, float] = dataclasses.field(default_factory=dict)
     """Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r, ax,
-    ay, az`` (units squared), for errors-in-variables corrections."""
+    ay, az`` and ``logged:<channel>`` (units squared), for errors-in-variables corrections."""
     thrust_airspeed_slope: np.ndarray | None = None
     """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured)."""
     reference_area: float = 1.0
@@ -99,6 +105,8 @@ class AeroSamples:
     """The same samples with the controls (surfaces, throttle, thrust) as the moment
     coefficients see them, or None when forces and moments see the same controls
     (see :func:`isolate_coefficients`)."""
+    signal_units: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    """Unit of each logged extra channel of :attr:`signals` (``logged:<channel>``)."""
 
     def __len__(self) -> int:
         return len(self.time)
@@ -168,6 +176,7 @@ class AeroSamples:
                                    else pick(self.thrust_airspeed_slope)),
             reference_area=self.reference_area,
             moment_view=None if self.moment_view is None else self.moment_view.subset(index),
+            signal_units=dict(self.signal_units),
         )
 
 
@@ -253,6 +262,7 @@ def isolate_coefficients(
     raw_noise_variance: Mapping[str, float] | None = None,
     moment_controls: np.ndarray | None = None,
     thrust_airspeed_slope: np.ndarray | None = None,
+    logged: Mapping[str, tuple[np.ndarray, str]] | None = None,
 ) -> AeroSamples:
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
@@ -280,12 +290,20 @@ def isolate_coefficients(
     ``thrust_airspeed_slope`` (N,) [N/(m/s)] goes with a ``thrust`` computed from the
     measured airspeed (an identified thrust model): its dT/dVa, which the
     errors-in-variables corrections carry; None for a thrust measured directly.
+
+    ``logged`` maps extra channels of the log (a tension, a voltage) to their raw
+    samples (N,) and unit: they go through the same filters as the regressors (the
+    sample smoothing for the forces, the interval filter for the moments) into
+    ``signals["logged:<channel>"]``, with their noise variance (``raw_noise_variance``
+    may give it under the same key, else it is estimated like the others).
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
                              air_data=air_data, controls=controls,
                              moment_controls=moment_controls)
     extra = _checked_signals(signals, len(time))
+    channels = _checked_signals({f"{LOGGED}{k}": v for k, (v, _) in (logged or {}).items()},
+                                len(time))
     filters = _Filters(time, derivative_window)
     model = FixedWingModel(params)
     measured_thrust = None if thrust is None else (
@@ -295,20 +313,26 @@ def isolate_coefficients(
     moments = _moment_samples(params, model, filters, arrays, measured_thrust)
     coefficients = dict(zip(COEFFICIENTS, forces.coefficients + moments.coefficients,
                             strict=True))
-    noise_variance, moment_gain = _noise_variance(filters, arrays, raw_noise_variance)
+    noise_variance, moment_gain = _noise_variance(filters, arrays, raw_noise_variance,
+                                                  channels)
     view = forces.view
     samples = AeroSamples(
         time=time, condition=forces.condition, coefficients=coefficients,
         dynamic_pressure=view.q_bar, throttle=view.controls[:, 3], thrust=view.thrust,
         rate_derivatives=differentiate(time, arrays["rates"], derivative_window),
-        specific_force=forces.specific_force, signals=extra, noise_variance=noise_variance,
-        thrust_airspeed_slope=view.thrust_slope, reference_area=params.S,
+        specific_force=forces.specific_force,
+        signals={**extra, **{k: filters.sample(v) for k, v in channels.items()}},
+        noise_variance=noise_variance, thrust_airspeed_slope=view.thrust_slope,
+        reference_area=params.S,
+        signal_units={f"{LOGGED}{k}": unit for k, (_, unit) in (logged or {}).items()},
     )
     view = moments.view
     return dataclasses.replace(samples, moment_view=dataclasses.replace(
         samples, condition=moments.condition, dynamic_pressure=view.q_bar, thrust=view.thrust,
         thrust_airspeed_slope=view.thrust_slope, throttle=view.controls[:, 3],
         rate_derivatives=moments.rate_derivatives,
+        signals={**extra, **{k: filters.interval(interval_averages(v))
+                             for k, v in channels.items()}},
         noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
 
 
@@ -455,13 +479,18 @@ def _moment_samples(params, model, filters: _Filters, arrays, measured_thrust) -
                      rate_derivatives=w_dot)
 
 
-def _noise_variance(filters: _Filters, arrays, raw_noise_variance):
-    """White-noise variance of the smoothed channels (:data:`NOISE_CHANNELS`) and the
-    factor by which the moments' interval filter changes it."""
+def _noise_variance(filters: _Filters, arrays, raw_noise_variance,
+                    logged: Mapping[str, np.ndarray]):
+    """White-noise variance of the smoothed channels (:data:`NOISE_CHANNELS` and the
+    ``logged`` extra channels) and the factor by which the moments' interval filter
+    changes it."""
     time, window = filters.time, filters.window
     noise = np.concatenate([smoothed_noise_variance(time, arrays[k], window)
                             for k in ("air_data", "rates", "specific_force")])
     noise_variance = dict(zip(NOISE_CHANNELS, noise.tolist(), strict=True))
+    if logged:
+        noise_variance.update(zip(logged, smoothed_noise_variance(
+            time, np.column_stack(list(logged.values())), window).tolist(), strict=True))
     gain = float(np.sum(_smoothing_coefficients(time, window, 3) ** 2))
     for name, value in (raw_noise_variance or {}).items():
         if name not in noise_variance:

@@ -25,7 +25,7 @@ from drake_uav.identification.discovery import (
     fit_derivatives,
 )
 from drake_uav.identification.effects import Effect, effect_library
-from drake_uav.identification.flight_data import samples_from_log
+from drake_uav.identification.flight_data import samples_from_log, usable_extras
 from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
@@ -316,17 +316,20 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
         progress(f"isolating aerodynamic coefficients ({len(spans)} airborne span"
                  f"{'s' if len(spans) > 1 else ''}, {_AIR_DATA_STEP[mode]})")
     parts = []
+    extras, extra_notes = usable_extras(log)  # one set for every span
     for start, end in spans:
         try:
             angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
             part = samples_from_log(angles.log, params, rate_hz=rate_hz,
                                     flow_channels=angles.channels,
-                                    sensor_noise_std=sensor_noise_std, propulsion=propulsion)
+                                    sensor_noise_std=sensor_noise_std, propulsion=propulsion,
+                                    extras=extras)
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
         parts.append(_with_flow_error(part, angles.error_variance))
     selection = LogSelection(tuple(spans), mode, angles.description,
-                             _selection_notes(log, spans, mode, angles.description))
+                             _selection_notes(log, spans, mode, angles.description)
+                             + extra_notes)
     return concatenate_samples(parts), selection
 
 

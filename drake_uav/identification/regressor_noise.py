@@ -18,6 +18,9 @@ source               what carries it                                   variance 
                      2Va``)
 ``p_dot`` ...        derivative of the gyros: the moments' angular     raw gyro ``sum d^2``
                      accelerations, the accelerometer lever arm
+``logged:<channel>`` an extra channel of the log (a tension, a        the isolation's
+                     voltage), smoothed like the regressors: the       (smoothed channel)
+                     candidates built on it
 ===================  ===============================================  ====================
 
 The derivative weights of a centred smoothing filter are antisymmetric and its
@@ -37,15 +40,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import MOMENTS, AeroSamples, isolate_coefficients
+from drake_uav.identification.isolation import (
+    LOGGED,
+    MOMENTS,
+    AeroSamples,
+    isolate_coefficients,
+)
 from drake_uav.model.isolation import differentiate, moment_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["ISOLATION_WINDOW", "STEPS", "AIR_DATA_SOURCES", "DERIVATIVES", "smoothing_gains",
-           "source_variances", "perturbed", "observation_sensitivity"]
+__all__ = ["ISOLATION_WINDOW", "STEPS", "LOGGED_STEP", "AIR_DATA_SOURCES", "DERIVATIVES",
+           "smoothing_gains", "source_variances", "noise_sources", "source_step", "perturbed",
+           "observation_sensitivity"]
 
 ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
     "derivative_window"].default
@@ -54,6 +64,10 @@ ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
 STEPS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5, "alphadot": 1e-5,
          "p": 1e-5, "q": 1e-5, "r": 1e-5, "p_dot": 1e-4, "q_dot": 1e-4, "r_dot": 1e-4}
 """Every noise source with its finite-difference step [m/s, rad, rad/s, rad/s^2]."""
+
+LOGGED_STEP = 1e-4
+"""Finite-difference step of a logged extra channel [its unit]: the candidates are linear
+in it, so the central difference is exact but for rounding."""
 
 AIR_DATA_SOURCES = ("airspeed", "alpha", "beta")
 """Sources nearly every column and coefficient depends on (through qbar and the axes)."""
@@ -88,6 +102,7 @@ def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]
     """
     view = samples.aligned(coefficient).noise_variance
     out = {s: float(view[s]) for s in (*AIR_DATA_SOURCES, *_RATES) if s in view}
+    out.update((s, float(v)) for s, v in view.items() if s.startswith(LOGGED))
     smooth, derivative = smoothing_gains(float(np.median(np.diff(samples.time))))
     for source, channel in DERIVATIVES.items():
         if channel in samples.noise_variance:
@@ -95,8 +110,23 @@ def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]
     return {s: v for s, v in out.items() if v > 0.0}
 
 
+def noise_sources(variance: Mapping[str, float]) -> tuple[str, ...]:
+    """The sources of ``variance`` in :data:`STEPS` order, the logged channels after."""
+    return (*(s for s in STEPS if s in variance), *(s for s in variance if s not in STEPS))
+
+
+def source_step(source: str) -> float:
+    """Finite-difference step of a source: :data:`STEPS`, else :data:`LOGGED_STEP`."""
+    return STEPS.get(source, LOGGED_STEP)
+
+
 def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
     """A copy of ``samples`` (both views) with ``delta`` added to one source's signal."""
+    if source.startswith(LOGGED):
+        view = None if samples.moment_view is None else perturbed(samples.moment_view, source,
+                                                                  delta)
+        return dataclasses.replace(samples, moment_view=view, signals={
+            **samples.signals, source: samples.signals[source] + delta})
     if source not in DERIVATIVES or source == "alphadot":
         return samples.perturbed(source, delta)
     rates = samples.rate_derivatives.copy()

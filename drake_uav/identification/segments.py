@@ -64,4 +64,5 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
         thrust_airspeed_slope=slope,
         reference_area=first.reference_area,
         moment_view=view,
+        signal_units=dict(first.signal_units),
     )
