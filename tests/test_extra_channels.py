@@ -106,7 +106,7 @@ def _written(path, text):
 
 def _autopilot_log(tmp_path):
     """A 5 s .bin: IMU, ATT, RCOU at 100 Hz, two BAT instances at 10 Hz, ESC RPM at 20 Hz
-    with one NaN sample."""
+    from 0.2 s on, with one NaN sample."""
     t = np.arange(500) * 0.01
     us = np.round(1e6 + t * 1e6).astype(np.uint64)
     w = DataFlashWriter()
@@ -122,9 +122,9 @@ def _autopilot_log(tmp_path):
     for instance in (0, 1):
         w.add("BAT", TimeUS=us[::10] + instance, Inst=instance, Volt=12.0 - t[::10] + instance,
               Curr=8.0 + instance, Temp=30.0)
-    rpm = 6000.0 + 100.0 * t[::5]
-    rpm[40] = np.nan
-    w.add("ESC", TimeUS=us[::5], Instance=0, RPM=rpm, Curr=5.0)
+    rpm = 6000.0 + 100.0 * t[20::5]
+    rpm[36] = np.nan  # at t[200]
+    w.add("ESC", TimeUS=us[20::5], Instance=0, RPM=rpm, Curr=5.0)
     return w.save(tmp_path / "flight.bin"), t, rpm
 
 
@@ -140,7 +140,9 @@ def test_bin_battery_esc_and_named_fields_are_extra_channels(tmp_path):
     np.testing.assert_array_equal(log["BAT.Temp"], 30.0)
     # rev/min -> rad/s; the NaN sample is invalid: the one before it is held over it.
     at_nan = np.flatnonzero(np.isclose(log.time, 1.0 + t[200]))[0]
-    assert log["ESC.RPM"][at_nan] == pytest.approx(rpm[39] * math.pi / 30.0, rel=1e-6)
+    assert log["ESC.RPM"][at_nan] == pytest.approx(rpm[35] * math.pi / 30.0, rel=1e-6)
+    # An extra channel never shortens the log: the ESC's first value is held before it.
+    assert log.time[0] == 1.0 and log["ESC.RPM"][0] == pytest.approx(rpm[0] * math.pi / 30.0)
     assert read_log(log.save(tmp_path / "saved.csv")).equals(log)
     with pytest.raises(FlightLogError, match="no field Nope in BAT messages"):
         read_log(path, extra_channels=["BAT.Nope"])

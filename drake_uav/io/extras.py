@@ -15,7 +15,8 @@ and its unit, and the main job tests it as a candidate explanation of the residu
   (``extra_channels=["BAT.Temp", ...]``, ``drake-uav identify --extra-channels``), as
   channels ``<message>.<field>`` (brackets of an array field dropped:
   ``esc_status.esc0.esc_rpm``). They are optional streams: sparse or gappy, they are
-  left out with a warning; a sample that is not finite is an invalid one.
+  left out with a warning; a sample that is not finite is an invalid one; they never
+  shorten the log (a battery logged from 0.3 s after the IMU holds its first value).
 """
 
 from __future__ import annotations
@@ -109,7 +110,8 @@ def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
     """One optional stream per message of ``wanted`` (message -> field -> logged unit or
     None), its fields as extra channels (:func:`extra_channel_name`, :func:`logged_unit`);
     ``read(message, fields)`` gives (time [s], field -> raw values) or None (the message
-    left out). A sample with a non-finite value is invalid."""
+    left out). A sample with a non-finite value is invalid; the streams never trim the
+    canonical channels' segments (:attr:`~drake_uav.io.streams.Stream.trims`)."""
     streams = []
     for message, fields in wanted.items():
         got = read(message, list(fields))
@@ -123,5 +125,5 @@ def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
             values[channel], sources[channel] = factor * raw[field], f"{message}.{field}"
         valid = np.logical_and.reduce([np.isfinite(v) for v in values.values()])
         streams.append(Stream(message, time, values, units, fields=sources, valid=valid,
-                              optional=True))
+                              optional=True, trims=False))
     return streams

@@ -348,6 +348,10 @@ class Stream:
         optional: a stream the log can do without (air data, GPS, RPM): when it
             is sparse or has gaps it is dropped with a warning instead of
             cutting the log.
+        trims: an optional stream's segments are trimmed to its data (False: an
+            extra channel, which never moves the canonical channels' segments; over
+            the at most ``max_gap`` it misses at a segment's end it holds its first
+            or last value).
     """
 
     name: str
@@ -359,6 +363,7 @@ class Stream:
     fields: dict[str, str] = dataclasses.field(default_factory=dict)
     valid: np.ndarray | None = None
     optional: bool = False
+    trims: bool = True
 
     def check(self, source: str) -> None:
         """Raises FlightLogError for an empty stream, time not increasing, a ``valid``
@@ -550,7 +555,8 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
     a gap longer than ``max_gap`` inside a segment, or misses more than
     ``max_gap`` at a segment's end is dropped with a warning naming ``source``
     and the stream (``metadata["dropped_streams"]``); otherwise the segments
-    are trimmed to its data. ``span`` = (t0, t1) [s] keeps only that part of
+    are trimmed to its data (but an extra channel's: :attr:`Stream.trims`). ``span`` =
+    (t0, t1) [s] keeps only that part of
     the log, before optional streams are judged (a GPS fixed after the log's
     start but before ``t0`` is kept).
 
@@ -576,7 +582,8 @@ def align_streams(base: Stream, streams: Sequence[Stream], *, source: str, max_g
                               f"{why or 'nothing left'}", stacklevel=3)
                 dropped.append(stream.name)
                 continue
-            segments = _segments(base.time, fitted)
+            if stream.trims:
+                segments = _segments(base.time, fitted)
         kept.append(stream)
     return _aligned_log(base, kept, segments, source, max_gap, dict(metadata or {}),
                         dropped)
