@@ -88,6 +88,15 @@ class IdentificationRun:
         """What the job did with the log that the user should know (one line each)."""
         return () if self.data is None else self.data.notes
 
+    @property
+    def findings(self) -> tuple[str, ...]:
+        """Everything the job found the model or the data lacked, by name: the calibration
+        errors the data-compatibility check corrected (``air_data_time_skew``, ...), then
+        the effects the discovery loop found."""
+        corrected = () if self.compatibility is None else tuple(
+            e.name for e in self.compatibility.applied)
+        return corrected + tuple(f.name for f in self.discovery.found)
+
     def summary(self) -> dict:
         """JSON-ready summary: effects with evidence, errors before/after, parameters.
 
