@@ -193,10 +193,12 @@ def test_constant_and_sparse_extra_channels_are_left_out_with_a_note():
     t = np.arange(300) * 0.01
     log = FlightLog(t, {"tension": np.sin(t), "armed": np.ones_like(t),
                         "mode": np.arange(300) * MIN_EXTRA_CHANGES // 300,
-                        "ahrs_alpha": 0.1 * t, "est_alpha": 0.1 * t, "imu_p": 0 * t},
+                        "ahrs_alpha": 0.1 * t, "est_alpha": 0.1 * t, "boom_alpha": 0.1 * t,
+                        "imu_p": 0 * t},
                   units={"tension": "N", "armed": "1", "mode": "1", "ahrs_alpha": "rad",
-                         "est_alpha": "rad", "imu_p": "rad/s"})
-    usable, notes = usable_extras(log, exclude=("est_alpha",))
+                         "est_alpha": "rad", "boom_alpha": "rad", "imu_p": "rad/s"})
+    # Estimates of alpha are never extra, nor the flow channel in use (``exclude``).
+    usable, notes = usable_extras(log, exclude=("boom_alpha",))
     assert usable == {"tension": "N"}
     assert notes == ("extra channel armed [1] left out: it is constant (1)",
                      f"extra channel mode [1] left out: too sparse: its value changes "

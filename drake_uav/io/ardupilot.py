@@ -42,8 +42,8 @@ import numpy as np
 from drake_uav.io.ardupilot_params import mode_name, servo_mapping, vehicle_type
 from drake_uav.io.dataflash import DataFlash
 from drake_uav.io.extras import (
+    AHRS_CHANNELS,
     ARDUPILOT_EXTRAS,
-    ESTIMATED_CHANNELS,
     extra_streams,
     parse_extra_fields,
     wanted_fields,
@@ -62,8 +62,6 @@ _INSTANCE_MESSAGES = {"IMU": ("IMU", "IMU2", "IMU3"), "GPS": ("GPS", "GPS2"),
                       "XKF2": ("XKF2",), "NKF2": ("NKF2", "NKF7"), "RPM": ("RPM",)}
 """Message -> the messages of instances 0, 1, ... in logs without an instance field."""
 _INSTANCE_COLUMNS = {"XKF2": "C", "NKF2": "C"}
-AHRS_CHANNELS = ESTIMATED_CHANNELS
-"""Channels of ArduPlane's logged ``AOA`` message: name -> (unit, meaning)."""
 _LOG_BITMASK_IMU = 128  # MASK_LOG_IMU of ArduPlane and ArduCopter
 
 

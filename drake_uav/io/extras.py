@@ -29,13 +29,20 @@ from drake_uav.io.csv_log import UNIT_VARIANTS, channel_name
 from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError
 from drake_uav.io.streams import CHANNELS, Stream
 
-__all__ = ["ESTIMATED_CHANNELS", "ARDUPILOT_EXTRAS", "PX4_EXTRAS", "extra_channels",
-           "extra_channel_name", "parse_extra_fields", "logged_unit", "wanted_fields",
-           "extra_streams"]
+__all__ = ["AHRS_CHANNELS", "ESTIMATED_CHANNELS", "ARDUPILOT_EXTRAS", "PX4_EXTRAS",
+           "extra_channels", "extra_channel_name", "parse_extra_fields", "logged_unit",
+           "wanted_fields", "extra_streams"]
 
-ESTIMATED_CHANNELS = {
+AHRS_CHANNELS = {
     "ahrs_alpha": ("rad", "angle of attack estimated by ArduPlane's AHRS (not a sensor)"),
     "ahrs_beta": ("rad", "sideslip angle estimated by ArduPlane's AHRS (not a sensor)"),
+}
+"""Channels of ArduPlane's logged ``AOA`` message: name -> (unit, meaning)."""
+
+ESTIMATED_CHANNELS = {
+    **AHRS_CHANNELS,
+    "est_alpha": ("rad", "angle of attack estimated from IMU, attitude, GPS and pitot"),
+    "est_beta": ("rad", "sideslip angle estimated from IMU, attitude, GPS and pitot"),
 }
 """Measured channels that estimate a canonical quantity, never extra: name -> (unit,
 meaning)."""
