@@ -122,7 +122,8 @@ class EvidenceRule:
     ``p_value`` is the family-wise level: it is divided by the number of
     candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
     smallest held-out prediction-error reduction worth a new term (fraction of
-    the baseline PSE); ``min_folds`` how many of the ``folds`` must improve.
+    the baseline PSE); ``min_folds`` how many of the ``folds`` must improve (less the
+    effect's :attr:`~drake_uav.identification.effects.Effect.blind_folds`).
 
     A candidate that passes is then checked, per coefficient, on the held-out tail
     (``holdout_fraction`` of the flight, which no test above saw;
@@ -620,6 +621,7 @@ def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _Round
         if columns:
             groups.setdefault((k, len(columns)), []).append(
                 (index, effect.name, candidate.pick(columns)))
+    blind = {effect.name: effect.blind_folds for effect, _ in pairs}
     scored = {}
     for (k, q), members in groups.items():
         shape = (len(bases[k].design.z), q)
@@ -630,7 +632,8 @@ def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _Round
                  for s in dict.fromkeys(s for c in candidates for s in c.jacobians)}
         evidence = _score_batch([name for _, name, _ in members],
                                 [tuple(c.columns) for c in candidates], k, bases[k], X_new,
-                                J_new, rule, n_tests)
+                                J_new, rule, n_tests,
+                                np.array([blind[name] for _, name, _ in members]))
         scored.update((index, ev) for (index, _, _), ev in zip(members, evidence, strict=True)
                       if ev is not None)
     return [scored[i] for i in sorted(scored)]
@@ -643,9 +646,10 @@ def _stacked(values: Mapping[str, np.ndarray] | None, names, shape) -> np.ndarra
 
 def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coefficient: str,
                  base: _RoundBase, X_new: np.ndarray, J_new: Mapping[str, np.ndarray],
-                 rule: EvidenceRule, n_tests: int) -> list[Evidence | None]:
+                 rule: EvidenceRule, n_tests: int, blind_folds=0) -> list[Evidence | None]:
     """The evidence for m candidates of q columns each, scored together: ``X_new`` and the
-    ``J_new`` sensitivities (N, m, q); None where the extended design is not well posed."""
+    ``J_new`` sensitivities (N, m, q); None where the extended design is not well posed.
+    ``blind_folds`` (m,): folds a candidate need not improve (:attr:`Effect.blind_folds`)."""
     design = base.design
     p, q = design.X.shape[1], X_new.shape[2]
     blocks = base.blocks.extended(design.X, design.z, design.noise, X_new, J_new)
@@ -662,13 +666,18 @@ def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coeff
     observed1 = np.einsum("nm,nm->m", r, r)
     corrected1 = observed1 - noise_error_energy(theta, C_xx, c_xz)
     drop = np.maximum(base.sse[1] - corrected1, 0.0)
-    dof = max(base.n_eff - p - q, 1.0)
+    folds = (reduction >= rule.min_pse_reduction) & (improved >= rule.min_folds - blind_folds)
+    # Where the folds passed, the residual's correlation is read with the candidate: a large
+    # slow effect left in the base residual would pass for correlated noise.
+    n_eff = np.full(len(names), base.n_eff)
+    for i in np.flatnonzero(folds):
+        n_eff[i] = effective_sample_size(r[:, i])
+    dof = np.maximum(n_eff - p - q, 1.0)
     f_stat = drop / q / (observed1 / dof)
     p_value = _f_survival(f_stat, q, dof)
-    delta_bic = base.n_eff * np.log(np.maximum(base.sse[0] - drop, 1e-300) / base.sse[0]) \
-        + q * np.log(base.n_eff)
-    passed = ((p_value < rule.p_value / max(n_tests, 1)) & (reduction >= rule.min_pse_reduction)
-              & (improved >= rule.min_folds) & (delta_bic < 0))
+    delta_bic = n_eff * np.log(np.maximum(base.sse[0] - drop, 1e-300) / base.sse[0]) \
+        + q * np.log(n_eff)
+    passed = (p_value < rule.p_value / max(n_tests, 1)) & folds & (delta_bic < 0)
     return [Evidence(names[i], coefficient, columns[i], float(reduction[i]), int(improved[i]),
                      float(f_stat[i]), float(p_value[i]), float(delta_bic[i]), bool(passed[i]))
             if posed[i] else None for i in range(len(names))]

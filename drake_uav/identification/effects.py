@@ -76,6 +76,10 @@ class Effect:
     """``AeroSamples.signals`` entries the effect needs."""
     condition: Callable[[AeroSamples], bool] | None = None
     """Extra requirement on the data for the effect to be testable."""
+    blind_folds: int = 0
+    """Blocked cross-validation folds the effect cannot improve by construction, which the
+    evidence rule does not ask it to: 1 for a linear drift, whose middle fold a constant
+    fitted on the folds either side already predicts."""
 
     def available(self, samples: AeroSamples) -> bool:
         """True when the samples carry every signal the effect needs (and meet its condition)."""
@@ -229,6 +233,20 @@ def _ground_effect(samples, params, coefficient):
     return {"ground": phi, "ground_alpha": phi * samples.condition.alpha}
 
 
+DRIFT_TIME_SCALE = 100.0
+"""Time unit [s] of the drift columns: their parameters are changes per 100 s."""
+
+
+def _drift(samples, params, coefficient):
+    # Log time, never a sample index: joined spans keep their gaps, and the training part
+    # and the held-out tail are built separately, so the column must be the same function
+    # of time on both (a per-part centring would not be). The baseline's constant and
+    # alpha (beta) terms absorb the time origin.
+    tau = samples.time / DRIFT_TIME_SCALE
+    main = "beta" if coefficient in LATERAL else "alpha"
+    return {"drift": tau, f"drift_{main}": tau * getattr(samples.condition, main)}
+
+
 def effect_library() -> list[Effect]:
     """The named effects, in the order they are reported."""
     return [
@@ -268,6 +286,10 @@ def effect_library() -> list[Effect]:
         Effect("ground_effect", "the ground reduces downwash near the runway: more lift, "
                "less induced drag below about one span", ("CL", "CD", "Cm"), _ground_effect,
                signals=("height",)),
+        Effect("coefficient_drift", "a coefficient that drifts slowly over the flight "
+               "(icing, fuel burn, a loosening surface): its constant and its alpha (beta) "
+               "derivative change linearly with the log time", LONGITUDINAL + LATERAL,
+               _drift, blind_folds=1),
     ]
 
 
