@@ -31,6 +31,8 @@ def test_clean_flights_find_nothing():
     assert [discovery(seed, {"effect": "none"})["found"] for seed in SEEDS] == [""] * 3
 
 
-def test_an_unknown_effect_is_refused_with_the_known_ones():
+def test_an_unknown_effect_or_suite_is_refused_with_the_known_ones():
     with pytest.raises(ValueError, match="known: none, propwash_drag"):
         discovery(0, {"effect": "bird_strike"})
+    with pytest.raises(ValueError, match="known: default, research"):
+        discovery(0, {"suite": "military"})

@@ -79,11 +79,10 @@ def _increment(index: int, shape: Callable[[AeroCondition], object]):
     return options
 
 
-def _drift(index: int, duration_of: Callable[[], float]):
-    """Fly options: a coefficient growing linearly from 0 by ``strength`` over the flight."""
+def _drift(index: int, duration: float):
+    """Fly options: a coefficient growing linearly from 0 by ``strength`` over ``duration``
+    [s]."""
     def options(strength, params):
-        duration = duration_of()
-
         def increment(condition, t):
             out = [0.0] * 6
             out[index] = strength * t / duration
@@ -175,7 +174,7 @@ INJECTED: dict[str, Injection] = {
         "force_body_x_off_cg", "CD", _force_x_on_drag, _tow_below_cg),
     "drag_drift": Injection(
         "coefficient_drift", "CD", lambda c, f, p: (f.time - f.time[0]) / _FLIGHT_DURATION,
-        _drift(_index("CD"), lambda: _FLIGHT_DURATION)),
+        _drift(_index("CD"), _FLIGHT_DURATION)),
     "air_data_skew": Injection(
         "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late),
 }
@@ -251,12 +250,15 @@ def discovery(seed: int, params: dict) -> dict:
     key = params.get("effect", "none")
     if key != "none" and key not in INJECTED:
         raise ValueError(f"discovery: effect {key!r} unknown (known: none, {', '.join(INJECTED)})")
+    suite = params.get("suite", "default")
+    if suite not in SUITES:
+        raise ValueError(f"discovery: suite {suite!r} unknown (known: {', '.join(SUITES)})")
     size = float(params.get("size", 0.3))
     turbulence = params.get("turbulence", "light")
     catalog = load_fixed_wing("aerosonde")
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
                "duration": _FLIGHT_DURATION,
-               "sensors": SUITES[params.get("suite", "default")](catalog.rho)}
+               "sensors": SUITES[suite](catalog.rho)}
     injection = INJECTED.get(key)
     strength = 0.0
     if injection is not None:
