@@ -16,7 +16,7 @@ import numpy as np
 from drake_uav.io.writers import DataFlashWriter, ULogWriter
 from drake_uav.model.geodesy import geodetic_from_ned
 
-__all__ = ["DataFlashWriter", "ULogWriter", "ORIGIN", "FULL_DEFLECTION", "dataflash_from_log",
+__all__ = ["DataFlashWriter", "ULogWriter", "px4_imu_writer", "ORIGIN", "FULL_DEFLECTION", "dataflash_from_log",
            "ulog_from_log"]
 
 # ------------------------------------------------- canonical FlightLog -> native logs
@@ -73,6 +73,18 @@ def dataflash_from_log(log, path, max_deflection: float = FULL_DEFLECTION) -> Pa
     return w.save(path)
 
 
+def px4_imu_writer() -> ULogWriter:
+    """A PX4 ULog writer with the IMU (``sensor_combined``) and attitude
+    (``vehicle_attitude``) topics defined."""
+    w = ULogWriter()
+    w.info("sys_name", "PX4")
+    w.format("sensor_combined", "uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;"
+             "int32_t accelerometer_timestamp_relative;float[3] accelerometer_m_s2;"
+             "uint32_t accelerometer_integral_dt")
+    w.format("vehicle_attitude", "uint64_t timestamp;uint64_t timestamp_sample;float[4] q")
+    return w
+
+
 def ulog_from_log(log, path) -> Path:
     """A PX4 ``.ulg`` of a FlightLog with the canonical channels (one rate).
 
@@ -82,12 +94,7 @@ def ulog_from_log(log, path) -> Path:
     """
     from drake_uav.model.rotations import euler_to_quat
 
-    w = ULogWriter()
-    w.info("sys_name", "PX4")
-    w.format("sensor_combined", "uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;"
-             "int32_t accelerometer_timestamp_relative;float[3] accelerometer_m_s2;"
-             "uint32_t accelerometer_integral_dt")
-    w.format("vehicle_attitude", "uint64_t timestamp;uint64_t timestamp_sample;float[4] q")
+    w = px4_imu_writer()
     w.format("vehicle_local_position", "uint64_t timestamp;uint64_t timestamp_sample;"
              "float x;float y;float z;float vx;float vy;float vz")
     w.format("airspeed", "uint64_t timestamp;uint64_t timestamp_sample;"

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from log_writers import DataFlashWriter, ULogWriter
+from log_writers import DataFlashWriter, px4_imu_writer
 
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
@@ -155,12 +155,7 @@ def test_ulg_battery_and_named_fields_are_extra_channels(tmp_path):
     t = np.arange(500) * 0.01
     us = np.round(1e6 + t * 1e6).astype(np.uint64)
     n = len(t)
-    w = ULogWriter()
-    w.info("sys_name", "PX4")
-    w.format("sensor_combined", "uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;"
-             "int32_t accelerometer_timestamp_relative;float[3] accelerometer_m_s2;"
-             "uint32_t accelerometer_integral_dt")
-    w.format("vehicle_attitude", "uint64_t timestamp;uint64_t timestamp_sample;float[4] q")
+    w = px4_imu_writer()
     w.format("actuator_controls_0", "uint64_t timestamp;uint64_t timestamp_sample;"
              "float[8] control")
     w.format("battery_status", "uint64_t timestamp;float voltage_v;float current_a;"
