@@ -16,8 +16,8 @@ import numpy as np
 from drake_uav.io.writers import DataFlashWriter, ULogWriter
 from drake_uav.model.geodesy import geodetic_from_ned
 
-__all__ = ["DataFlashWriter", "ULogWriter", "px4_imu_writer", "ORIGIN", "FULL_DEFLECTION", "dataflash_from_log",
-           "ulog_from_log"]
+__all__ = ["DataFlashWriter", "ULogWriter", "px4_imu_writer", "ORIGIN", "FULL_DEFLECTION",
+           "dataflash_from_log", "ulog_from_log"]
 
 # ------------------------------------------------- canonical FlightLog -> native logs
 ORIGIN = (47.0, 8.0, 500.0)

@@ -55,6 +55,7 @@ PX4_EXTRAS = (("battery_status", "voltage_v", "V"), ("battery_status", "current_
               ("esc_status", "esc[0].esc_rpm", "rpm"))
 """(topic, field, unit) of the extra channels a ``.ulg`` log gives by default (multi-id 0)."""
 
+
 def extra_channels(log: FlightLog, exclude: Iterable[str] = ()) -> dict[str, str]:
     """The extra measured channels of ``log`` (module docstring) -> unit, in log order;
     ``exclude`` leaves more names out (flow angles estimated from the log)."""
