@@ -78,7 +78,7 @@ from drake_uav.identification.errors_in_variables import (
 )
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
-from drake_uav.identification.regression import RegressionResult, bcls, r_factor
+from drake_uav.identification.regression import RegressionResult, bcls, f_survival, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
     noise_sources,
@@ -674,7 +674,7 @@ def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coeff
         n_eff[i] = effective_sample_size(r[:, i])
     dof = np.maximum(n_eff - p - q, 1.0)
     f_stat = drop / q / (observed1 / dof)
-    p_value = _f_survival(f_stat, q, dof)
+    p_value = np.asarray(f_survival(f_stat, q, dof), dtype=float)
     delta_bic = n_eff * np.log(np.maximum(base.sse[0] - drop, 1e-300) / base.sse[0]) \
         + q * np.log(n_eff)
     passed = (p_value < rule.p_value / max(n_tests, 1)) & folds & (delta_bic < 0)
@@ -1118,13 +1118,6 @@ def _score_products(bases, pool: _Candidates, rule, names, n_tests) -> list[Evid
                                 {s: j[:, index, None] for s, j in jacobians.items()}, rule,
                                 n_tests)
     return [e for e in out if e is not None]
-
-
-def _f_survival(f_stat, dfn: float, dfd: float) -> np.ndarray:
-    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom (elementwise)."""
-    from scipy.special import fdtrc
-
-    return np.asarray(fdtrc(dfn, dfd, f_stat), dtype=float)
 
 
 def _found(name: str, effect: Effect | None, accepted: list[Evidence]) -> FoundEffect:

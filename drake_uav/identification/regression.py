@@ -68,6 +68,7 @@ from drake_uav.identification.errors_in_variables import (
 )
 
 __all__ = [
+    "f_survival",
     "regression_result",
     "IdentificationWarning",
     "InsufficientExcitationWarning",
@@ -176,6 +177,14 @@ class RegressionResult:
 
 
 # ----------------------------------------------------------------------------- helpers
+
+
+def f_survival(f_stat, dfn, dfd):
+    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom (elementwise;
+    a float for scalars)."""
+    from scipy.special import fdtrc
+
+    return fdtrc(dfn, dfd, f_stat)
 
 
 def _as_data(X, z) -> tuple[np.ndarray, np.ndarray]:

@@ -45,7 +45,9 @@ from drake_uav.identification.errors_in_variables import (
     noise_error_energy,
 )
 from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.regression import f_survival
 from drake_uav.identification.residuals import effective_sample_size
+from drake_uav.model.air_data import velocity_from_air_data
 from drake_uav.model.coefficients import body_to_lift_drag
 from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
@@ -87,8 +89,8 @@ def _body_axis(axis: int) -> Direction:
 
 
 def _against_air_velocity(samples: AeroSamples) -> np.ndarray:
-    a, b = samples.condition.alpha, samples.condition.beta
-    return -np.column_stack([np.cos(a) * np.cos(b), np.sin(b), np.sin(a) * np.cos(b)])
+    c = samples.condition
+    return -np.column_stack(velocity_from_air_data(1.0, c.alpha, c.beta))
 
 
 def _against_ground_velocity(samples: AeroSamples) -> np.ndarray:
@@ -303,12 +305,6 @@ class JointEvidence:
 
 
 
-def _f_survival(f: float, dfn: float, dfd: float) -> float:
-    from scipy.special import fdtrc
-
-    return float(fdtrc(dfn, dfd, f))
-
-
 class JointSearch:
     """The vector effects of one discovery: their columns, their joint evidence in each
     round, their acceptance against the per-coefficient candidates and their parameters.
@@ -445,7 +441,7 @@ class JointSearch:
             improved[k] = int(np.sum(gain > 0))
         dof = max(dof - q, 1.0)
         f_stat = max(drop_w, 0.0) / q / (observed_w / dof)
-        p_value = _f_survival(f_stat, q, dof)
+        p_value = float(f_survival(f_stat, q, dof))
         reduction, folds_improved = float(np.mean(relative)), int(np.sum(relative > 0))
         passed = (p_value < rule.p_value / max(n_tests, 1) and reduction >= rule.min_pse_reduction
                   and folds_improved >= rule.min_folds and bic < 0)
