@@ -141,6 +141,38 @@ def test_command_skews_a_servo_delay_is_reported_a_logging_skew_corrected(straig
     assert servo.significant and not servo.applied
 
 
+AIR_DATA = ("pitot_airspeed", "pitot_qbar", "vane_alpha", "vane_beta")
+
+
+@pytest.mark.parametrize("seed", STRAIGHT_SEEDS)
+def test_an_air_data_skew_of_two_samples_is_found_to_a_few_milliseconds(straight, seed):
+    """Within half the 10 ms tolerance and SIGMAS standard errors, clean and with 25 ms
+    late air data (the specific force and the commands that move it are timed against
+    the vanes; without the commands the estimate carried about +15 ms)."""
+    log = straight[seed]
+    clean = check_compatibility(log, PARAMS)["air_data_time_skew"]
+    assert abs(clean.estimate) < min(0.005, SIGMAS * clean.sigma), clean.line()
+    assert not clean.significant
+    t = log.time
+    late = log.with_measured({n: np.interp(t - 0.025, t, log[n]) for n in AIR_DATA})
+    skew = check_compatibility(late, PARAMS)["air_data_time_skew"]
+    assert abs(skew.estimate - 0.025) < min(0.005, SIGMAS * skew.sigma), skew.line()
+    assert skew.applied
+
+
+def test_a_servo_delay_is_not_taken_for_an_air_data_skew():
+    """The surfaces 60 ms behind their commands: the command skew says so, and the air
+    data, timed against the commands read that much earlier, show no skew."""
+    for seed in STRAIGHT_SEEDS[:2]:
+        flight = fly("aerosonde", turbulence="light", seed=seed, duration=40.0,
+                     actuator_delay=0.06)
+        result = check_compatibility(flight.select(flight.measured_names), PARAMS)
+        assert abs(result["command_time_skew"].estimate - 0.06) < 0.003
+        skew = result["air_data_time_skew"]
+        assert abs(skew.estimate) < min(0.005, SIGMAS * skew.sigma), skew.line()
+        assert not skew.significant
+
+
 def test_skews_of_seconds_between_channel_groups_are_found(straight):
     log = straight[STRAIGHT_SEEDS[1]]
     gps = check_compatibility(inject(log, gps_delay=4.3), PARAMS)["gps_time_skew"]

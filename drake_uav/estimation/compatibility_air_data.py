@@ -21,7 +21,8 @@ Morelli 2006, ch. 10:
   scale factor is only trusted where the share is small.
 * :func:`air_data_skew`: the skew of the air data against the kinematic air data from
   the 0.2-2 Hz band of both (the manoeuvres; white noise mostly outside it), with the
-  IMU signals that see gusts at once as extra regressors.
+  IMU signals that see gusts at once, and the commands that move those signals directly,
+  as extra regressors.
 """
 
 from __future__ import annotations
@@ -227,8 +228,9 @@ def air_data_skew(time: np.ndarray, kinematic: Mapping[str, np.ndarray],
     """Skew [s] of the air data (positive: they lag the IMU) and their in-band gains.
 
     ``kinematic``, ``measured`` and ``response`` map the same channel names to samples
-    on ``time`` (``response``: (N, m) IMU signals that see a gust at once, as the air
-    data do: the specific force along the channel's direction and the body rates). All
+    on ``time`` (``response``: (N, m) signals that see a gust at once, as the air data
+    do, and what moves them directly: the specific force along the channel's direction
+    and the commands of the surfaces or throttle that change it). All
     are band-passed (:data:`SKEW_BAND`); each measured channel, read ``skew`` later, is
     fitted with gains on its kinematic channel and its response signals, so the gust
     part of the air data is explained at the IMU's time rather than by a shift (rows
