@@ -14,6 +14,7 @@ from drake_uav.identification.isolation import (
     interval_averages,
     isolate_coefficients,
     monte_carlo_sigma,
+    monte_carlo_sigmas,
 )
 from drake_uav.model.coefficients import COEFFICIENTS, body_to_lift_drag, regressor_matrix
 from drake_uav.model.isolation import differentiate
@@ -98,6 +99,17 @@ def test_monte_carlo_sigma_matches_linear_propagation():
                                  np.array([[0, 1], [-2, 2], [5, 6]]), sigma,
                                  correlation=np.array([[1, 0.8, 0], [0.8, 1, 0], [0, 0, 1]]))
     assert estimate == pytest.approx(np.sqrt(np.sum((a * sigma) ** 2)), rel=0.01)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_monte_carlo_sigmas_are_each_outputs_sigma_from_the_same_draws(seed):
+    ranges, sigma = np.array([[0.0, 1.0], [-2.0, 2.0]]), np.array([0.1, 0.3])
+    outputs = {"sum": lambda x, y: x + y, "product": lambda x, y: x * y,
+               "square": lambda x, y: x**2}
+    together = monte_carlo_sigmas(lambda x, y: {k: f(x, y) for k, f in outputs.items()},
+                                  ranges, sigma, samples=20_000, seed=seed)
+    assert together == {k: monte_carlo_sigma(f, ranges, sigma, samples=20_000, seed=seed)
+                        for k, f in outputs.items()}
 
 
 def test_interval_averages_are_exact_for_cubics_and_fourth_order_for_sinusoids():

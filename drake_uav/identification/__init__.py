@@ -44,7 +44,12 @@ from drake_uav.identification.discovery import (
 from drake_uav.identification.effects import Effect, effect_library
 from drake_uav.identification.errors_in_variables import PropagatedNoise
 from drake_uav.identification.flight_data import REQUIRED_CHANNELS, samples_from_log
-from drake_uav.identification.isolation import AeroSamples, isolate_coefficients, monte_carlo_sigma
+from drake_uav.identification.isolation import (
+    AeroSamples,
+    isolate_coefficients,
+    monte_carlo_sigma,
+    monte_carlo_sigmas,
+)
 from drake_uav.identification.main_job import (
     IdentificationRun,
     coefficient_uncertainty,
@@ -125,6 +130,7 @@ __all__ = [
     "isolate_coefficients",
     "long_run_covariance",
     "monte_carlo_sigma",
+    "monte_carlo_sigmas",
     "ols",
     "pca_tls",
     "reconstruct",

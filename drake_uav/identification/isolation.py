@@ -26,7 +26,8 @@ matter).
 
 :func:`monte_carlo_sigma` is the uncertainty propagation of sec. 5.6 (uniform
 marginals joined by a Gaussian copula, Gaussian errors, 95% coverage interval
-turned into a normal-equivalent standard deviation).
+turned into a normal-equivalent standard deviation); :func:`monte_carlo_sigmas` does it
+for several outputs of one function from one set of draws.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.signal import savgol_coeffs
-from scipy.stats import norm
+from scipy.special import ndtr
 
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition
@@ -58,6 +59,7 @@ __all__ = [
     "smoothed_noise_variance",
     "NOISE_CHANNELS",
     "monte_carlo_sigma",
+    "monte_carlo_sigmas",
     "interval_averages",
     "INTERVAL_KERNEL",
 ]
@@ -518,6 +520,22 @@ def monte_carlo_sigma(
     ``f(x) - f(x + dx)`` has its 95% coverage interval [U-, U+], and the
     result is ``max(|U-|, |U+|) / 1.96``. ``function`` takes n arrays.
     """
+    return monte_carlo_sigmas(lambda *x: {"f": function(*x)}, ranges, error_std, correlation,
+                              error_correlation, samples, seed)["f"]
+
+
+def monte_carlo_sigmas(
+    function: Callable[..., Mapping[str, np.ndarray]],
+    ranges: np.ndarray,
+    error_std: np.ndarray,
+    correlation: np.ndarray | None = None,
+    error_correlation: np.ndarray | None = None,
+    samples: int = 1_000_000,
+    seed: int = 0,
+) -> dict[str, float]:
+    """:func:`monte_carlo_sigma` of each output of ``function`` (name -> array), from one
+    set of draws: each output's sigma is the one :func:`monte_carlo_sigma` gives for it
+    alone with the same ``seed``."""
     ranges = np.asarray(ranges, dtype=float)
     error_std = np.asarray(error_std, dtype=float)
     n = ranges.shape[0]
@@ -528,12 +546,15 @@ def monte_carlo_sigma(
     rng = np.random.default_rng(seed)
     corr = np.eye(n) if correlation is None else np.asarray(correlation, dtype=float)
     w = rng.multivariate_normal(np.zeros(n), corr, size=samples, method="cholesky")
-    x = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * norm.cdf(w)
+    x = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * ndtr(w)  # ndtr: the normal CDF
     err_corr = np.eye(n) if error_correlation is None else np.asarray(error_correlation)
     # Scaled after the draw, so that an input without error (std 0) needs no factorisation
     # of a singular covariance.
     dx = rng.multivariate_normal(np.zeros(n), err_corr, size=samples,
                                  method="cholesky") * error_std
-    eps = function(*x.T) - function(*(x + dx).T)
-    low, high = np.quantile(eps, [0.025, 0.975])
-    return float(max(abs(low), abs(high)) / 1.96)
+    at, moved = function(*x.T), function(*(x + dx).T)
+    out = {}
+    for name, value in at.items():
+        low, high = np.quantile(value - moved[name], [0.025, 0.975])
+        out[name] = float(max(abs(low), abs(high)) / 1.96)
+    return out

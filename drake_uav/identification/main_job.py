@@ -27,7 +27,7 @@ from drake_uav.identification.discovery import (
 from drake_uav.identification.effects import Effect, effect_library
 from drake_uav.identification.flight_data import samples_from_log, usable_extras
 from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans
-from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigma
+from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigmas
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.identification.segments import concatenate_samples
 from drake_uav.io.flight_log import FlightLog, FlightLogError
@@ -190,9 +190,8 @@ def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed:
                                               params.mass, params.S)
         return {"CL": lift, "CD": drag, "CY": side}
 
-    return {name: monte_carlo_sigma(lambda *x, n=name: coefficients(*x)[n], ranges, error_std,
-                                    correlation=correlation, samples=draws, seed=seed)
-            for name in ("CL", "CD", "CY")}
+    return monte_carlo_sigmas(coefficients, ranges, error_std, correlation=correlation,
+                              samples=draws, seed=seed)
 
 
 def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
