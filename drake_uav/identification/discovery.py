@@ -838,6 +838,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                      _Candidates(train, params), _Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
+    initial = {k: (search.designs[k], search.tests[k]) for k in fitted}
     vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
                           samples, _columns_and_jacobians, Evidence, FoundEffect)
 
@@ -856,7 +857,10 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         found.append(new)
 
     found = search.final_check(found)
-    final = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
+    # A coefficient whose designs the loop left as they were keeps its baseline fit.
+    final = {k: baseline[k] if (search.designs[k] is initial[k][0]
+                                and search.tests[k] is initial[k][1])
+             else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
     found = vectors.with_parameters(search, [_with_parameters(f, final) for f in found])
     adequacy = {k: _adequacy(final[k], (train, search.designs[k]), (test, search.tests[k]),
                              params, search.scales[k], rule.adequacy) for k in fitted}
