@@ -49,6 +49,19 @@ def test_noise_under_a_random_walk_and_its_integral():
     assert estimate == pytest.approx(SIGMA, rel=0.1)
 
 
+@pytest.mark.parametrize("weight", [0.08, 0.3, 0.5])
+def test_noise_averaged_over_two_samples(weight):
+    """A channel re-timed by ``weight`` of a sample (linear interpolation) or averaged over
+    two samples (0.5: no noise left at the Nyquist frequency): its noise variance per
+    sample is ``(1 - w)^2 + w^2`` times the white noise's, under a random walk."""
+    noise = _noise(20)
+    smoothed = (1.0 - weight) * noise[1:] + weight * noise[:-1]
+    signal = _random_walk(21, 0.02)[1:]
+    expected = SIGMA * np.sqrt((1.0 - weight) ** 2 + weight**2)
+    estimate = np.sqrt(noise_floor_variance(signal + smoothed, RATE))
+    assert estimate == pytest.approx(expected, rel=0.1)
+
+
 def test_a_command_driven_signal_is_set_aside():
     """A command that moves every step, seen through a first-order lag, has neither
     shape of the fit; the logged command removes it."""

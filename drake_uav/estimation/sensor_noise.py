@@ -6,11 +6,17 @@ turbulence. The gusts of a discrete turbulence model change every step, so the
 accelerations and air data they drive behave like a random walk at high
 frequencies, whose spectrum is ``b / sin^2(pi f / fs)`` (the spectrum of a
 discrete integrator of white noise); what the aircraft's inertia filters once
-more falls like ``c / sin^4(pi f / fs)``. The white floor is the constant of a
-non-negative least-squares fit of the three shapes to the upper part of the
-Welch spectrum (Welch 1967), weighted by the fitted spectrum (the scatter of a
-Welch estimate is proportional to its value); the noise variance per sample is
-``a fs / 2``.
+more falls like ``c / sin^4(pi f / fs)``. A logger that averages or interpolates
+adjacent samples (an autopilot's light filtering, a channel re-timed between samples)
+colours the noise: white noise through a two-tap filter has the spectrum
+``A cos^2(pi f / fs) + B sin^2(pi f / fs)``, ``A = B`` when it is white, ``B = 0`` for
+the mean of two samples, whose floor vanishes at the Nyquist frequency. The floor is
+fitted as those two shapes, with the signal's two, by non-negative least squares on
+the upper part of the Welch spectrum (Welch 1967), weighted by the fitted spectrum (the
+scatter of a Welch estimate is proportional to its value); the noise variance per
+sample is ``(A + B) fs / 4`` (``a fs / 2`` for a white floor ``a``). A constant floor
+alone reads the mean of two samples as noiseless, and the errors-in-variables
+correction then leaves their noise in the fit.
 
 A signal the autopilot's commands drive (the thrust of a throttle that moves
 every step) has neither shape. The part of the channel's spectrum that is
@@ -28,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import nnls
 from scipy.signal import get_window
+from scipy.stats import f as f_distribution
 
 __all__ = ["cross_spectral_density", "conditioned_spectrum", "white_floor",
            "noise_floor_variance"]
@@ -39,8 +46,10 @@ LOWEST_FIT_FRACTION = 0.2
 FEEDBACK_RATIO = 0.25
 """A conditioned floor below this fraction of the plain one marks a channel the
 commands feed back: conditioning removed its noise, not only signal."""
-SPECTRAL_SHAPES = (0, 2, 4)
-"""Powers ``k`` of the fitted shapes ``sin(pi f / fs)^-k``: white, random walk, its integral."""
+COLOURED_LEVEL = 1e-3
+"""Significance level at which a two-tap (coloured) noise floor replaces a white one."""
+SIGNAL_SHAPES = (2, 4)
+"""Powers ``k`` of the signal's shapes ``sin(pi f / fs)^-k``: random walk, its integral."""
 
 
 def cross_spectral_density(columns: np.ndarray, rate_hz: float, segment: int = SEGMENT
@@ -91,26 +100,41 @@ def conditioned_spectrum(values: np.ndarray, inputs: np.ndarray, rate_hz: float,
 
 def white_floor(frequency: np.ndarray, density: np.ndarray, rate_hz: float,
                 lowest: float = LOWEST_FIT_FRACTION) -> float:
-    """Noise variance per sample [unit^2] of the white floor of a one-sided spectrum.
+    """Noise variance per sample [unit^2] of the noise floor of a one-sided spectrum.
 
-    Fits ``a + b / s^2 + c / s^4`` (``s = sin(pi f / fs)``, all three >= 0) to the
-    ``density`` [unit^2/Hz] between ``lowest`` times the Nyquist frequency and
-    the Nyquist bin (excluded), weighted by the fitted spectrum (three passes);
-    returns ``a fs / 2``.
+    Fits ``a + b / s^2 + c / s^4`` (``s = sin(pi f / fs)``, all >= 0) to the ``density``
+    [unit^2/Hz] between ``lowest`` times the Nyquist frequency and the Nyquist bin
+    (excluded), weighted by the fitted spectrum (three passes), and the same with the
+    two-tap floor ``A (1 - s^2) + B s^2`` in place of ``a``; the two-tap fit is taken when
+    it is better at the :data:`COLOURED_LEVEL` of an F-test. Returns ``a fs / 2`` or
+    ``(A + B) fs / 4``.
     """
     band = (frequency >= lowest * rate_hz / 2.0) & (frequency < rate_hz / 2.0)
     band[0] = False
     f, p = frequency[band], np.maximum(density[band], 0.0)
-    if f.size < len(SPECTRAL_SHAPES) or not np.any(p > 0):
+    if f.size < 3 + len(SIGNAL_SHAPES) or not np.any(p > 0):
         return 0.0
     s = np.sin(np.pi * f / rate_hz)
-    shapes = np.column_stack([s ** -k for k in SPECTRAL_SHAPES])
+    signal_shapes = [s ** -k for k in SIGNAL_SHAPES]
+    white, white_misfit = _weighted_fit(np.column_stack([np.ones_like(s), *signal_shapes]), p)
+    coloured, coloured_misfit = _weighted_fit(
+        np.column_stack([1.0 - s**2, s**2, *signal_shapes]), p)
+    dof = f.size - 2 - len(SIGNAL_SHAPES)
+    gain = (white_misfit - coloured_misfit) / max(coloured_misfit / dof, 1e-300)
+    if gain > f_distribution.isf(COLOURED_LEVEL, 1, dof):
+        return float((coloured[0] + coloured[1]) * rate_hz / 4.0)
+    return float(white[0] * rate_hz / 2.0)
+
+
+def _weighted_fit(shapes: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]:
+    """Non-negative coefficients of ``shapes`` (n, k) fitted to ``p`` (n), weighted by the
+    fitted spectrum (three passes), and the weighted sum of squared misfits."""
     tiny = 1e-6 * float(np.max(p))
     weight = 1.0 / np.maximum(p, tiny)
     for _ in range(3):
         coefficients, _ = nnls(shapes * weight[:, None], p * weight)
         weight = 1.0 / np.maximum(shapes @ coefficients, tiny)
-    return float(coefficients[0] * rate_hz / 2.0)
+    return coefficients, float(np.sum(((p - shapes @ coefficients) * weight) ** 2))
 
 
 def noise_floor_variance(values: np.ndarray, rate_hz: float,
