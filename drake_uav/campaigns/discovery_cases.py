@@ -128,9 +128,13 @@ _AIR_DATA = ("pitot_qbar", "pitot_airspeed", "vane_alpha", "vane_beta")
 
 
 def _air_data_late(log: FlightLog, skew: float) -> FlightLog:
-    """The air-data channels (pitot, vanes) logged ``skew`` [s] late against the IMU."""
-    t = log.time
-    return log.with_measured({n: np.interp(t - skew, t, log[n]) for n in _AIR_DATA})
+    """The air-data channels (pitot, vanes) logged ``skew`` [s] (whole sample periods)
+    late against the IMU: each row holds the air-data sample of that many rows before (the
+    first one repeated at the start), as a logger that stamps them late writes them."""
+    rows = int(round(skew * log.sample_rate))
+    return log.with_measured({n: np.concatenate([np.repeat(log[n][:1], rows),
+                                                 log[n][:len(log) - rows]])
+                              for n in _AIR_DATA})
 
 
 def _skew_term(condition, flight, params):
@@ -176,7 +180,7 @@ INJECTED: dict[str, Injection] = {
         "coefficient_drift", "CD", lambda c, f, p: (f.time - f.time[0]) / _FLIGHT_DURATION,
         _drift(_index("CD"), _FLIGHT_DURATION)),
     "air_data_skew": Injection(
-        "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late),
+        "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late, strength_step=0.01),
 }
 """The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
 alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
