@@ -98,3 +98,23 @@ def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clea
     assert right.mae[1] < 0.5 * wrong.mae[1]
     assert right.mae[0] < 0.2 and np.degrees(right.mae[1]) < 0.2
     assert np.degrees(np.max(right.mae[3:])) < 0.5  # body rates [deg/s]
+
+
+def test_the_servo_delay_column_lags_the_throttle_not_the_airspeed():
+    """At a steady throttle a servo delay changes no thrust, however the thrust moves
+    with the airspeed: the delay column's thrust part is zero."""
+    import dataclasses
+
+    from drake_uav.identification.effects import effect_library
+
+    params, samples, _ = synthetic_samples(seed=3, duration=20.0, noise=False)
+    throttle = np.full_like(samples.throttle, 0.6)
+    thrust = params.propulsion.thrust_torque(samples.condition.airspeed, throttle,
+                                             params.rho)[0]
+    steady = dataclasses.replace(samples, throttle=throttle, thrust=thrust)
+    delay = next(e for e in effect_library() if e.name == "actuator_time_delay")
+    column = delay.columns(steady, params, "CD")["throttle_rate"]
+    thrust_rate = np.gradient(thrust, samples.time) / (
+        samples.dynamic_pressure * samples.reference_area)
+    assert np.std(thrust_rate) > 0.0
+    assert np.max(np.abs(column)) < 0.05 * np.std(thrust_rate)

@@ -210,7 +210,8 @@ _SURFACE_COEFFICIENTS = {"elevator": LONGITUDINAL, "aileron": LATERAL, "rudder":
 
 def _actuator_delay(samples, params, coefficient):
     # delta(t - tau) ~ delta(t) - tau * d(delta)/dt: the column is -d(delta)/dt. A delayed
-    # throttle makes the modelled thrust lead the real one in the force coefficients.
+    # throttle makes the modelled thrust lead the real one in the force coefficients; only
+    # its throttle part lags, not its change with the airspeed.
     columns = {}
     for surface, affected in _SURFACE_COEFFICIENTS.items():
         if coefficient in affected:
@@ -218,6 +219,9 @@ def _actuator_delay(samples, params, coefficient):
             columns[f"{surface}_rate"] = -rate
     if coefficient in ("CL", "CD"):
         thrust_rate = differentiate(samples.time, samples.thrust)
+        if samples.thrust_airspeed_slope is not None:
+            thrust_rate = thrust_rate - samples.thrust_airspeed_slope * differentiate(
+                samples.time, samples.condition.airspeed)
         per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
         lift, drag = body_to_lift_drag(thrust_rate * per_force, 0.0 * thrust_rate,
                                        samples.condition.alpha)
