@@ -1,5 +1,6 @@
 """The main job's result: the structure of ``IdentificationRun.summary()`` (summary.json)."""
 
+import dataclasses
 import json
 
 import pytest
@@ -10,7 +11,7 @@ from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS, identify_sa
 RUN_KEYS = {"source", "aircraft", "data", "message", "findings", "samples", "holdout_start_s",
             "effects", "equation_error_rms_holdout", "reconstruction_mae_holdout",
             "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
-            "parameters"}
+            "parameters", "dropped_terms"}
 EFFECT_KEYS = {"name", "kind", "explanation", "coefficients", "evidence", "parameters"}
 
 
@@ -40,6 +41,15 @@ def test_summary_has_each_run_level_key_once_and_effects_only_their_own(run):
     assert set(summary["parameters"]) == set(summary["equation_error_rms_holdout"]) == {
         "CL", "CD", "CY", "Cl", "Cm", "Cn"}
     assert summary["parameters"]["CL"]["stall_onset:alpha3"]["significant"]
+    # A baseline term the flight does not support: 0 in the parameters, its figures apart.
+    dropped = run.discovery.dropped
+    assert dropped and summary["dropped_terms"] == {
+        k: [dataclasses.asdict(t) for t in terms] for k, terms in dropped.items()}
+    for k, terms in dropped.items():
+        for t in terms:
+            assert summary["parameters"][k][t.term] == {
+                "estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True}
+            assert t.term not in run.discovery.final[k].names
     text = json.dumps(summary, default=lambda value: value.item())  # numpy scalars
     assert text.count('"reconstruction_divergences"') == 1
     assert text.count('"measured_coefficient_sigma_monte_carlo"') == 1

@@ -133,15 +133,21 @@ def test_implausible_derivatives_are_named_and_the_catalog_passes():
     assert "possibly noise" in noisy and "10.0 sigma outside" in sure
 
 
-def test_the_report_warns_about_a_wrong_sign_catalog_value_not_about_the_right_one(run):
+def test_the_report_warns_about_a_wrong_sign_catalog_value_not_about_the_right_one(
+        run, tmp_path):
     plain = [w.message for w in derivative_warnings(run)]
     assert not any(m.startswith("catalog:") for m in plain)
-    unstable = run.params.with_derivatives(Cm_alpha=0.4)
-    messages = [w.message for w in derivative_warnings(dataclasses.replace(run,
-                                                                           params=unstable))]
+    unstable = dataclasses.replace(run, params=run.params.with_derivatives(Cm_alpha=0.4))
+    messages = [w.message for w in derivative_warnings(unstable)]
     assert [m for m in messages if m.startswith("catalog:")] == [
         m for m in messages if m.startswith("catalog: Cm_alpha = 0.4 is above")]
     assert any("statically unstable" in m for m in messages)
+    out = write_report(unstable, tmp_path / "report")
+    md = (out / "report.md").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    assert [w["message"] for w in summary["warnings"]] == messages
+    assert all(set(w) == {"kind", "derivatives", "message"} for w in summary["warnings"])
+    assert all(f"- {m}" in md for m in messages)
 
 
 def test_correlated_and_unexcited_regressors_are_named():
@@ -226,9 +232,15 @@ def test_the_report_shows_floors_catalog_rounds_ties_and_glossary(run, report):
     for term in ("PSE", "BCLS", "held-out data", "noise floor", "equation error"):
         assert f"- **{term}:**" in md
     assert "## What the residuals say" in md
-    assert "CD_alpha and CD_alpha2" in md  # alpha and alpha^2 move together in this flight
-    assert summary["warnings"] and all(set(w) == {"kind", "derivatives", "message"}
-                                       for w in summary["warnings"])
+    # The catalog terms this flight does not pin down (C_D_alpha2 moves with C_D_alpha,
+    # C_L_q, C_D_q, ...) are dropped from the baseline: 0 in the model, no warning left.
+    for k, terms in run.discovery.dropped.items():
+        for t in terms:
+            (row,) = [line for line in md.splitlines() if line.startswith(f"| {t.term} |")]
+            assert row.split(" | ")[2:4] == ["0", "-"] and row.endswith(" | dropped |")
+            assert summary["parameters"][k][t.term]["dropped"]
+    assert "CD_alpha2" in {t.term for t in run.discovery.dropped["CD"]}
+    assert summary["warnings"] == [] and "## Warnings on the derivatives\n\nNone:" in md
 
 
 def test_figure_axes_carry_their_units(run):

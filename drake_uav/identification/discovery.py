@@ -3,7 +3,10 @@
 The loop (:func:`discover`):
 
 1. fit the baseline structure (the aircraft's derivative names) to each
-   measured coefficient on the training part of the flight;
+   measured coefficient on the training part of the flight, less the terms that
+   improve neither its held-out prediction nor its extrapolation to the flight's
+   edges (:mod:`~drake_uav.identification.parsimony`; each is 0 in the model,
+   :attr:`DiscoveryResult.dropped`);
 2. diagnose each residual (whiteness, spectrum, drift, correlation with the
    candidate columns: :mod:`drake_uav.identification.residuals`);
 3. score every named effect of :mod:`drake_uav.identification.effects` on every
@@ -57,6 +60,7 @@ from typing import NamedTuple
 import numpy as np
 
 from drake_uav.identification.adequacy import Adequacy, AdequacyRule, assess, coefficient_symbol
+from drake_uav.identification.blocked_folds import fold_edges, held_out_errors, squared_errors
 from drake_uav.identification.effects import (
     PRODUCT_KEYS,
     Effect,
@@ -78,6 +82,7 @@ from drake_uav.identification.errors_in_variables import (
 )
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
+from drake_uav.identification.parsimony import DroppedTerm, prune
 from drake_uav.identification.regression import RegressionResult, bcls, f_survival, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
@@ -294,6 +299,10 @@ class DiscoveryResult:
     """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
     adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
     """Fitted coefficient -> its final fit's error against the noise floor."""
+    dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
+    """Fitted coefficient -> the catalog's terms its baseline dropped, which the flight does
+    not support (:mod:`~drake_uav.identification.parsimony`); each is 0 in the identified
+    model."""
 
     @property
     def incomplete(self) -> dict[str, Adequacy]:
@@ -303,9 +312,10 @@ class DiscoveryResult:
 
     @property
     def notes(self) -> tuple[str, ...]:
-        """One line per skipped coefficient and per effect not kept on a coefficient where
-        it passed the evidence tests."""
+        """One line per skipped coefficient, per baseline term dropped and per effect not
+        kept on a coefficient where it passed the evidence tests."""
         notes = [f"{k} skipped: {why}" for k, why in self.skipped.items()]
+        notes += [term.line for terms in self.dropped.values() for term in terms]
         notes += [f"{c.effect} not kept on {c.coefficient}: {c.reason}"
                   for c in self.checks if not c.kept]
         return tuple(notes)
@@ -409,7 +419,11 @@ class _Design:
 
     def without(self, prefix: str) -> _Design:
         """The design without the columns whose names start with ``prefix``."""
-        keep = [i for i, name in enumerate(self.names) if not name.startswith(prefix)]
+        return self.keeping([name for name in self.names if not name.startswith(prefix)])
+
+    def keeping(self, names: Sequence[str]) -> _Design:
+        """The design with only the columns ``names``, in its own order."""
+        keep = [i for i, name in enumerate(self.names) if name in names]
         noise = PropagatedNoise(len(keep), {s: J[:, keep] for s, J in
                                             self.noise.regressors.items()},
                                 self.noise.observation, self.noise.variance)
@@ -518,11 +532,6 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
         covariance=sandwich_covariance(A_inv, S))
 
 
-def _fold_edges(n: int, k: int) -> tuple[int, ...]:
-    """Boundaries of ``k`` contiguous blocked folds over ``n`` samples."""
-    return tuple(int(e) for e in np.linspace(0, n, k + 1).astype(int))
-
-
 def _column_space(X: np.ndarray) -> np.ndarray:
     """Orthonormal basis of the range of X, to the rank ``numpy.linalg.lstsq`` gives X.
 
@@ -542,30 +551,6 @@ def _redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
     r = columns - basis @ (basis.T @ columns)
     with np.errstate(invalid="ignore"):
         return ~np.isfinite(norm) | (norm == 0.0) | (np.linalg.norm(r, axis=0) < 1e-3 * norm)
-
-
-def _errors(z: np.ndarray, prediction: np.ndarray, theta, C_xx, c_xz) -> tuple[float, float]:
-    """Observed squared error of ``prediction`` and the same without its regressor-noise part
-    (the noise moments ``C_xx, c_xz`` of the same rows).
-
-    Comparing models by the error without it scores how well they predict the true
-    coefficient, so a column that merely stands in for a noisy regressor (a cleaner proxy)
-    gains nothing.
-    """
-    r = z - prediction
-    observed = float(r @ r)
-    return observed, observed - noise_error_energy(theta, C_xx, c_xz)
-
-
-def _held_out_errors(blocks: BlockMoments, z: np.ndarray, predict) -> np.ndarray:
-    """(2, K): observed and noise-corrected held-out squared error of each blocked fold,
-    fitted on the others; ``predict(theta)`` (K, n) -> (N, K) predictions of every fit."""
-    theta = solve_normal_equations(*blocks.held_in())
-    prediction = predict(theta)
-    edges = blocks.edges
-    return np.array([_errors(z[a:b], prediction[a:b, k], theta[k], blocks.noise_xx[k],
-                             blocks.noise_xz[k])
-                     for k, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True))]).T
 
 
 @dataclasses.dataclass
@@ -590,8 +575,8 @@ def _round_base(design: _Design, edges: Sequence[int]) -> _RoundBase:
     theta = solve_normal_equations(A, b)
     prediction = design.X @ theta
     return _RoundBase(design, float(effective_sample_size(design.z - prediction)),
-                      _held_out_errors(blocks, design.z, lambda t: design.X @ t.T),
-                      _errors(design.z, prediction, theta, C_xx, c_xz), blocks,
+                      held_out_errors(blocks, design.z, lambda t: design.X @ t.T),
+                      squared_errors(design.z, prediction, theta, C_xx, c_xz), blocks,
                       _column_space(design.X))
 
 
@@ -686,8 +671,9 @@ def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coeff
 def _batch_fold_errors(blocks: BlockMoments, X: np.ndarray, X_new: np.ndarray, z: np.ndarray,
                        theta: np.ndarray) -> np.ndarray:
     """(2, m, K): observed and noise-corrected held-out squared error of each blocked fold
-    (:func:`_errors`) for m extensions ``X_new`` (N, m, q) of ``X`` (N, p), whose fits on
-    the other folds are ``theta`` (m, K, p + q)."""
+    (:func:`~drake_uav.identification.blocked_folds.squared_errors`) for m extensions
+    ``X_new`` (N, m, q) of ``X`` (N, p), whose fits on the other folds are ``theta``
+    (m, K, p + q)."""
     p = X.shape[1]
     out = np.empty((2, *theta.shape[:2]))
     for k, (a, b) in enumerate(zip(blocks.edges[:-1], blocks.edges[1:], strict=True)):
@@ -832,9 +818,13 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     rate = 1.0 / float(np.median(np.diff(samples.time)))
     train = samples.subset(slice(0, n_train))
     test = samples.subset(slice(n_train, n))
-    edges = _fold_edges(n_train, rule.folds)
-    search = _Search({k: _baseline_design(train, params, k) for k in fitted},
-                     {k: _baseline_design(test, params, k) for k in fitted},
+    edges = fold_edges(n_train, rule.folds)
+    designs = {k: _baseline_design(train, params, k) for k in fitted}
+    pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
+                       always=(f"{k}_0",)) for k, d in designs.items()}
+    search = _Search({k: d.keeping(pruned[k].kept) for k, d in designs.items()},
+                     {k: _baseline_design(test, params, k).keeping(pruned[k].kept)
+                      for k in fitted},
                      _Candidates(train, params), _Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
@@ -866,7 +856,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                              params, search.scales[k], rule.adequacy) for k in fitted}
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
-                           checks=tuple(search.checks), skipped=skipped, adequacy=adequacy)
+                           checks=tuple(search.checks), skipped=skipped, adequacy=adequacy,
+                           dropped={k: p.dropped for k, p in pruned.items() if p.dropped})
 
 
 def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, _Design],

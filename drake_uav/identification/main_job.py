@@ -105,9 +105,12 @@ class IdentificationRun:
         equation_error_rms_holdout (with each coefficient's ``adequacy``: its error against
         the noise floor, whether the model is incomplete there and where,
         :class:`~drake_uav.identification.adequacy.Adequacy`), reconstruction_mae_holdout,
-        reconstruction_divergences, measured_coefficient_sigma_monte_carlo, parameters``;
-        each entry of ``effects`` has ``name, kind, explanation, coefficients, evidence,
-        parameters``.
+        reconstruction_divergences, measured_coefficient_sigma_monte_carlo, parameters,
+        dropped_terms``; each entry of ``effects`` has ``name, kind, explanation,
+        coefficients, evidence, parameters``. ``parameters`` lists a baseline term the
+        flight does not support as 0 (``dropped``: true); ``dropped_terms`` gives, per
+        coefficient, the figures that dropped each
+        (:class:`~drake_uav.identification.parsimony.DroppedTerm`).
         """
         d = self.discovery
         rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0,
@@ -137,8 +140,12 @@ class IdentificationRun:
                         "sigma": float(fit.result.sigma[i]),
                         "significant": bool(fit.result.significant[i])}
                     for i, n in enumerate(fit.names)}
+                | {t.term: {"estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True}
+                   for t in d.dropped.get(k, ())}
                 for k, fit in d.final.items()
             },
+            "dropped_terms": {k: [dataclasses.asdict(t) for t in terms]
+                              for k, terms in d.dropped.items()},
         }
 
 

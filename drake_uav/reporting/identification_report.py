@@ -273,11 +273,16 @@ def _derivative_unit(name: str) -> str:
 
 
 def _add_parameters(report: Report, run: IdentificationRun) -> None:
-    """One table per coefficient: estimate, sigma, catalog value and their distance."""
+    """One table per coefficient: estimate, sigma, catalog value and their distance; the
+    baseline terms dropped, as 0."""
     report.add_heading("Identified parameters")
     catalog = run.params.derivatives
     report.add_text("Catalog: the aircraft's parameter set (`" + run.params.name + "`); "
-                    "(estimate - catalog) / sigma measures how far the flight disagrees.")
+                    "(estimate - catalog) / sigma measures how far the flight disagrees. "
+                    "A catalog term marked *dropped* improved neither the held-out "
+                    "prediction nor the extrapolation to the flight's edges: it is 0 in the "
+                    "identified model (its figures: the notes under Data used, `dropped_terms` in "
+                    "summary.json; docs/main_job.md, \"Baseline\").")
     for k, fit in run.discovery.final.items():
         r = fit.result
         report.add_table(
@@ -286,7 +291,10 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
               "(estimate - catalog) / sigma": (None if n not in catalog or not r.sigma[i]
                                                else (r.estimate[i] - catalog[n]) / r.sigma[i]),
               "t": r.t_statistic[i], "significant": bool(r.significant[i])}
-             for i, n in enumerate(fit.names)],
+             for i, n in enumerate(fit.names)]
+            + [{"parameter": t.term, "unit": _derivative_unit(t.term), "estimate": 0.0,
+                "catalog": catalog.get(t.term), "significant": "dropped"}
+               for t in run.discovery.dropped.get(k, ())],
             formats={"(estimate - catalog) / sigma": lambda v: "-" if v is None
                      else f"{v:+.1f}"},
             caption=f"{k} ({r.method}, R^2 = {r.r_squared:.3f})")
