@@ -82,7 +82,7 @@ from drake_uav.identification.errors_in_variables import (
 )
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
-from drake_uav.identification.parsimony import DroppedTerm, prune
+from drake_uav.identification.parsimony import DroppedTerm, Pruning, prune
 from drake_uav.identification.regression import RegressionResult, bcls, f_survival, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
@@ -127,7 +127,9 @@ class EvidenceRule:
     ``p_value`` is the family-wise level: it is divided by the number of
     candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
     smallest held-out prediction-error reduction worth a new term (fraction of
-    the baseline PSE); ``min_folds`` how many of the ``folds`` must improve (less the
+    the baseline PSE), and what a catalog term of the baseline must gain on the folds or
+    on the flight's edges to be kept (:mod:`~drake_uav.identification.parsimony`);
+    ``min_folds`` how many of the ``folds`` (at least 3) must improve (less the
     effect's :attr:`~drake_uav.identification.effects.Effect.blind_folds`).
 
     A candidate that passes is then checked, per coefficient, on the held-out tail
@@ -148,6 +150,10 @@ class EvidenceRule:
     effect is kept (each family at its own Bonferroni level); False puts both in one pool,
     one level over all, where a product ranks ahead of a named effect only when its
     held-out gain is larger by ``min_pse_reduction``.
+
+    ``parsimonious``: the baseline drops the catalog terms that the flight does not
+    support (:mod:`~drake_uav.identification.parsimony`); False fits the catalog's
+    structure as it is.
     """
 
     p_value: float = 1e-3
@@ -160,6 +166,7 @@ class EvidenceRule:
     min_share_of_error: float = 0.1
     constant_tolerance: float = 1e-9
     named_first: bool = True
+    parsimonious: bool = True
     adequacy: AdequacyRule = AdequacyRule()
     """When the final fit's error is too far above the noise floor to call the model
     complete (:mod:`~drake_uav.identification.adequacy`)."""
@@ -821,7 +828,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     edges = fold_edges(n_train, rule.folds)
     designs = {k: _baseline_design(train, params, k) for k in fitted}
     pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
-                       always=(f"{k}_0",)) for k, d in designs.items()}
+                       always=(f"{k}_0",)) if rule.parsimonious else Pruning(tuple(d.names), ())
+              for k, d in designs.items()}
     search = _Search({k: d.keeping(pruned[k].kept) for k, d in designs.items()},
                      {k: _baseline_design(test, params, k).keeping(pruned[k].kept)
                       for k in fitted},
