@@ -830,12 +830,13 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
                        always=(f"{k}_0",)) if rule.parsimonious else Pruning(tuple(d.names), ())
               for k, d in designs.items()}
-    search = _Search({k: d.keeping(pruned[k].kept) for k, d in designs.items()},
-                     {k: _baseline_design(test, params, k).keeping(pruned[k].kept)
-                      for k in fitted},
+    # Effects are judged against the catalog's whole structure, so that none takes the
+    # place of a term the flight hardly supports; the model reported is the pruned one.
+    search = _Search(designs, {k: _baseline_design(test, params, k) for k in fitted},
                      _Candidates(train, params), _Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
-    baseline = {k: _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
+    baseline = {k: _fit(k, designs[k].keeping(pruned[k].kept),
+                        search.tests[k].keeping(pruned[k].kept), rate) for k in fitted}
     initial = {k: (search.designs[k], search.tests[k]) for k in fitted}
     vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
                           samples, _columns_and_jacobians, Evidence, FoundEffect)
@@ -855,9 +856,15 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         found.append(new)
 
     found = search.final_check(found)
+    unchanged = {k for k in fitted if search.designs[k] is initial[k][0]
+                 and search.tests[k] is initial[k][1]}
+    for k in fitted:
+        kept = [n for n in search.designs[k].names
+                if n not in {t.term for t in pruned[k].dropped}]
+        search.designs[k] = search.designs[k].keeping(kept)
+        search.tests[k] = search.tests[k].keeping(kept)
     # A coefficient whose designs the loop left as they were keeps its baseline fit.
-    final = {k: baseline[k] if (search.designs[k] is initial[k][0]
-                                and search.tests[k] is initial[k][1])
+    final = {k: baseline[k] if k in unchanged
              else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
     found = vectors.with_parameters(search, [_with_parameters(f, final) for f in found])
     adequacy = {k: _adequacy(final[k], (train, search.designs[k]), (test, search.tests[k]),

@@ -20,7 +20,9 @@ error taken without its regressor-noise part and as a fraction of the error with
 term: what adding the term back would gain, the share a new effect must gain to be added,
 so that adding and dropping ask the same. Among the terms that may go, the one whose
 removal raises the PSE least goes first; the others are judged again without it, until
-none may go. The constant is never dropped. A dropped term is 0 in the identified model.
+none may go. The constant is never dropped. A dropped term is 0 in the identified model;
+the discovery loop still tests the effects against the catalog's whole structure, so that
+no effect takes the place of a dropped term.
 """
 
 from __future__ import annotations
