@@ -835,7 +835,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     search = _Search(designs, {k: _baseline_design(test, params, k) for k in fitted},
                      _Candidates(train, params), _Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
-    baseline = {k: _fit(k, designs[k].keeping(pruned[k].kept),
+    baseline = {k: _fit(k, search.designs[k].keeping(pruned[k].kept),
                         search.tests[k].keeping(pruned[k].kept), rate) for k in fitted}
     initial = {k: (search.designs[k], search.tests[k]) for k in fitted}
     vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
@@ -859,10 +859,11 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     unchanged = {k for k in fitted if search.designs[k] is initial[k][0]
                  and search.tests[k] is initial[k][1]}
     for k in fitted:
-        kept = [n for n in search.designs[k].names
-                if n not in {t.term for t in pruned[k].dropped}]
-        search.designs[k] = search.designs[k].keeping(kept)
-        search.tests[k] = search.tests[k].keeping(kept)
+        dropped = {t.term for t in pruned[k].dropped}
+        if dropped:
+            search.designs[k], search.tests[k] = (
+                d.keeping([n for n in d.names if n not in dropped])
+                for d in (search.designs[k], search.tests[k]))
     # A coefficient whose designs the loop left as they were keeps its baseline fit.
     final = {k: baseline[k] if k in unchanged
              else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
