@@ -16,6 +16,7 @@ from drake_uav.diagrams.identification_flight import default_excitation
 from drake_uav.estimation.compatibility import check_compatibility
 from drake_uav.estimation.compatibility_fits import linear_fit, shift_fit
 from drake_uav.estimation.signals import Cumulative
+from drake_uav.identification.main_job import measured_command_delay
 from drake_uav.io.flight_log import FlightLogError
 from drake_uav.systems.excitation import Doublet
 from drake_uav.systems.safety_pilot import SafetyPilotGains
@@ -131,14 +132,21 @@ def test_straight_flight_leaves_the_airspeed_scale_factor_unobservable(straight)
 
 
 def test_command_skews_a_servo_delay_is_reported_a_logging_skew_corrected(straight):
+    """A servo delay is left to the model, which takes its measured value
+    (``measured_command_delay``); a logging skew is corrected and is no delay."""
     log = straight[STRAIGHT_SEEDS[0]]
-    late = check_compatibility(inject(log, command_delay=0.3), PARAMS)["command_time_skew"]
+    logging = check_compatibility(inject(log, command_delay=0.3), PARAMS)
+    late = logging["command_time_skew"]
     assert abs(late.estimate + 0.3) <= SIGMAS * late.sigma and late.applied
     early = log.with_measured({n: np.concatenate([log[n][8:], np.repeat(log[n][-1:], 8)])
                                for n in COMMANDS})
-    servo = check_compatibility(early, PARAMS)["command_time_skew"]
+    delayed = check_compatibility(early, PARAMS)
+    servo = delayed["command_time_skew"]
     assert abs(servo.estimate - 0.08) <= SIGMAS * servo.sigma
     assert servo.significant and not servo.applied
+    assert measured_command_delay(delayed) == servo.estimate
+    assert measured_command_delay(logging) is None
+    assert measured_command_delay(check_compatibility(log, PARAMS)) is None
 
 
 AIR_DATA = ("pitot_airspeed", "pitot_qbar", "vane_alpha", "vane_beta")

@@ -118,3 +118,30 @@ def test_the_servo_delay_column_lags_the_throttle_not_the_airspeed():
         samples.dynamic_pressure * samples.reference_area)
     assert np.std(thrust_rate) > 0.0
     assert np.max(np.abs(column)) < 0.05 * np.std(thrust_rate)
+
+
+def test_a_measured_servo_delay_shifts_the_commands_instead_of_differentiating_them():
+    """With the delay the data-compatibility check measured, the thrust column is the drag
+    the late throttle really adds (its parameter 1), to 5 %; the first-order column,
+    the throttle's rate times the delay, misses a multisine that moves within 60 ms by
+    over 20 %."""
+    from drake_uav.identification.effects import effect_library
+    from drake_uav.model.coefficients import body_to_lift_drag
+
+    params, samples, _ = synthetic_samples(seed=3, duration=20.0, noise=False)
+    delay, t = 0.06, samples.time
+    late_throttle = np.interp(np.maximum(t - delay, t[0]), t, samples.throttle)
+    real = params.propulsion.thrust_torque(samples.condition.airspeed, late_throttle,
+                                           params.rho)[0]
+    per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
+    drag = body_to_lift_drag((real - samples.thrust) * per_force, 0.0 * real,
+                             samples.condition.alpha)[1]
+
+    def column(library, name):
+        effect = next(e for e in library if e.name == "actuator_time_delay")
+        return effect.columns(samples, params, "CD")[name]
+
+    shifted = column(effect_library(command_delay=delay), "throttle_delayed")
+    first_order = delay * column(effect_library(), "throttle_rate")
+    assert np.std(shifted - drag) < 0.05 * np.std(drag)
+    assert np.std(first_order - drag) > 0.2 * np.std(drag)

@@ -208,24 +208,61 @@ def _wind_left(samples, params, coefficient):
 _SURFACE_COEFFICIENTS = {"elevator": LONGITUDINAL, "aileron": LATERAL, "rudder": LATERAL}
 
 
-def _actuator_delay(samples, params, coefficient):
-    # delta(t - tau) ~ delta(t) - tau * d(delta)/dt: the column is -d(delta)/dt. A delayed
-    # throttle makes the modelled thrust lead the real one in the force coefficients; only
-    # its throttle part lags, not its change with the airspeed.
-    columns = {}
-    for surface, affected in _SURFACE_COEFFICIENTS.items():
-        if coefficient in affected:
-            rate = differentiate(samples.time, getattr(samples.condition, surface))
-            columns[f"{surface}_rate"] = -rate
-    if coefficient in ("CL", "CD"):
-        thrust_rate = differentiate(samples.time, samples.thrust)
+def _delayed(time: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
+    """``values`` at ``time - delay`` [s], straight lines between samples; within the first
+    ``delay`` of each span of the samples (joined spans keep their gaps) the span's first
+    value, since what came before is not in the log."""
+    step = float(np.median(np.diff(time)))
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(time) > 1.5 * step) + 1])
+    span_start = time[starts][np.searchsorted(starts, np.arange(len(time)), side="right") - 1]
+    return np.interp(np.maximum(time - delay, span_start), time, values)
+
+
+def _thrust_error(samples: AeroSamples, delay: float | None) -> np.ndarray:
+    """The real thrust minus the modelled one [N] when the throttle acts ``delay`` [s] after
+    its logged command (None: its first-order term, per second of delay). Only the
+    throttle's part of the thrust lags, not its change with the airspeed."""
+    airspeed = samples.condition.airspeed
+    if delay is None:
+        error = -differentiate(samples.time, samples.thrust)
         if samples.thrust_airspeed_slope is not None:
-            thrust_rate = thrust_rate - samples.thrust_airspeed_slope * differentiate(
-                samples.time, samples.condition.airspeed)
-        per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
-        lift, drag = body_to_lift_drag(thrust_rate * per_force, 0.0 * thrust_rate,
-                                       samples.condition.alpha)
-        columns["throttle_rate"] = -(lift if coefficient == "CL" else drag)
+            error += samples.thrust_airspeed_slope * differentiate(samples.time, airspeed)
+        return error
+    error = _delayed(samples.time, samples.thrust, delay) - samples.thrust
+    if samples.thrust_airspeed_slope is not None:
+        error += samples.thrust_airspeed_slope * (
+            airspeed - _delayed(samples.time, airspeed, delay))
+    return error
+
+
+def _actuator_delay(delay: float | None):
+    """Columns of a servo delay. With the delay ``delay`` [s] the data-compatibility check
+    measured, every command as the aircraft saw it, shifted by that delay, minus the logged
+    one: a surface's column has its control derivative as parameter, the thrust's 1. With
+    None (no delay measured), the first-order terms: ``delta(t - tau) ~ delta(t) - tau
+    d(delta)/dt``, minus the command rates, the delay [s] times the derivative as
+    parameter. The first order misses much of a delay of a command that moves within the
+    delay (the safety pilot's throttle in turbulence): what it leaves on C_D, several times
+    the noise floor of the default sensors, was taken up by drag terms beside it."""
+    def shift(samples, values):
+        if delay is None:
+            return -differentiate(samples.time, values)
+        return _delayed(samples.time, values, delay) - values
+
+    suffix = "rate" if delay is None else "delayed"
+
+    def columns(samples, params, coefficient):
+        out = {}
+        for surface, affected in _SURFACE_COEFFICIENTS.items():
+            if coefficient in affected:
+                out[f"{surface}_{suffix}"] = shift(samples,
+                                                    getattr(samples.condition, surface))
+        if coefficient in ("CL", "CD"):
+            per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
+            error = _thrust_error(samples, delay) * per_force
+            lift, drag = body_to_lift_drag(error, 0.0 * error, samples.condition.alpha)
+            out[f"throttle_{suffix}"] = lift if coefficient == "CL" else drag
+        return out
     return columns
 
 
@@ -251,8 +288,10 @@ def _drift(samples, params, coefficient):
     return {"drift": tau, f"drift_{main}": tau * getattr(samples.condition, main)}
 
 
-def effect_library() -> list[Effect]:
-    """The named effects, in the order they are reported."""
+def effect_library(command_delay: float | None = None) -> list[Effect]:
+    """The named effects, in the order they are reported. ``command_delay`` [s]: the delay
+    of the commands the data-compatibility check measured, which the servo delay's columns
+    then use (None: their first-order form)."""
     return [
         Effect("stall_onset", "lift and drag bend away from linear at high angle of attack "
                "(flow separation): higher powers of alpha", LONGITUDINAL,
@@ -285,8 +324,11 @@ def effect_library() -> list[Effect]:
                "sideslip errors that follow the heading", ("CL", "CD", "CY", "Cl", "Cn", "Cm"),
                _wind_left, kind="sensor", signals=("yaw",), condition=_heading_varies),
         Effect("actuator_time_delay", "the surfaces lag the logged commands (servo delay): "
-               "the command rate enters with the delay as coefficient",
-               ("CL", "CD", "Cm", "CY", "Cl", "Cn"), _actuator_delay),
+               + ("the command rate enters with the delay as coefficient"
+                  if command_delay is None else
+                  f"the commands act {command_delay * 1e3:.0f} ms after they are logged, as "
+                  "the data-compatibility check measured"),
+               ("CL", "CD", "Cm", "CY", "Cl", "Cn"), _actuator_delay(command_delay)),
         Effect("ground_effect", "the ground reduces downwash near the runway: more lift, "
                "less induced drag below about one span", ("CL", "CD", "Cm"), _ground_effect,
                signals=("height",)),

@@ -38,7 +38,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
            "identify_derivatives", "select_samples", "check_fixed_wing",
-           "testable_effects", "ESTIMATE_CONFOUNDED",
+           "testable_effects", "measured_command_delay", "ESTIMATE_CONFOUNDED",
            "coefficient_uncertainty", "check_log_compatibility"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
@@ -257,7 +257,8 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                                         propulsion=propulsion, progress=say)
     run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
                            progress=say, source=source, seed=seed,
-                           effects=testable_effects(selection.air_data),
+                           effects=testable_effects(selection.air_data,
+                                                    measured_command_delay(compatibility)),
                            coefficients=coefficients)
     selection = dataclasses.replace(selection, notes=selection.notes + run.discovery.notes)
     return dataclasses.replace(run, data=selection, compatibility=compatibility)
@@ -303,9 +304,23 @@ the same way (through alpha, beta and the airspeed): the data cannot tell the tw
 apart, so these effects are not tested then."""
 
 
-def testable_effects(air_data: str) -> list[Effect]:
-    """The named effects the data of an ``air_data`` mode can tell from its errors."""
-    library = effect_library()
+def measured_command_delay(compatibility: CompatibilityResult | None) -> float | None:
+    """The servo delay [s] the data-compatibility check measured: a significant command
+    time skew it left to the model (a late one, shorter than its ``max_actuator_delay``);
+    None when it measured none."""
+    if compatibility is None:
+        return None
+    skew = next((e for e in compatibility.effects if e.name == "command_time_skew"), None)
+    if skew is None or not skew.significant or skew.applied:
+        return None
+    return float(skew.estimate)
+
+
+def testable_effects(air_data: str, command_delay: float | None = None) -> list[Effect]:
+    """The named effects the data of an ``air_data`` mode can tell from its errors;
+    ``command_delay`` [s], the servo delay the data-compatibility check measured
+    (:func:`measured_command_delay`), shapes ``actuator_time_delay``."""
+    library = effect_library(command_delay)
     if air_data != "estimate":
         return library
     return [e for e in library if e.name not in ESTIMATE_CONFOUNDED]
