@@ -1,11 +1,14 @@
 """samples_from_log reads only what a real log holds: the noise from the data or the
-user's declared specs, the commands' hold from the log itself."""
+user's declared specs, the commands' hold from the log itself, the GPS where the log has
+it."""
 
 import numpy as np
 import pytest
 
 from drake_uav.diagrams import fly
 from drake_uav.identification.flight_data import raw_noise_variance, samples_from_log
+from drake_uav.identification.segments import concatenate_samples
+from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.vehicles import aerosonde
 
@@ -86,3 +89,83 @@ def test_a_channel_logged_slower_than_the_log_keeps_its_noise():
     assert np.sqrt(native_noise_variance(log, "pitot_airspeed")) == pytest.approx(0.3, rel=0.15)
     plain = FlightLog(t, channels, units=units)  # without the reader's stream rates
     assert np.sqrt(native_noise_variance(plain, "pitot_airspeed")) < 0.05
+
+
+# ----------------------------------------------------------------------------- GPS
+
+
+GPS = GPS_VELOCITY + GPS_POSITION
+
+
+def _with(log: FlightLog, channels: dict) -> FlightLog:
+    """The log with measured channels replaced or removed (a None value)."""
+    kept = {n: channels.get(n, log[n]) for n in log.measured_names
+            if channels.get(n, log[n]) is not None}
+    return FlightLog(log.time, kept, units={n: log.unit(n) for n in kept})
+
+
+def _truth_at(flight: FlightLog, samples) -> dict[str, np.ndarray]:
+    """The true NED position and ground velocity at the samples' times."""
+    position = {g: np.interp(samples.time, flight.time, flight[t])
+                for g, t in zip(GPS_POSITION, ("pn", "pe", "pd"), strict=True)}
+    velocity = {g: np.interp(samples.time, flight.time, np.gradient(flight[t], flight.time))
+                for g, t in zip(GPS_VELOCITY, ("pn", "pe", "pd"), strict=True)}
+    return position | velocity
+
+
+def _rms(a, b) -> float:
+    return float(np.sqrt(np.mean((np.asarray(a) - b) ** 2)))
+
+
+def test_the_gps_velocity_and_position_join_the_signals(flight):
+    """Drawn between the receiver's fixes (20 Hz here, 1-2 m and 0.05-0.1 m/s of noise,
+    0.1 s late: 2.5 m along the track at 25 m/s, 2.7 m with the noise), on both views."""
+    samples = samples_from_log(flight, PARAMS)
+    assert set(GPS) <= set(samples.signals) and set(GPS) <= set(samples.moment_view.signals)
+    truth = _truth_at(flight, samples)
+    for name in GPS_POSITION:
+        assert _rms(samples.signals[name], truth[name]) < 3.5, name
+    for name in GPS_VELOCITY:
+        assert _rms(samples.signals[name], truth[name]) < 0.3, name
+
+
+def test_a_5_hz_gps_is_drawn_between_its_fixes_not_held(flight):
+    """A 5 Hz receiver held on the 100 Hz log: straight lines between its fixes, not the
+    held staircase (another 2.5 m behind on average at 25 m/s)."""
+    held = {n: flight[n][(np.arange(len(flight)) // 20) * 20] for n in GPS}
+    samples = samples_from_log(_with(flight, held), PARAMS)
+    truth = _truth_at(flight, samples)
+    staircase = np.interp(samples.time, flight.time, held["gps_pn"])
+    assert _rms(samples.signals["gps_pn"], truth["gps_pn"]) < 3.5
+    assert _rms(staircase, truth["gps_pn"]) > 4.5
+
+
+def test_a_log_without_gps_or_without_a_fix_over_the_airborne_span_leaves_it_out(flight):
+    """No GPS channel, no fix during the first 10 s of flight, a 3 s dropout: no GPS in
+    the signals, and nothing else changes. A receiver that gets its fix while the aircraft
+    is still on the ground is kept."""
+    with_gps = samples_from_log(flight, PARAMS)
+    no_gps = samples_from_log(_with(flight, dict.fromkeys(GPS)), PARAMS)
+    assert not set(GPS) & set(no_gps.signals)
+    assert set(no_gps.signals) == set(with_gps.signals) - set(GPS)
+    for name, values in with_gps.coefficients.items():
+        np.testing.assert_array_equal(no_gps.coefficients[name], values)
+    early = flight.time < 10.0
+    no_fix = {n: np.where(early, 0.0, flight[n]) for n in GPS}
+    assert not set(GPS) & set(samples_from_log(_with(flight, no_fix), PARAMS).signals)
+    dropout = (flight.time >= 30.0) & (flight.time < 33.0)
+    lost = {n: np.where(dropout, flight[n][np.argmax(dropout) - 1], flight[n]) for n in GPS}
+    assert not set(GPS) & set(samples_from_log(_with(flight, lost), PARAMS).signals)
+    on_ground = _with(flight, {**no_fix, "pitot_airspeed": np.where(
+        flight.time < 12.0, 0.0, flight["pitot_airspeed"])})
+    samples = samples_from_log(on_ground, PARAMS)
+    assert samples.time[0] >= 12.0 and set(GPS) <= set(samples.signals)
+
+
+def test_flight_segments_joined_keep_their_gps(flight):
+    parts = [samples_from_log(flight.slice(a, b), PARAMS) for a, b in ((0.0, 25.0),
+                                                                        (35.0, 60.0))]
+    joined = concatenate_samples(parts)
+    for name in GPS:
+        np.testing.assert_array_equal(joined.signals[name],
+                                      np.concatenate([p.signals[name] for p in parts]))

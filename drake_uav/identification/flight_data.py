@@ -14,7 +14,19 @@ flow angles         ``vane_alpha vane_beta``                     rad
 surfaces, throttle  ``cmd_elevator cmd_aileron cmd_rudder``      rad
                     ``cmd_throttle``                             1
 height (optional)   ``baro_alt``                                 m
+GPS (optional)      ``gps_vn gps_ve gps_vd``                     m/s
+                    ``gps_pn gps_pe gps_pd`` (local NED)         m
 ==================  ===========================================  ========
+
+The GPS velocity and position, when the log holds them, are carried into
+``AeroSamples.signals`` under their channel names
+(:data:`~drake_uav.identification.vector_effects.GPS_VELOCITY`,
+:data:`~drake_uav.identification.vector_effects.GPS_POSITION`), the directions of the
+vector effects that need them (against the ground velocity, towards a point): drawn as
+straight lines between the fixes (:func:`gps_signals`), each triple left out when the log
+lacks a channel of it or its fixes do not cover the airborne span. The receiver's latency
+is not known from a log and not corrected: the position lags by it times the ground speed
+(2.5 m for 0.1 s at 25 m/s).
 
 Every other measured channel of the log is an extra channel
 (:func:`~drake_uav.io.extras.extra_channels`: a tension, a battery voltage, an ESC's
@@ -50,9 +62,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from drake_uav.estimation.sensor_noise import noise_floor_variance
-from drake_uav.estimation.signals import unheld
+from drake_uav.estimation.signals import HELD_FRACTION, is_new_sample, unheld
 from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
 from drake_uav.identification.propulsion import identify_thrust
+from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
 from drake_uav.io.extras import extra_channels
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import logged_rate
@@ -60,7 +73,7 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
            "native_noise_variance", "white_noise_variance", "held_commands", "usable_extras",
-           "MIN_EXTRA_CHANGES"]
+           "MIN_EXTRA_CHANGES", "gps_signals", "GPS_MAX_GAP"]
 
 SPECIFIC_FORCE = ("imu_ax", "imu_ay", "imu_az")
 RATES = ("imu_p", "imu_q", "imu_r")
@@ -71,6 +84,10 @@ HEIGHT = "baro_alt"
 
 REQUIRED_CHANNELS = SPECIFIC_FORCE + RATES + ATTITUDE + AIR_DATA + CONTROLS
 """Measured channels the main job needs."""
+
+GPS_MAX_GAP = 1.0
+"""[s]: the longest time without a GPS fix a triple is drawn across, between fixes and at
+the ends of the airborne span (five fixes of a 5 Hz receiver)."""
 
 
 _NOISE_SOURCES = dict(zip(
@@ -253,6 +270,59 @@ def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
     return values[index], averages
 
 
+def gps_signals(log: FlightLog, time: np.ndarray) -> dict[str, np.ndarray]:
+    """The GPS velocity [m/s] and position [m] of ``log`` on the sample times ``time`` [s],
+    by channel name: each triple (:data:`GPS_VELOCITY`, :data:`GPS_POSITION`) drawn as
+    straight lines between its fixes (extended along the first and last pair's slope at the
+    ends), and left out when the log lacks one of its channels or its fixes leave more than
+    :data:`GPS_MAX_GAP` of ``time``'s span uncovered.
+
+    A fix is a sample where a channel of the triple changes (the log holds a slow receiver's
+    values until the next one; every sample of a triple that changes at most samples), with
+    finite values that are not all zero (a receiver without a fix writes zeros or nothing).
+    """
+    out = {}
+    for names in (GPS_VELOCITY, GPS_POSITION):
+        if not all(n in log for n in names):
+            continue
+        values = np.column_stack([np.asarray(log[n], dtype=float) for n in names])
+        fixes = _fixes(values)
+        stamps = np.asarray(log.time, dtype=float)[fixes]
+        if _covers(stamps, time[0], time[-1]):
+            out.update({n: _between_fixes(stamps, values[fixes, i], time)
+                        for i, n in enumerate(names)})
+    return out
+
+
+def _fixes(values: np.ndarray) -> np.ndarray:
+    """Indices of the fixes of a GPS triple (N, 3) (see :func:`gps_signals`)."""
+    new = np.ones(len(values), bool)
+    new[1:] = np.any(is_new_sample(values[1:], values[:-1]), axis=1)
+    if np.count_nonzero(new) > HELD_FRACTION * len(values):
+        new[:] = True
+    valid = np.all(np.isfinite(values), axis=1) & np.any(values != 0.0, axis=1)
+    return np.flatnonzero(new & valid)
+
+
+def _covers(stamps: np.ndarray, start: float, end: float) -> bool:
+    """Fixes at ``stamps`` [s] leave no more than :data:`GPS_MAX_GAP` of [start, end]
+    without one, at the ends and between them."""
+    if stamps.size < 2 or stamps[0] - start > GPS_MAX_GAP or end - stamps[-1] > GPS_MAX_GAP:
+        return False
+    overlapping = (stamps[1:] > start) & (stamps[:-1] < end)
+    return bool(np.all(np.diff(stamps)[overlapping] <= GPS_MAX_GAP))
+
+
+def _between_fixes(stamps: np.ndarray, values: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """``values`` at the fixes ``stamps`` as straight lines on ``time``, the first and last
+    lines extended beyond the fixes."""
+    out = np.interp(time, stamps, values)
+    for outside, a, b in ((time < stamps[0], 0, 1), (time > stamps[-1], -2, -1)):
+        slope = (values[b] - values[a]) / (stamps[b] - stamps[a])
+        out[outside] = values[a] + slope * (time[outside] - stamps[a])
+    return out
+
+
 def check_gaps(log: FlightLog, max_gap: float) -> None:
     """Raises :class:`FlightLogError` at the first time step longer than ``max_gap`` [s]."""
     step = np.diff(log.time)
@@ -283,7 +353,8 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     speed when logged, else a throttle and airspeed correction), which falls back to
     the catalog model with a warning when the flight cannot tell thrust from drag.
     ``extras`` (channel -> unit) are the extra channels carried into the samples
-    (module docstring); None takes :func:`usable_extras` of ``log``.
+    (module docstring); None takes :func:`usable_extras` of ``log``. The GPS velocity
+    and position join the samples' signals where the log holds them (:func:`gps_signals`).
     Raises :class:`FlightLogError` naming a missing channel, a non-finite sample or
     a gap.
     """
@@ -303,6 +374,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     if airborne.size < 2:
         raise FlightLogError(
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
+    whole = log
     log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]), extras)
     uniform = log.resample(rate_hz=rate_hz)
     # Misplacing held commands by half a hold period would leave a spurious actuator
@@ -313,6 +385,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
     if HEIGHT in uniform:
         signals["height"] = uniform[HEIGHT]
+    signals.update(gps_signals(whole, uniform.time))
     thrust = {}
     if propulsion == "data":
         speed = uniform["motor_speed"] if "motor_speed" in uniform else None
