@@ -26,6 +26,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
@@ -34,12 +35,13 @@ from drake_uav.identification.noise_floor import held_out_noise_floor
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
+from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
-           "discovery"]
+           "discovery", "PULL_POINT", "PullTowardsPoint", "pull_towards_point"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -66,6 +68,9 @@ class Injection:
     """A change of the logged sensors (a calibration error), at a strength."""
     strength_step: float = 0.0
     """Smallest realisable step of the strength (a delay in whole sample periods)."""
+    point: tuple[float, float, float] | None = None
+    """The NED point [m] a force towards a point acts towards (its finding reports where
+    the data put it)."""
 
 
 def _increment(index: int, shape: Callable[[AeroCondition], object]):
@@ -122,6 +127,49 @@ def _alphadot_term(condition, flight, params):
 def _delay_term(condition, flight, params):
     """Pitching-moment change of a 1 s delay of the elevator, to first order."""
     return -params.derivative("Cm_elevator") * differentiate(flight.time, condition.elevator)
+
+
+PULL_POINT = (1500.0, 400.0, 0.0)
+"""NED point [m] the pull towards a fixed point acts towards: on the ground, 400 m east of
+the middle of the flight's track (which runs north from the origin, 100 m up)."""
+
+
+class PullTowardsPoint(LeafSystem):
+    """A force of constant ``magnitude`` [N] towards the NED ``point`` [m], at the centre
+    of gravity (a tether to an anchor), as the plant's body-axis external wrench; input
+    the plant's state (position NED, quaternion, ...)."""
+
+    def __init__(self, magnitude: float, point=PULL_POINT):
+        super().__init__()
+        self._magnitude, self._point = magnitude, np.asarray(point, dtype=float)
+        self._state = self.DeclareVectorInputPort("state", 13)
+        self.DeclareVectorOutputPort("wrench", 6, self._wrench)
+
+    def _wrench(self, context, output: BasicVector) -> None:
+        x = self._state.Eval(context)
+        towards = self._point - x[:3]
+        body = np.asarray(quat_to_rotmat(x[3:7])).T @ (towards / np.linalg.norm(towards))
+        output.SetFromVector(np.concatenate([self._magnitude * body, np.zeros(3)]))
+
+
+def pull_towards_point(magnitude: float, point=PULL_POINT):
+    """Fly options (``extend``): a pull of ``magnitude`` [N] towards the NED ``point``
+    [m] (:class:`PullTowardsPoint`) on the plant's external wrench."""
+    def extend(builder, ports):
+        pull = builder.AddNamedSystem("pull", PullTowardsPoint(magnitude, point))
+        builder.Connect(ports["state"], pull.get_input_port(0))
+        builder.Connect(pull.get_output_port(0),
+                        ports["state"].get_system().GetInputPort("external_wrench"))
+    return {"extend": extend}
+
+
+def _pull_on_side_force(condition, flight, params):
+    """Side-force change of a 1 N pull towards :data:`PULL_POINT` along a flight's truth."""
+    towards = np.asarray(PULL_POINT)[:, None] - np.array([flight["pn"], flight["pe"],
+                                                          flight["pd"]])
+    rotation = euler_to_rotmat(np.array([flight["roll"], flight["pitch"], flight["yaw"]]))
+    body = np.einsum("ijn,in->jn", rotation, towards / np.linalg.norm(towards, axis=0))
+    return body[1] / _qbar_s_of(condition.airspeed, params)
 
 
 _AIR_DATA = ("pitot_qbar", "pitot_airspeed", "vane_alpha", "vane_beta")
@@ -181,13 +229,18 @@ INJECTED: dict[str, Injection] = {
         _drift(_index("CD"), _FLIGHT_DURATION)),
     "air_data_skew": Injection(
         "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late, strength_step=0.01),
+    "pull_to_point": Injection(
+        "force_towards_point", "CY", _pull_on_side_force,
+        lambda strength, params: pull_towards_point(strength), point=PULL_POINT),
 }
 """The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
 alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
 elevator and throttle delay; a 1 N tow force along +x body; the same force 0.3 m
 below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D growing by 1 over the
 flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
-groups: a calibration error the data-compatibility check names)."""
+groups: a calibration error the data-compatibility check names); a 1 N pull towards the
+fixed point :data:`PULL_POINT` at the centre of gravity (a vector effect on C_L, C_D and
+C_Y, its size measured on C_Y)."""
 
 
 def _condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
@@ -249,7 +302,8 @@ def discovery(seed: int, params: dict) -> dict:
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
     held-out RMS of its coefficient ``rms_before`` / ``rms_after``, its noise floor
-    ``floor`` and ``excess_explained`` (NaN when the error was at the floor).
+    ``floor`` and ``excess_explained`` (NaN when the error was at the floor); for a force
+    towards a point, ``point_error`` and ``point_sigma`` (:func:`_point_error`).
     """
     key = params.get("effect", "none")
     if key != "none" and key not in INJECTED:
@@ -287,7 +341,22 @@ def discovery(seed: int, params: dict) -> dict:
         explained = floor.excess_explained
         metrics |= {"rms_before": floor.before, "rms_after": floor.after, "floor": floor.floor,
                     "excess_explained": math.nan if explained is None else explained}
+    if injection.point is not None:
+        metrics |= _point_error(run, injection)
     return metrics
+
+
+def _point_error(run, injection: Injection) -> dict:
+    """``point_error`` [m]: the distance from the point the finding located to the true
+    one, and ``point_sigma`` [m]: the largest standard deviation of its coordinates (NaN
+    when the effect was not found)."""
+    found = next((f for f in run.discovery.found if f.name == injection.expected), None)
+    if found is None or "p_n" not in found.parameters:
+        return {"point_error": math.nan, "point_sigma": math.nan}
+    located = [found.parameters[f"p_{axis}"] for axis in "ned"]
+    return {"point_error": float(np.linalg.norm(np.subtract([p for p, _ in located],
+                                                            injection.point))),
+            "point_sigma": max(sigma for _, sigma in located)}
 
 
 def _measured_only(log: FlightLog) -> FlightLog:
