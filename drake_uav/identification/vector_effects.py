@@ -24,6 +24,16 @@ coefficient. An accepted effect enters each coefficient it is kept on as one col
 jointly estimated shape; its reported parameters come from a joint refit against the
 final fits, with a sandwich covariance over all the coefficients' scores.
 
+A force towards a point nobody gave (``vector_effect("towards_point")``, in the default
+library as ``force_towards_point``) is nonlinear in the point: in each round the point is
+located by the profile of the joint fit over a grid of candidate points around the
+flight path, refined locally; the effect is tested at the best grid point with its
+p-value multiplied by the number of candidate points (Bonferroni over the grid,
+:mod:`~drake_uav.identification.fitted_point`) and carried on at the refined point, and
+the point's parameters ``p_n, p_e, p_d`` [m, NED] are reported with their sigmas (the
+force linearised about it, one Gauss-Newton step). A negative magnitude is a force away
+from the point.
+
 Competition with the per-coefficient named effects: a round's passing candidates are
 compared by the held-out error they remove, summed over the coefficients they move in
 units of each coefficient's own error (a per-coefficient effect: over the coefficients it
@@ -44,12 +54,20 @@ from drake_uav.identification.errors_in_variables import (
     long_run_covariance,
     noise_error_energy,
 )
+from drake_uav.identification.fitted_point import (
+    PointFit,
+    PointProfile,
+    ProfileKernels,
+    ned_to_body,
+    positions,
+    towards,
+    towards_gradient,
+)
 from drake_uav.identification.isolation import AeroSamples
 from drake_uav.identification.regression import f_survival
 from drake_uav.identification.residuals import effective_sample_size
 from drake_uav.model.air_data import velocity_from_air_data
 from drake_uav.model.coefficients import body_to_lift_drag
-from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 if TYPE_CHECKING:
@@ -69,6 +87,11 @@ _MOMENT_AXIS = {"Cl": 0, "Cm": 1, "Cn": 2}
 _FORCES = ("CL", "CD", "CY")
 _ARMS = ("Fr_x", "Fr_y", "Fr_z")
 """The moment parameters ``u = m r`` [N m] (their column is ``e_j x F``)."""
+_SHIFTS = ("Fp_n", "Fp_e", "Fp_d")
+"""The linearised point's parameters ``m dP`` [N m] (their column is the force's change
+with the point, per metre)."""
+_POINT_SEARCH_PARAMETERS = 3
+"""The point's coordinates: the parameters a fitted point adds to the BIC."""
 
 Direction = Callable[[AeroSamples], np.ndarray]
 """``direction(samples) -> (N, 3)`` body-axis unit vectors."""
@@ -76,12 +99,6 @@ Direction = Callable[[AeroSamples], np.ndarray]
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
-
-
-def _ned_to_body(samples: AeroSamples, v: np.ndarray) -> np.ndarray:
-    """NED vectors (N, 3) in body axes at each sample's attitude."""
-    rotation = euler_to_rotmat(np.array([samples.signals[s] for s in ATTITUDE]))
-    return np.einsum("ijn,ni->nj", rotation, v)
 
 
 def _body_axis(axis: int) -> Direction:
@@ -95,20 +112,17 @@ def _against_air_velocity(samples: AeroSamples) -> np.ndarray:
 
 def _against_ground_velocity(samples: AeroSamples) -> np.ndarray:
     v = np.column_stack([samples.signals[s] for s in GPS_VELOCITY])
-    return -_ned_to_body(samples, _unit(v))
+    return -ned_to_body(samples, _unit(v))
 
 
 def _towards(point: Sequence[float]) -> Direction:
-    def direction(samples):
-        p = np.column_stack([samples.signals[s] for s in GPS_POSITION])
-        return _ned_to_body(samples, _unit(np.asarray(point, dtype=float) - p))
-    return direction
+    return lambda samples: towards(samples, point)
 
 
 def _logged(names: Sequence[str], frame: str) -> Direction:
     def direction(samples):
         v = _unit(np.column_stack([samples.signals[s] for s in names]))
-        return v if frame == "body" else _ned_to_body(samples, v)
+        return v if frame == "body" else ned_to_body(samples, v)
     return direction
 
 
@@ -118,7 +132,7 @@ DIRECTIONS = {
     "body_z": "along the body z axis",
     "air_velocity": "against the air-relative velocity (a drag)",
     "ground_velocity": "against the GPS velocity",
-    "towards_point": "towards a fixed NED point",
+    "towards_point": "towards a fixed NED point (given, or located by the data)",
     "logged": "along a logged vector",
 }
 """Direction kinds -> what the unit vector is (a negative magnitude reverses it)."""
@@ -132,7 +146,8 @@ class VectorEffect:
     explanation: str
     direction: str
     """Kind, a key of :data:`DIRECTIONS`."""
-    unit_vectors: Direction
+    unit_vectors: Direction | None
+    """None for a point not located yet (:attr:`fitted`)."""
     signals: tuple[str, ...] = ()
     """``AeroSamples.signals`` the direction needs."""
     magnitude: str | None = None
@@ -140,6 +155,13 @@ class VectorEffect:
     lever_arm: bool = False
     """Fit the application point (its moment on ``C_l, C_m, C_n``); False: at the
     reference point (the centre of gravity)."""
+    point: tuple[float, float, float] | None = None
+    """The NED point [m] of a ``"towards_point"`` direction (None: not located yet)."""
+    searched: int = 0
+    """Candidate points the point was chosen from (0: given; see
+    :mod:`~drake_uav.identification.fitted_point`)."""
+    linearised: bool = False
+    """With the point's shift parameters ``Fp_n, Fp_e, Fp_d`` (its uncertainty)."""
 
     def available(self, samples: AeroSamples) -> bool:
         """True when the samples carry every signal the effect needs."""
@@ -147,10 +169,34 @@ class VectorEffect:
         return all(s in samples.signals for s in needed)
 
     @property
+    def fitted(self) -> bool:
+        """The point of a ``"towards_point"`` direction is located by the data."""
+        return self.direction == "towards_point" and (self.point is None or self.searched > 0)
+
+    def at(self, point: Sequence[float], searched: int) -> VectorEffect:
+        """This effect towards ``point`` (NED [m]), chosen from ``searched`` candidates."""
+        point = tuple(float(x) for x in point)
+        return dataclasses.replace(self, unit_vectors=_towards(point), point=point,
+                                   searched=searched)
+
+    @property
     def parameters(self) -> tuple[str, ...]:
-        """Linear parameters: ``F`` the magnitude [N] (or gain [N per channel unit]) and,
-        with a lever arm, ``Fr_x, Fr_y, Fr_z`` = F times the application point [N m]."""
-        return ("F", *_ARMS) if self.lever_arm else ("F",)
+        """Linear parameters: ``F`` the magnitude [N] (or gain [N per channel unit]); with a
+        lever arm, ``Fr_x, Fr_y, Fr_z`` = F times the application point [N m]; linearised,
+        ``Fp_n, Fp_e, Fp_d`` = F times the point's shift [N m]."""
+        return ("F", *(_SHIFTS if self.linearised else ()),
+                *(_ARMS if self.lever_arm else ()))
+
+    def _forces(self, view: AeroSamples) -> dict[str, np.ndarray]:
+        """Body-axis force (N, 3) per unit of each force parameter."""
+        forces = {"F": np.array(self.unit_vectors(view), dtype=float)}
+        if self.linearised:
+            gradient = towards_gradient(view, self.point)
+            forces.update((n, gradient[:, :, j]) for j, n in enumerate(_SHIFTS))
+        if self.magnitude:
+            size = np.asarray(view.signals[self.magnitude], dtype=float)[:, None]
+            forces = {n: f * size for n, f in forces.items()}
+        return forces
 
     def columns(self, samples: AeroSamples, params: FixedWingParams,
                 coefficient: str) -> dict[str, np.ndarray]:
@@ -161,20 +207,26 @@ class VectorEffect:
         out = dict.fromkeys(self.parameters, zero)
         if coefficient not in _FORCES and not (coefficient in _MOMENT_AXIS and self.lever_arm):
             return out
-        force = np.array(self.unit_vectors(view), dtype=float)
-        if self.magnitude:
-            force = force * np.asarray(view.signals[self.magnitude], dtype=float)[:, None]
-        per_unit = 1.0 / (view.dynamic_pressure * params.S)
+        forces = self._forces(view)
         if coefficient in _FORCES:
-            cx, cy, cz = (force * per_unit[:, None]).T
-            lift, drag = body_to_lift_drag(cx, cz, view.condition.alpha)
-            out["F"] = {"CL": lift, "CD": drag, "CY": cy}[coefficient]
+            out.update((name, _force_column(view, params, coefficient, force))
+                       for name, force in forces.items())
         else:
+            per_unit = 1.0 / (view.dynamic_pressure * params.S)
             axis = _MOMENT_AXIS[coefficient]
             length = params.c if coefficient == "Cm" else params.b
             for j, name in enumerate(_ARMS):
-                out[name] = np.cross(np.eye(3)[j], force)[:, axis] * per_unit / length
+                out[name] = np.cross(np.eye(3)[j], forces["F"])[:, axis] * per_unit / length
         return out
+
+
+def _force_column(view: AeroSamples, params: FixedWingParams, coefficient: str,
+                  force: np.ndarray) -> np.ndarray:
+    """The change of the force coefficient ``coefficient`` by the body-axis ``force`` (N, 3)
+    [N]."""
+    cx, cy, cz = (force / (view.dynamic_pressure * params.S)[:, None]).T
+    lift, drag = body_to_lift_drag(cx, cz, view.condition.alpha)
+    return {"CL": lift, "CD": drag, "CY": cy}[coefficient]
 
 
 def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bool = False,
@@ -184,8 +236,9 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
 
     ``magnitude``: a logged channel the force is proportional to (None: constant);
     ``lever_arm``: fit the application point; ``point``: the NED point [m] of
-    ``"towards_point"``; ``logged``, ``frame``: the three channels and their frame
-    (``"body"`` or ``"ned"``) of ``"logged"``.
+    ``"towards_point"`` (None: located by the data in each round,
+    :mod:`~drake_uav.identification.fitted_point`); ``logged``, ``frame``: the three
+    channels and their frame (``"body"`` or ``"ned"``) of ``"logged"``.
     """
     if direction not in DIRECTIONS:
         raise ValueError(f"direction: one of {', '.join(DIRECTIONS)}, got {direction!r}")
@@ -196,9 +249,9 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
     elif direction == "ground_velocity":
         unit, signals = _against_ground_velocity, GPS_VELOCITY + ATTITUDE
     elif direction == "towards_point":
-        if point is None or len(point) != 3:
-            raise ValueError("towards_point: give the point, NED [m]")
-        unit, signals = _towards(point), GPS_POSITION + ATTITUDE
+        if point is not None and len(point) != 3:
+            raise ValueError("towards_point: give the point, NED [m], or None to fit it")
+        unit, signals = None if point is None else _towards(point), GPS_POSITION + ATTITUDE
     else:
         if len(logged) != 3 or frame not in ("body", "ned"):
             raise ValueError("logged: give three channels and a frame 'body' or 'ned'")
@@ -206,24 +259,38 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
         signals = tuple(logged) + (ATTITUDE if frame == "ned" else ())
     where = "acting away from the centre of gravity" if lever_arm else "at the centre of gravity"
     size = f"proportional to the logged {magnitude}" if magnitude else "of constant magnitude"
-    name = name or "_".join(filter(None, ("force", direction, magnitude,
+    kind = ("towards_given_point" if direction == "towards_point" and point is not None
+            else direction)
+    name = name or "_".join(filter(None, ("force", kind, magnitude,
                                           "off_cg" if lever_arm else None)))
-    return VectorEffect(name, f"a force {size} {DIRECTIONS[direction]}, {where}", direction,
-                        unit, signals, magnitude, lever_arm)
+    towards_what = DIRECTIONS[direction]
+    if direction == "towards_point":
+        towards_what = ("towards a fixed NED point located by the data" if point is None
+                        else "towards the fixed NED point ({:.0f}, {:.0f}, {:.0f}) m".format(
+                            *point))
+    return VectorEffect(name, f"a force {size} {towards_what}, {where}", direction, unit,
+                        signals, magnitude, lever_arm,
+                        None if point is None else tuple(float(x) for x in point))
 
 
-def vector_effect_library(magnitudes: Sequence[str | None] = (None,)) -> list[VectorEffect]:
+def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
+                          located_point: bool = True) -> list[VectorEffect]:
     """The vector effects the discovery loop tries, for each magnitude of ``magnitudes``
     (None: constant; a name: that logged channel).
 
     A force along a body axis at the centre of gravity is the per-coefficient
-    ``constant_body_force``: here a body-axis force always has its lever arm.
+    ``constant_body_force``: here a body-axis force always has its lever arm. The forces
+    against the GPS velocity and towards a point the data locate
+    (``force_towards_point``, :mod:`~drake_uav.identification.fitted_point`; left out
+    with ``located_point`` False) need the GPS in the samples' signals.
     """
     out = []
     for magnitude in magnitudes:
         out += [vector_effect(f"body_{a}", magnitude=magnitude, lever_arm=True) for a in "xyz"]
         out += [vector_effect(d, magnitude=magnitude, lever_arm=arm)
                 for d in ("air_velocity", "ground_velocity") for arm in (False, True)]
+        if located_point:
+            out.append(vector_effect("towards_point", magnitude=magnitude))
     return out
 
 
@@ -321,7 +388,10 @@ class JointSearch:
         self.effects = [e for e in effects if e.available(samples)]
         self._columns_and_jacobians = columns_and_jacobians
         self._evidence_type, self._found_type = evidence_type, found_type
-        self._train: dict[tuple[str, str], tuple[dict, dict]] = {}
+        self._train: dict[tuple[VectorEffect, str], tuple[dict, dict]] = {}
+        self._accepted: dict[str, VectorEffect] = {}
+        """The effects accepted, by name, with the point they were accepted at."""
+        self._profiles: dict[VectorEffect, tuple[PointProfile, dict]] = {}
 
     def evidence(self, joint: Sequence[JointEvidence],
                  coefficients: Sequence[str] | None = None) -> list[Evidence]:
@@ -338,7 +408,7 @@ class JointSearch:
     def _columns(self, search, effect: VectorEffect, k: str, test: bool = False):
         """(columns, jacobians) of ``effect`` on coefficient ``k`` (training part, or
         the held-out tail), the parameters that do not enter ``k`` left out."""
-        key = (effect.name, k)
+        key = (effect, k)
         if test or key not in self._train:
             variants = search.test_variants if test else search.pool.variants
             design = (search.tests if test else search.designs)[k]
@@ -361,13 +431,68 @@ class JointSearch:
 
     def score(self, search, bases: Mapping, rule: EvidenceRule, n_tests: int,
               used: set[str]) -> list[JointEvidence]:
-        """The joint evidence of every vector effect not tried yet."""
+        """The joint evidence of every vector effect not tried yet. An effect towards a
+        point the data locate is tested at the best of its candidate points and carried
+        on at the refined one (:mod:`~drake_uav.identification.fitted_point`)."""
         out = []
         for effect in self.candidates(used):
-            evidence = self._score(search, effect, bases, rule, n_tests)
+            located = self.locate(search, effect, bases) if effect.fitted else None
+            if located is not None:
+                tested = effect.at(located.grid_point, located.candidates)
+                evidence = self._score(search, tested, bases, rule, n_tests)
+                if evidence is not None:
+                    evidence = dataclasses.replace(
+                        evidence, effect=effect.at(located.point, located.candidates))
+            elif not effect.fitted:
+                evidence = self._score(search, effect, bases, rule, n_tests)
+            else:
+                evidence = None
             if evidence is not None:
                 out.append(evidence)
         return out
+
+    def locate(self, search, effect: VectorEffect, bases: Mapping) -> PointFit | None:
+        """Where the data put the point of ``effect`` against the round's designs (None
+        when no force coefficient is fitted): the profile of the weighted, compensated
+        joint fit over the force coefficients (the first pass of :meth:`_score`) over the
+        candidate points, refined
+        (:class:`~drake_uav.identification.fitted_point.PointProfile`)."""
+        train = search.pool.variants.samples
+        if effect not in self._profiles:
+            self._profiles[effect] = (PointProfile(positions(train), train.time), {})
+        profile, axes = self._profiles[effect]
+        kernels = {}
+        for k in (k for k in _FORCES if k in bases):
+            base = bases[k]
+            design = base.design
+            variance = design.noise.variance
+            if k not in axes:
+                axes[k] = self._along_ned_axes(search, effect, k, variance)
+            a, jac = axes[k]
+            A, b, _, _ = base.blocks.total()
+            kernels[k] = ProfileKernels.of(a, {s: j for s, j in jac.items() if s in variance},
+                                           design.X, design.z, design.noise, A, b,
+                                           len(design.z) / base.sse[0])
+        if not kernels:
+            return None
+        return profile.against(kernels).locate()
+
+    def _along_ned_axes(self, search, effect: VectorEffect, k: str,
+                        variance: Mapping[str, float]
+                        ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The change of coefficient ``k`` by a unit force along each NED axis (times the
+        effect's logged magnitude), (N, 3), and its sensitivities to the noise sources."""
+        params, magnitude = search.pool.params, effect.magnitude
+
+        def along_axes(smp):
+            view = smp.aligned(k)
+            size = (np.asarray(view.signals[magnitude], dtype=float)[:, None]
+                    if magnitude else 1.0)
+            return {i: _force_column(view, params, k, size * ned_to_body(
+                view, np.broadcast_to(np.eye(3)[i], (len(view), 3)))) for i in range(3)}
+        columns, jac = self._columns_and_jacobians(along_axes, search.pool.variants, variance)
+        return (np.column_stack([columns[i] for i in range(3)]),
+                {s: np.column_stack([j[i] for i in range(3)]) for s, j in jac.items()})
 
     def _score(self, search, effect, bases, rule, n_tests) -> JointEvidence | None:
         moved = {}
@@ -385,6 +510,7 @@ class JointSearch:
         if not parameters:
             return None
         q = len(parameters)
+        searched_parameters = _POINT_SEARCH_PARAMETERS if effect.searched else 0
         blocks, extended = [], {}
         for k, names in moved.items():
             design = bases[k].design
@@ -429,7 +555,7 @@ class JointSearch:
             observed_w += blk.weight * observed
             dof += n_eff - blk.p
             bic += n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) \
-                + q / len(moved) * np.log(n_eff)
+                + (q + searched_parameters) / len(moved) * np.log(n_eff)
             gain = np.empty(len(moments.edges) - 1)
             for f, (a, b) in enumerate(zip(moments.edges[:-1], moments.edges[1:], strict=True)):
                 fit = np.concatenate([theta_k[f], phi_folds[f][blk.index]])
@@ -441,7 +567,8 @@ class JointSearch:
             improved[k] = int(np.sum(gain > 0))
         dof = max(dof - q, 1.0)
         f_stat = max(drop_w, 0.0) / q / (observed_w / dof)
-        p_value = float(f_survival(f_stat, q, dof))
+        # A located point: Bonferroni over the candidate points (fitted_point).
+        p_value = min(float(f_survival(f_stat, q, dof)) * max(effect.searched, 1), 1.0)
         reduction, folds_improved = float(np.mean(relative)), int(np.sum(relative > 0))
         passed = (p_value < rule.p_value / max(n_tests, 1) and reduction >= rule.min_pse_reduction
                   and folds_improved >= rule.min_folds and bic < 0)
@@ -493,6 +620,7 @@ class JointSearch:
                 kept.append(k)
         if not kept:
             return None
+        self._accepted[effect.name] = effect
         return self._found_type(effect.name, effect.explanation, "aerodynamic", tuple(kept),
                                 tuple(self.evidence([joint], kept)), {})
 
@@ -515,7 +643,7 @@ class JointSearch:
     def with_parameters(self, search, found: Sequence[FoundEffect]) -> list[FoundEffect]:
         """``found`` with every vector effect's parameters from a joint refit against the
         final fits of the coefficients it is kept on (:meth:`parameters`)."""
-        effects = {e.name: e for e in self.effects}
+        effects = {**{e.name: e for e in self.effects}, **self._accepted}
         return [dataclasses.replace(f, parameters=self.parameters(search, effects[f.name],
                                                                   f.coefficients))
                 if f.name in effects else f for f in found]
@@ -525,12 +653,17 @@ class JointSearch:
         """Estimate and sigma of the effect's parameters, jointly over ``coefficients``:
         ``F`` the magnitude [N] (gain [N per unit] of a logged magnitude), ``Fr_x`` ...
         F times the application point [N m] where a moment coefficient carries it, and the
-        application point ``r_x`` ... [m] (delta method) where F is estimated too.
+        application point ``r_x`` ... [m] (delta method) where F is estimated too. A point
+        the data located: ``Fp_n, Fp_e, Fp_d``, F times its shift [N m] (the force
+        linearised about it), and the point ``p_n, p_e, p_d`` [m, NED] (the located one
+        moved by the shift: one Gauss-Newton step, its sigma by the delta method).
 
         The coefficients' own columns are refitted with them; the covariance is the
         sandwich of all the estimating equations (each coefficient's and the weighted
         shared ones) with the long-run covariance of their per-sample scores.
         """
+        if effect.fitted:
+            effect = dataclasses.replace(effect, linearised=True)
         prefix = f"{effect.name}:"
         designs, names = {}, {}
         for k in coefficients:
@@ -572,11 +705,13 @@ class JointSearch:
                for i, n in enumerate(parameters)}
         if "F" in parameters:
             f = parameters.index("F")
+            origins = {**dict.fromkeys(_ARMS, 0.0),
+                       **dict(zip(_SHIFTS, effect.point or (0.0,) * 3, strict=True))}
             for i, n in enumerate(parameters):
-                if n in _ARMS:
+                if n in origins:
                     gradient = np.zeros(q)
                     gradient[i], gradient[f] = 1.0 / phi[f], -phi[i] / phi[f] ** 2
-                    out[f"r_{n[-1]}"] = (float(phi[i] / phi[f]),
-                                         float(np.sqrt(max(gradient @ covariance @ gradient,
-                                                           0.0))))
+                    label = f"r_{n[-1]}" if n in _ARMS else f"p_{n[-1]}"
+                    out[label] = (float(origins[n] + phi[i] / phi[f]),
+                                  float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))))
         return out
