@@ -68,6 +68,8 @@ class Injection:
     """A change of the logged sensors (a calibration error), at a strength."""
     strength_step: float = 0.0
     """Smallest realisable step of the strength (a delay in whole sample periods)."""
+    logged: Callable[[FlightLog, float, int], FlightLog] | None = None
+    """An extra channel the log gains (a load cell), at a strength and a flight's seed."""
     point: tuple[float, float, float] | None = None
     """The NED point [m] a force towards a point acts towards (its finding reports where
     the data put it)."""
@@ -172,6 +174,45 @@ def _pull_on_side_force(condition, flight, params):
     return body[1] / _qbar_s_of(condition.airspeed, params)
 
 
+TENSION_BAND = (0.02, 0.5)
+"""Frequency band [Hz] of the tether tension's slow variation."""
+TENSION_NOISE = 0.05
+"""Standard deviation of the logged tension's noise at strength 1 [N] (a load cell)."""
+
+
+def _tension(t) -> np.ndarray:
+    """A tether's tension at strength 1 [N]: eight sinusoids in :data:`TENSION_BAND`, of
+    fixed random phases (the same on every flight, like the excitation), unit standard
+    deviation about a mean of 3, so that the tether stays taut."""
+    rng = np.random.default_rng(4242)
+    frequency, phase = rng.uniform(*TENSION_BAND, 8), rng.uniform(0.0, 2.0 * np.pi, 8)
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    return 3.0 + np.sin(2.0 * np.pi * frequency[:, None] * t + phase[:, None]).sum(axis=0) / 2.0
+
+
+def _tether(strength, params):
+    """Fly options: a pull of ``strength`` times :func:`_tension` [N] along -x body at the
+    centre of gravity (C_L -= F sin(alpha) / (qbar S), C_D += F cos(alpha) / (qbar S))."""
+    def increment(condition, t):
+        force = strength * float(_tension(t)[0]) / _qbar_s_of(condition.airspeed, params)
+        return (-force * np.sin(condition.alpha), force * np.cos(condition.alpha),
+                0.0, 0.0, 0.0, 0.0)
+    return {"disturbance": increment}
+
+
+def _tension_on_drag(condition, flight, params):
+    """Drag change of the tether at strength 1."""
+    return _tension(flight.time) * np.cos(condition.alpha) / _qbar_s_of(condition.airspeed,
+                                                                         params)
+
+
+def _tension_logged(log: FlightLog, strength: float, seed: int) -> FlightLog:
+    """The log with the tether's load cell, ``tension`` [N], its noise drawn from ``seed``."""
+    noise = strength * TENSION_NOISE * np.random.default_rng(seed).standard_normal(len(log))
+    return log.with_measured({"tension": strength * _tension(log.time) + noise},
+                             {"tension": "N"})
+
+
 _AIR_DATA = ("pitot_qbar", "pitot_airspeed", "vane_alpha", "vane_beta")
 
 
@@ -232,6 +273,8 @@ INJECTED: dict[str, Injection] = {
     "pull_to_point": Injection(
         "force_towards_point", "CY", _pull_on_side_force,
         lambda strength, params: pull_towards_point(strength), point=PULL_POINT),
+    "logged_tension": Injection(
+        "logged:tension", "CD", _tension_on_drag, _tether, logged=_tension_logged),
 }
 """The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
 alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
@@ -240,7 +283,9 @@ below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D growing by 
 flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
 groups: a calibration error the data-compatibility check names); a 1 N pull towards the
 fixed point :data:`PULL_POINT` at the centre of gravity (a vector effect on C_L, C_D and
-C_Y, its size measured on C_Y)."""
+C_Y, its size measured on C_Y); a tether pulling along -x body with a tension of mean 3 N
+and standard deviation 1 N, logged by a load cell as the extra channel ``tension``
+(expected: the logged channel, ``logged:tension``)."""
 
 
 def _condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
@@ -326,6 +371,8 @@ def discovery(seed: int, params: dict) -> dict:
     truth = log
     if injection is not None and injection.sensors is not None:
         log = injection.sensors(log, strength)
+    if injection is not None and injection.logged is not None:
+        log = injection.logged(log, strength, seed)
     run = identify(_measured_only(log), catalog, seed=seed)
     found = list(run.findings)
     expected = injection.expected if injection else None
