@@ -30,6 +30,7 @@ from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings
 from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigmas
 from drake_uav.identification.reconstruction import Reconstruction, reconstruct
 from drake_uav.identification.segments import concatenate_samples
+from drake_uav.identification.vector_effects import VectorEffect, vector_effect_library
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS
@@ -38,7 +39,8 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
            "identify_derivatives", "select_samples", "check_fixed_wing",
-           "testable_effects", "measured_command_delay", "ESTIMATE_CONFOUNDED",
+           "testable_effects", "testable_vector_effects", "measured_command_delay",
+           "ESTIMATE_CONFOUNDED",
            "coefficient_uncertainty", "check_log_compatibility"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
@@ -259,6 +261,7 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                            progress=say, source=source, seed=seed,
                            effects=testable_effects(selection.air_data,
                                                     measured_command_delay(compatibility)),
+                           vector_effects=testable_vector_effects(selection.air_data),
                            coefficients=coefficients)
     selection = dataclasses.replace(selection, notes=selection.notes + run.discovery.notes)
     return dataclasses.replace(run, data=selection, compatibility=compatibility)
@@ -326,6 +329,13 @@ def testable_effects(air_data: str, command_delay: float | None = None) -> list[
     return [e for e in library if e.name not in ESTIMATE_CONFOUNDED]
 
 
+def testable_vector_effects(air_data: str) -> list[VectorEffect]:
+    """The vector effects the data of an ``air_data`` mode can tell from its errors: without
+    vanes, not the force towards a point the data locate, which then takes up the error of
+    the estimated wind as a pull towards some far point (2 of 40 clean flights)."""
+    return vector_effect_library(located_point=air_data != "estimate")
+
+
 def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                    source: str = "flight log", air_data: str = "auto",
                    segment: tuple[float, float] | None = None,
@@ -357,10 +367,30 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
         parts.append(_with_flow_error(part, angles.error_variance))
+    parts, gps_notes = _common_signals(parts, spans)
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description)
-                             + extra_notes)
+                             + extra_notes + gps_notes)
     return concatenate_samples(parts), selection
+
+
+def _common_signals(parts: list[AeroSamples], spans) -> tuple[list[AeroSamples], tuple]:
+    """The parts with only the signals every one holds (a span without a GPS fix has no
+    GPS velocity or position), and a note naming what was left out and where."""
+    common = set.intersection(*(set(p.signals) for p in parts))
+    left_out = sorted(set().union(*(set(p.signals) for p in parts)) - common)
+    if not left_out:
+        return parts, ()
+    missing = [f"{a:.1f}-{b:.1f} s" for (a, b), p in zip(spans, parts, strict=True)
+               if not set(left_out) <= set(p.signals)]
+    note = (f"left out {', '.join(left_out)}: not in the span(s) {', '.join(missing)} "
+            "(no GPS fix there); the effects that need them are not tested")
+
+    def kept(samples):
+        view = None if samples.moment_view is None else kept(samples.moment_view)
+        return dataclasses.replace(samples, moment_view=view, signals={
+            k: v for k, v in samples.signals.items() if k in common})
+    return [kept(p) for p in parts], (note,)
 
 
 _AIR_DATA_STEP = {"vanes": "vane air data", "estimate": "air data estimated without vanes",
@@ -410,6 +440,7 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
                      progress: Callable[[str], None] | None = None,
                      source: str = "flight samples", seed: int = 0,
                      effects: Sequence[Effect] | None = None,
+                     vector_effects: Sequence[VectorEffect] | None = None,
                      coefficients: Sequence[str] = COEFFICIENTS) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
@@ -417,12 +448,14 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
     (:func:`~drake_uav.identification.flight_data.samples_from_log` or
     :func:`~drake_uav.identification.isolation.isolate_coefficients`); the
     ``samples.signals`` must hold ``roll`` and ``pitch`` [rad]. ``effects``
-    defaults to the whole :func:`~drake_uav.identification.effects.effect_library`.
-    The coefficients skipped and the effects not kept are in ``discovery.notes``.
+    defaults to the whole :func:`~drake_uav.identification.effects.effect_library`,
+    ``vector_effects`` to :func:`~drake_uav.identification.vector_effects.
+    vector_effect_library`. The coefficients skipped and the effects not kept are in
+    ``discovery.notes``.
     """
     say = progress or (lambda message: None)
-    result = discover(samples, params, effects=effects, rule=rule, progress=say,
-                      coefficients=coefficients)
+    result = discover(samples, params, effects=effects, vector_effects=vector_effects,
+                      rule=rule, progress=say, coefficients=coefficients)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)
