@@ -584,14 +584,21 @@ class JointSearch:
         error than every passing per-coefficient effect (:attr:`JointEvidence.total`; a
         per-coefficient effect's summed over the coefficients it passed on) is tried first,
         then the per-coefficient effects (``accept_named(named, used)``), then the other
-        passing vector effects. Every effect tried joins ``used``."""
+        passing vector effects. A force towards a located point, one choice among the
+        grid's, goes first only when it removes :attr:`EvidenceRule.min_pse_reduction`
+        more on each coefficient its total sums over, as a data-driven product must on its
+        one coefficient. Every effect tried joins ``used``."""
         passing = sorted((j for j in joint if j.passed), key=lambda j: -j.total)
         totals: dict[str, float] = {}
         for e in named:
             if e.passed and e.effect not in used:
                 totals[e.effect] = totals.get(e.effect, 0.0) + e.pse_reduction
         best = max(totals.values(), default=-np.inf)
-        for j in (j for j in passing if j.total > best):
+
+        def margin(j: JointEvidence) -> float:
+            return search.rule.min_pse_reduction * len(j.coefficients) if j.effect.fitted else 0.0
+
+        for j in (j for j in passing if j.total - margin(j) > best):
             found = self._accept(search, j, used)
             if found is not None:
                 return found
