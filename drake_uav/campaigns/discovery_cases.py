@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
+from drake_uav.identification.fitted_point import unit_vectors_towards
 from drake_uav.identification.main_job import identify
 from drake_uav.identification.noise_floor import held_out_noise_floor
 from drake_uav.io.flight_log import FlightLog
@@ -167,10 +168,10 @@ def pull_towards_point(magnitude: float, point=PULL_POINT):
 
 def _pull_on_side_force(condition, flight, params):
     """Side-force change of a 1 N pull towards :data:`PULL_POINT` along a flight's truth."""
-    towards = np.asarray(PULL_POINT)[:, None] - np.array([flight["pn"], flight["pe"],
-                                                          flight["pd"]])
+    path = np.column_stack([flight["pn"], flight["pe"], flight["pd"]])
+    towards = unit_vectors_towards(path, np.array([PULL_POINT]))[:, 0, :]
     rotation = euler_to_rotmat(np.array([flight["roll"], flight["pitch"], flight["yaw"]]))
-    body = np.einsum("ijn,in->jn", rotation, towards / np.linalg.norm(towards, axis=0))
+    body = np.einsum("ijn,in->jn", rotation, towards)
     return body[1] / _qbar_s_of(condition.airspeed, params)
 
 

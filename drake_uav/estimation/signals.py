@@ -60,10 +60,12 @@ def is_new_sample(value, previous) -> np.ndarray:
 
 
 def fresh_samples(values: np.ndarray) -> np.ndarray:
-    """True where a held sensor channel delivered a new sample (the first row is new)."""
+    """True where a held sensor channel delivered a new sample (the first row is new);
+    for (N, m) channels held together, where any of them did."""
     values = np.asarray(values, float)
     fresh = np.ones(len(values), bool)
-    fresh[1:] = is_new_sample(values[1:], values[:-1])
+    new = is_new_sample(values[1:], values[:-1])
+    fresh[1:] = new if new.ndim == 1 else np.any(new, axis=tuple(range(1, new.ndim)))
     return fresh
 
 

@@ -34,6 +34,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from drake_uav.identification.isolation import LOGGED, AeroSamples
+from drake_uav.identification.segments import span_starts
 from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
@@ -212,8 +213,7 @@ def _delayed(time: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
     """``values`` at ``time - delay`` [s], straight lines between samples; within the first
     ``delay`` of each span of the samples (joined spans keep their gaps) the span's first
     value, since what came before is not in the log."""
-    step = float(np.median(np.diff(time)))
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(time) > 1.5 * step) + 1])
+    starts = span_starts(time)
     span_start = time[starts][np.searchsorted(starts, np.arange(len(time)), side="right") - 1]
     return np.interp(np.maximum(time - delay, span_start), time, values)
 

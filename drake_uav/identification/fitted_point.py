@@ -32,6 +32,7 @@ import numpy as np
 
 from drake_uav.identification.errors_in_variables import PropagatedNoise
 from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.segments import span_starts
 from drake_uav.model.rotations import euler_to_rotmat
 
 __all__ = ["NEAREST", "FARTHEST", "SPACING", "MAX_CANDIDATES", "KNOT_STEP", "PointFit",
@@ -237,9 +238,8 @@ class PointProfile:
         self.path = np.asarray(path, dtype=float)
         self.candidates = candidate_points(self.path)
         n = len(time)
-        step = np.diff(time)
-        gaps = np.flatnonzero(step > 1.5 * np.median(step))
-        knots = np.unique(np.concatenate([np.arange(0, n, KNOT_STEP), gaps, gaps + 1,
+        starts = span_starts(time)[1:]
+        knots = np.unique(np.concatenate([np.arange(0, n, KNOT_STEP), starts - 1, starts,
                                           [n - 1]]))
         self._before = np.clip(np.searchsorted(knots, np.arange(n), side="right"), 1,
                                len(knots) - 1) - 1

@@ -62,7 +62,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from drake_uav.estimation.sensor_noise import noise_floor_variance
-from drake_uav.estimation.signals import HELD_FRACTION, is_new_sample, unheld
+from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
 from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
 from drake_uav.identification.propulsion import identify_thrust
 from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
@@ -296,8 +296,7 @@ def gps_signals(log: FlightLog, time: np.ndarray) -> dict[str, np.ndarray]:
 
 def _fixes(values: np.ndarray) -> np.ndarray:
     """Indices of the fixes of a GPS triple (N, 3) (see :func:`gps_signals`)."""
-    new = np.ones(len(values), bool)
-    new[1:] = np.any(is_new_sample(values[1:], values[:-1]), axis=1)
+    new = fresh_samples(values)
     if np.count_nonzero(new) > HELD_FRACTION * len(values):
         new[:] = True
     valid = np.all(np.isfinite(values), axis=1) & np.any(values != 0.0, axis=1)

@@ -16,7 +16,14 @@ import numpy as np
 from drake_uav.identification.isolation import AeroSamples
 from drake_uav.model.coefficients import AeroCondition
 
-__all__ = ["concatenate_samples"]
+__all__ = ["concatenate_samples", "span_starts"]
+
+
+def span_starts(time: np.ndarray) -> np.ndarray:
+    """Indices of the first sample of each span of joined samples (0, then every sample
+    after a gap longer than 1.5 sampling periods) of the times ``time`` [s]."""
+    step = np.diff(time)
+    return np.concatenate([[0], np.flatnonzero(step > 1.5 * np.median(step)) + 1])
 
 
 def _joined(parts: Sequence, pick) -> np.ndarray:
