@@ -14,13 +14,15 @@ from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde, unatrap
 
 
-def _plant_context(plant, state, controls, wind=(0, 0, 0), wrench=None):
+def _plant_context(plant, state, controls, wind=(0, 0, 0), wrench=None, wind_rate=None):
     context = plant.CreateDefaultContext()
     plant.set_state(context, state)
     plant.GetInputPort("controls").FixValue(context, np.asarray(controls, float))
     plant.GetInputPort("wind_ned").FixValue(context, np.asarray(wind, float))
     if wrench is not None:
         plant.GetInputPort("external_wrench").FixValue(context, np.asarray(wrench, float))
+    if wind_rate is not None:
+        plant.GetInputPort("wind_rate_ned").FixValue(context, np.asarray(wind_rate, float))
     return context
 
 
@@ -235,6 +237,39 @@ def test_compiled_model_equals_the_generic_model(derivatives):
                                   .state_derivative)
 
 
+def test_alpha_dot_terms_see_the_rate_of_the_air_relative_alpha_gusts_included():
+    """The alpha-dot the C_m term is built on is d(alpha)/dt of the air data, with the
+    aircraft's motion and the wind's rate both (a gust moves alpha, not the aircraft);
+    the compiled model and the generic one agree on it."""
+    derivatives = {"CL_alphadot": 1.5, "Cm_alphadot": -6.0}
+    params = aerosonde()
+    model = FixedWingModel(dataclasses.replace(
+        params, derivatives={**params.derivatives, **derivatives}))
+    without = FixedWingModel(params)
+    rng = np.random.default_rng(11)
+    x, u, wind, wrench = _random_points(rng, 5)
+    wind_rate = rng.normal(size=(5, 3)) * 3.0
+    h = 1e-6
+    for k in range(len(x)):
+        evaluation = model.evaluate(x[k], u[k], wind[k], wrench[k], wind_rate[k])
+        va = evaluation.air_data[0]
+        alpha_dot = ((evaluation.coefficients[4]
+                      - without.evaluate(x[k], u[k], wind[k], wrench[k]).coefficients[4])
+                     / (derivatives["Cm_alphadot"] * params.c / (2.0 * va)))
+        step = evaluation.state_derivative * h
+        ahead = model.air_data(x[k] + step, wind[k] + wind_rate[k] * h)[1]
+        behind = model.air_data(x[k] - step, wind[k] - wind_rate[k] * h)[1]
+        assert alpha_dot == pytest.approx((ahead - behind) / (2 * h), rel=1e-5, abs=1e-7)
+        compiled = model.compiled.evaluate(x[k], u[k], wind[k], wrench[k], wind_rate[k])
+        np.testing.assert_allclose(compiled.state_derivative, evaluation.state_derivative,
+                                   rtol=1e-12, atol=1e-12)
+    # Without alpha-dot terms the wind's rate changes nothing.
+    plain = without.evaluate(x[0], u[0], wind[0], wrench[0], wind_rate[0])
+    np.testing.assert_array_equal(plain.state_derivative,
+                                  without.evaluate(x[0], u[0], wind[0], wrench[0])
+                                  .state_derivative)
+
+
 def test_float_plant_matches_the_model_away_from_trim():
     plant = FixedWingPlant(aerosonde())
     x, u, wind, wrench = _random_points(np.random.default_rng(8), 1)
@@ -256,12 +291,14 @@ def test_every_plant_output_matches_the_model_evaluation(derivatives):
         params = dataclasses.replace(params, derivatives={**params.derivatives, **derivatives})
     plant = FixedWingPlant(params)
     autodiff = plant.ToAutoDiffXd()
-    x, u, wind, wrench = _random_points(np.random.default_rng(9), 3)
+    rng = np.random.default_rng(9)
+    x, u, wind, wrench = _random_points(rng, 3)
+    wind_rate = rng.normal(size=(3, 3))
     for k in range(len(x)):
-        expected = plant.model.evaluate(x[k], u[k], wind[k], wrench[k])
+        expected = plant.model.evaluate(x[k], u[k], wind[k], wrench[k], wind_rate[k])
         # The coefficients never read the wrench (no feedthrough from it).
-        unforced = plant.model.evaluate(x[k], u[k], wind[k])
-        context = _plant_context(plant, x[k], u[k], wind[k], wrench[k])
+        unforced = plant.model.evaluate(x[k], u[k], wind[k], wind_rate_ned=wind_rate[k])
+        context = _plant_context(plant, x[k], u[k], wind[k], wrench[k], wind_rate[k])
         outputs = {"air_data": expected.air_data, "specific_force": expected.specific_force,
                    "aero_coefficients": unforced.coefficients,
                    "forces_moments": expected.forces_moments,
@@ -274,7 +311,7 @@ def test_every_plant_output_matches_the_model_evaluation(derivatives):
         ad_context = autodiff.CreateDefaultContext()
         ad_context.SetTimeStateAndParametersFrom(context)
         for port, value in (("controls", u[k]), ("wind_ned", wind[k]),
-                            ("external_wrench", wrench[k])):
+                            ("external_wrench", wrench[k]), ("wind_rate_ned", wind_rate[k])):
             autodiff.GetInputPort(port).FixValue(ad_context, value.astype(object))
         ad_air = autodiff.GetOutputPort("air_data").Eval(ad_context)
         np.testing.assert_allclose([a.value() for a in ad_air], expected.air_data, rtol=1e-12)

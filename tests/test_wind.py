@@ -238,6 +238,32 @@ def test_hold_between_filter_samples(hold):
     assert (jumps < 0.5 * np.abs(np.diff(samples, axis=0)).max()) == (hold == "first_order")
 
 
+@pytest.mark.parametrize("hold", WIND_HOLDS)
+def test_wind_rate_is_the_slope_the_wind_follows(hold):
+    """``wind_rate_ned`` is the derivative of ``wind_ned`` between the updates: the hold's
+    slope for the first-order hold, zero for the steps of the zero-order hold."""
+    dt, fine = 0.05, 5
+    builder = DiagramBuilder()
+    wind = builder.AddSystem(DrydenWind(DrydenParams(
+        "moderate", airspeed=20.0, altitude=80.0, update_period=dt, hold=hold,
+        update_offset=dt / 2)))
+    wind_log = LogVectorOutput(wind.GetOutputPort("wind_ned"), builder, dt / fine)
+    rate_log = LogVectorOutput(wind.GetOutputPort("wind_rate_ned"), builder, dt / fine)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    diagram.SetRandomContext(simulator.get_mutable_context(), RandomGenerator(3))
+    simulator.AdvanceTo(2.0)
+    context = simulator.get_context()
+    wind_ned = wind_log.FindLog(context).data().T
+    rate = rate_log.FindLog(context).data().T
+    # Samples at (k + 0.5 j / fine) dt ... the updates at (k + 1/2) dt: pairs within one
+    # period between updates (j = 0 .. 1 and 3 .. 4 of each period).
+    within = [i for i in range(len(wind_ned) - 1) if i % fine not in (fine // 2,)]
+    slopes = np.diff(wind_ned, axis=0)[within] / (dt / fine)
+    np.testing.assert_allclose(rate[within], slopes, atol=1e-6)
+    assert (np.abs(rate).max() > 0.1) == (hold == "first_order")
+
+
 def test_filter_reproduces_exact_recursion_and_is_seeded():
     params = DrydenParams("moderate", airspeed=20.0, altitude=80.0, update_period=0.02)
     builder = DiagramBuilder()

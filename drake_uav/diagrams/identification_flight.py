@@ -364,11 +364,13 @@ def _add_actuator_delay(builder: DiagramBuilder, commands: OutputPort, delay: fl
 
 def _add_wind(builder: DiagramBuilder, plant: FixedWingPlant, params: DrydenParams | None,
               steady: np.ndarray) -> tuple[DrydenWind | None, OutputPort]:
-    """Dryden turbulence (or the steady wind alone) into the plant's ``wind_ned``."""
+    """Dryden turbulence (or the steady wind alone) into the plant's ``wind_ned`` and
+    ``wind_rate_ned``."""
     wind = None
     if params is not None:
         wind = builder.AddNamedSystem("wind", DrydenWind(params))
         builder.Connect(plant.GetOutputPort("state"), wind.GetInputPort("plant_state"))
+        builder.Connect(wind.GetOutputPort("wind_rate_ned"), plant.GetInputPort("wind_rate_ned"))
         port = wind.GetOutputPort("wind_ned")
     else:
         port = builder.AddNamedSystem("steady_wind",

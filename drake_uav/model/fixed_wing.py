@@ -9,7 +9,9 @@ the same model as generated code for floats, per sample or over a whole log.
 State (13): ``[pN, pE, pD, qw, qx, qy, qz, u, v, w, p, q, r]``: NED position
 [m], body->NED unit quaternion, ground-relative body velocity [m/s], body rates
 [rad/s]. The aerodynamics see the air-relative velocity
-``v_r = v - R^T W_ned`` (steady wind plus gust).
+``v_r = v - R^T W_ned`` (steady wind plus gust); the alpha-dot terms see its rate,
+``d v_r / dt = F / m + g - omega x v_r - R^T dW_ned/dt``, with the wind's rate
+``dW_ned/dt`` an input (zero: the wind taken constant over the instant).
 """
 
 from __future__ import annotations
@@ -172,15 +174,18 @@ class FixedWingModel:
         return np.array(air_data_from_velocity(
             *self._relative_velocity(x, unit_quat_rotation(x[3:7]), wind_ned)))
 
-    def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None) -> FixedWingEvaluation:
+    def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None,
+                 wind_rate_ned=(0.0, 0.0, 0.0)) -> FixedWingEvaluation:
         """Evaluates the model at state ``x`` (13) and controls (4).
 
         ``wind_ned`` is the total wind [m/s]; ``wrench`` an external body force
-        [N] and moment [N m] (6) or ``None``.
+        [N] and moment [N m] (6) or ``None``; ``wind_rate_ned`` the wind's rate of
+        change [m/s^2], which only the alpha-dot terms read (a gust changes alpha).
         """
         prm = self.params
         x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
         R = unit_quat_rotation(x[3:7])  # Argyropoulos 2020, eq. A.55, normalised
+        wind_rate_body = rotate_back(R, as_list(wind_rate_ned))
         u, v, w = x[7], x[8], x[9]
         omega = (x[10], x[11], x[12])
         v_rel = self._relative_velocity(x, R, wind_ned)
@@ -193,7 +198,7 @@ class FixedWingModel:
         if self.aerodynamics:
             coefficients, force, moment = self._aerodynamics(
                 air_data, omega, (elevator, aileron, rudder), thrust, (force, moment),
-                gravity_body, v_rel)
+                gravity_body, v_rel, wind_rate_body)
 
         m = prm.mass
         specific_force = [force[0] / m, force[1] / m, force[2] / m]
@@ -228,7 +233,7 @@ class FixedWingModel:
         return force, moment, thrust
 
     def _aerodynamics(self, air_data, omega, surfaces, thrust, force_moment, gravity_body,
-                      v_rel) -> tuple:
+                      v_rel, wind_rate_body) -> tuple:
         """Body-axis coefficients [C_X, C_Y, C_Z, C_l, C_m, C_n] and the body force [N] and
         moment [N m] of ``force_moment`` with the aerodynamic ones added."""
         prm, model = self.params, self.coefficient_model
@@ -240,7 +245,7 @@ class FixedWingModel:
         coefficients = [CX, CY, CZ, Cl, Cm, Cn]
         if model.has_alphadot:
             coefficients = self._add_alphadot_terms(
-                coefficients, cond, force, gravity_body, omega, v_rel, q_bar_s)
+                coefficients, cond, force, gravity_body, omega, v_rel, wind_rate_body, q_bar_s)
         aero = self.aerodynamic_wrench(coefficients, q_bar_s)
         force = [force[i] + aero[i] for i in range(3)]
         moment = [moment[i] + aero[3 + i] for i in range(3)]
@@ -256,18 +261,21 @@ class FixedWingModel:
                 q_bar_s * b * coefficients[5]]
 
     def _add_alphadot_terms(self, coefficients, cond, force, gravity_body, omega, v_rel,
-                            q_bar_s):
+                            wind_rate_body, q_bar_s):
         """Adds alpha-dot terms, solving alpha_dot = f(v_dot(alpha_dot)) exactly.
 
         alpha_dot enters the X/Z forces linearly, so the implicit equation is
-        linear; the wind is taken as constant in NED over the instant.
+        linear; alpha_dot is the air-relative one, with the wind's rate
+        ``wind_rate_body`` [m/s^2] (a gust moves alpha without moving the aircraft).
         """
         prm, model = self.params, self.coefficient_model
         u_r, v_r, w_r = v_rel
         p, q, r = omega
         m = prm.mass
-        # Air-relative acceleration without the alpha-dot terms (d/dt v_r = F/m + g - w x v_r).
-        base = [(force[i] + q_bar_s * coefficients[i]) / m + gravity_body[i] for i in (0, 2)]
+        # Air-relative acceleration without the alpha-dot terms
+        # (d/dt v_r = F/m + g - omega x v_r - R^T dW/dt).
+        base = [(force[i] + q_bar_s * coefficients[i]) / m + gravity_body[i] - wind_rate_body[i]
+                for i in (0, 2)]
         base_x = base[0] + r * v_r - q * w_r
         base_z = base[1] + q * u_r - p * v_r
         cl_a = model.alphadot_sensitivity("CL", cond.airspeed, prm.c)
@@ -282,12 +290,13 @@ class FixedWingModel:
                 coefficients[4] + cm_a * alpha_dot, coefficients[5]]
 
     def field(self, name: str) -> Callable:
-        """``f(x, controls, wind_ned, wrench) -> ndarray``: one field of :meth:`evaluate`
-        (the interface of :meth:`CompiledFixedWingModel.field`, any scalar type)."""
+        """``f(x, controls, wind_ned, wrench, wind_rate_ned) -> ndarray``: one field of
+        :meth:`evaluate` (the interface of :meth:`CompiledFixedWingModel.field`, any
+        scalar type)."""
         if name not in FixedWingEvaluation._fields or name == "thrust":
             raise ValueError(f"name: no vector field {name!r} of FixedWingEvaluation")
-        return lambda x, controls, wind_ned, wrench: getattr(
-            self.evaluate(x, controls, wind_ned, wrench), name)
+        return lambda x, controls, wind_ned, wrench, wind_rate_ned: getattr(
+            self.evaluate(x, controls, wind_ned, wrench, wind_rate_ned), name)
 
     def euler(self, x) -> np.ndarray:
         """Roll, pitch, yaw [rad] of a state."""
@@ -321,7 +330,7 @@ class CompiledFixedWingModel:
     """:meth:`FixedWingModel.evaluate` as generated straight-line code (floats only).
 
     The model is traced once with symbolic inputs (state 13, controls 4, wind
-    NED 3, external wrench 6) and written by :class:`~drake_uav.compiled.
+    NED 3, external wrench 6, wind rate NED 3) and written by :class:`~drake_uav.compiled.
     CompiledFunction`: the same equations, about 5x faster per float sample than
     :meth:`FixedWingModel.evaluate` (docs/codegen.md), and vectorised over a whole log
     by :meth:`evaluate_batch`.
@@ -330,15 +339,15 @@ class CompiledFixedWingModel:
     def __init__(self, model: FixedWingModel):
         self.model = model
 
-        def flat(x, controls, wind_ned, wrench):
-            evaluation = model.evaluate(x, controls, wind_ned, wrench)
+        def flat(x, controls, wind_ned, wrench, wind_rate_ned):
+            evaluation = model.evaluate(x, controls, wind_ned, wrench, wind_rate_ned)
             values = []
             for name, size in _EVALUATION_LAYOUT:
                 field = getattr(evaluation, name)
                 values.extend(field if size > 1 else [field])
             return values
 
-        self._function = CompiledFunction(flat, (13, 4, 3, 6), name=f"{model.params.name} model")
+        self._function = CompiledFunction(flat, (13, 4, 3, 6, 3), name=f"{model.params.name} model")
         bounds, start = {}, 0
         for field, size in _EVALUATION_LAYOUT:
             bounds[field] = (start, start + size)
@@ -347,11 +356,11 @@ class CompiledFixedWingModel:
         self._fields: dict[str, Callable] = {}
 
     def field(self, name: str) -> Callable:
-        """``f(x, controls, wind_ned, wrench) -> ndarray``: one field of
+        """``f(x, controls, wind_ned, wrench, wind_rate_ned) -> ndarray``: one field of
         :class:`FixedWingEvaluation` for one sample given as Python lists of floats (the
-        wrench too: zeros for none), from code that computes just that field (same trace).
-        The generated code itself, without a wrapper: the plant calls it at every
-        integrator stage."""
+        wrench and wind rate too: zeros for none), from code that computes just that field
+        (same trace). The generated code itself, without a wrapper: the plant calls it at
+        every integrator stage."""
         if name not in self._fields:
             if name not in self._bounds or name == "thrust":
                 raise ValueError(f"name: no vector field {name!r}; use one of "
@@ -360,19 +369,23 @@ class CompiledFixedWingModel:
                 range(*self._bounds[name]), name=f"{self.model.params.name} {name}").program
         return self._fields[name]
 
-    def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None
-                 ) -> FixedWingEvaluation:
+    def evaluate(self, x, controls, wind_ned=(0.0, 0.0, 0.0), wrench=None,
+                 wind_rate_ned=(0.0, 0.0, 0.0)) -> FixedWingEvaluation:
         """:meth:`FixedWingModel.evaluate` for one sample of floats."""
         flat = self._function.value(x, controls, wind_ned, _ZERO_WRENCH if wrench is None
-                                    else wrench)
+                                    else wrench, wind_rate_ned)
         return self._split(flat)
 
-    def evaluate_batch(self, x, controls, wind_ned, wrench=None) -> FixedWingEvaluation:
-        """The model at N samples: arguments (N, 13), (N, 4), (N, 3), (N, 6) or None;
-        every field of the result gets a leading axis N (``thrust`` is (N,))."""
+    def evaluate_batch(self, x, controls, wind_ned, wrench=None, wind_rate_ned=None
+                       ) -> FixedWingEvaluation:
+        """The model at N samples: arguments (N, 13), (N, 4), (N, 3), (N, 6) or None,
+        (N, 3) or None; every field of the result gets a leading axis N (``thrust`` is
+        (N,))."""
         x = np.asarray(x, float)
         wrench = np.zeros((len(x), 6)) if wrench is None else wrench
-        return self._split(self._function.batch_value(x, controls, wind_ned, wrench))
+        wind_rate_ned = np.zeros((len(x), 3)) if wind_rate_ned is None else wind_rate_ned
+        return self._split(self._function.batch_value(x, controls, wind_ned, wrench,
+                                                      wind_rate_ned))
 
     def _split(self, flat: np.ndarray) -> FixedWingEvaluation:
         return FixedWingEvaluation(*(flat[..., a:b] if b - a > 1 else flat[..., a]

@@ -32,6 +32,8 @@ def FixedWingPlant_(T):
         ``wind_ned``         3      total wind, NED [m/s] (zero when unconnected)
         ``external_wrench``  6      body force [N], body moment [N m] (zero when
                                     unconnected)
+        ``wind_rate_ned``    3      rate of the total wind, NED [m/s^2] (zero when
+                                    unconnected); read by the alpha-dot terms only
         ===================  =====  ==============================================
 
         ======================  =====  ===========================================
@@ -47,7 +49,8 @@ def FixedWingPlant_(T):
 
         Controls saturate at the limits of the params. ``state`` and ``euler``
         have no direct feedthrough; ``air_data`` depends on ``wind_ned`` only and
-        ``aero_coefficients`` on ``wind_ned`` and ``controls``, so a wrench computed
+        ``aero_coefficients`` on ``wind_ned``, ``wind_rate_ned`` and ``controls``, so a
+        wrench computed
         from them may close the loop through ``external_wrench``.
         """
 
@@ -66,10 +69,12 @@ def FixedWingPlant_(T):
             controls = self.DeclareVectorInputPort("controls", 4)
             wind = self.DeclareVectorInputPort("wind_ned", 3)
             wrench = self.DeclareVectorInputPort("external_wrench", 6)
-            self._ports = (controls, wind, wrench)
+            wind_rate = self.DeclareVectorInputPort("wind_rate_ned", 3)
+            self._ports = (controls, wind, wrench, wind_rate)
             state_only = {self.all_state_ticket()}
             air_inputs = {self.all_state_ticket(), self.input_port_ticket(wind.get_index())}
-            aero_inputs = air_inputs | {self.input_port_ticket(controls.get_index())}
+            aero_inputs = air_inputs | {self.input_port_ticket(controls.get_index()),
+                                        self.input_port_ticket(wind_rate.get_index())}
             self.DeclareStateOutputPort("state", ContinuousStateIndex(0))
             self.DeclareVectorOutputPort("air_data", 3, self._calc_air_data,
                                          prerequisites_of_calc=air_inputs)
@@ -93,15 +98,17 @@ def FixedWingPlant_(T):
             return wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3
 
         def _arguments(self, context, with_wrench: bool = True) -> tuple:
-            """(state, controls, wind, wrench) of the context as Python lists; zeros for an
-            unconnected wind or wrench, and for the wrench when ``with_wrench`` is False."""
-            controls_port, wind_port, wrench_port = self._ports
+            """(state, controls, wind, wrench, wind rate) of the context as Python lists;
+            zeros for an unconnected wind, wrench or wind rate, and for the wrench when
+            ``with_wrench`` is False."""
+            controls_port, wind_port, wrench_port, rate_port = self._ports
             vector = context.get_continuous_state_vector()  # as in _state, one call less
             return ((vector.value() if T is float else vector.CopyToVector()).tolist(),
                     controls_port.Eval(context).tolist(),
                     wind_port.Eval(context).tolist() if wind_port.HasValue(context) else _ZERO3,
                     wrench_port.Eval(context).tolist()
-                    if with_wrench and wrench_port.HasValue(context) else _ZERO_WRENCH)
+                    if with_wrench and wrench_port.HasValue(context) else _ZERO_WRENCH,
+                    rate_port.Eval(context).tolist() if rate_port.HasValue(context) else _ZERO3)
 
         def DoCalcTimeDerivatives(self, context, derivatives):
             # Runs once per integrator stage: one read per port, and the compiled code of
@@ -110,7 +117,8 @@ def FixedWingPlant_(T):
 
         def _calc_air_data(self, context, output):
             output.SetFromVector(self._field["air_data"](
-                self._state(context), _ZERO_CONTROLS, self._wind(context), _ZERO_WRENCH))
+                self._state(context), _ZERO_CONTROLS, self._wind(context), _ZERO_WRENCH,
+                _ZERO3))
 
         def _calc_euler(self, context, output):
             output.SetFromVector(self.model.euler(self._state(context)))

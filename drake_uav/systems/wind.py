@@ -3,7 +3,8 @@
 :class:`DrydenFilter` is the LeafSystem (one compiled update per period, noise
 as an input); :class:`DrydenWind` is the diagram a flight uses: the filter, its
 own Drake ``RandomSource`` (seeded through the root context) and the hold.
-Output ``wind_ned`` [m/s] goes to the plant's ``wind_ned`` input.
+Output ``wind_ned`` [m/s] goes to the plant's ``wind_ned`` input, ``wind_rate_ned``
+[m/s^2] to its ``wind_rate_ned`` (the gusts' part of alpha-dot).
 
 Hold: real wind is continuous. With ``hold="first_order"`` (default) the wind
 reaching the plant is the piecewise-linear interpolation of the filter samples,
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import Integrator, RandomSource
+from pydrake.systems.primitives import ConstantVectorSource, Integrator, RandomSource
 
 from drake_uav.model.dryden import (
     WIND_HOLDS,
@@ -194,10 +195,13 @@ class DrydenWind(Diagram):
     | port (out)    | size | units                                               |
     |---------------|------|-----------------------------------------------------|
     | wind_ned      | 3    | steady + gust wind, NED [m/s] -> plant ``wind_ned`` |
+    | wind_rate_ned | 3    | d(wind_ned)/dt [m/s^2] -> plant ``wind_rate_ned``   |
     | gust_body     | 3    | latest gust sample (u_g, v_g, w_g), body FRD [m/s]  |
 
     With the first-order hold, ``wind_ned`` passes each filter sample one
-    update period after it was drawn (``gust_body`` is the filter sample itself).
+    update period after it was drawn (``gust_body`` is the filter sample itself)
+    and ``wind_rate_ned`` is the slope it follows; with the zero-order hold the wind
+    only steps, and ``wind_rate_ned`` is zero (the steps are not a rate).
     """
 
     def __init__(self, params: DrydenParams = DrydenParams()):
@@ -215,9 +219,14 @@ class DrydenWind(Diagram):
         if params.hold == "first_order":
             hold = builder.AddNamedSystem(
                 "first_order_hold", Integrator(np.asarray(params.steady_wind_ned, float)))
-            builder.Connect(self.filter.GetOutputPort("wind_slope"), hold.get_input_port())
+            rate = self.filter.GetOutputPort("wind_slope")
+            builder.Connect(rate, hold.get_input_port())
             wind = hold.get_output_port()
+        else:
+            rate = builder.AddNamedSystem("steps_have_no_rate", ConstantVectorSource(
+                np.zeros(3))).get_output_port(0)
         builder.ExportOutput(wind, "wind_ned")
+        builder.ExportOutput(rate, "wind_rate_ned")
         builder.ExportOutput(self.filter.GetOutputPort("gust_body"), "gust_body")
         builder.BuildInto(self)
 
