@@ -7,17 +7,19 @@ name anything else (a miss is tolerated, an extra or a wrong name is not); clean
 must find nothing. The campaign's rates at this setting on seeds 0-19 (docs/main_job.md,
 "How often it finds what is there"): stall onset 19/20 exact (one miss, seed 1), elevator
 rolling moment 18/20 (seeds 3 and 4 name control_nonlinearity instead), rate coupling
-20/20, clean flights 0/40 with a finding; the servo delay, taken at the delay the
-data-compatibility check measures, exact on all 18 tuning flights (seeds 500-509, docs).
-The cases it misses or misnames more often are measured there, not asserted here.
+20/20, servo delay 20/20, unsteady alpha-dot 20/20, clean flights 1/80 with a finding
+(seed 42). The cases it misses or misnames more often are measured there, not asserted
+here.
 """
 
 import pytest
 
+import drake_uav.campaigns.discovery_cases as discovery_cases
 from drake_uav.campaigns.discovery_cases import INJECTED, discovery
 
 SEEDS = (0, 1, 2)
-CASES = ("stall_onset", "elevator_roll", "roll_yaw_rate_pitch", "servo_delay")
+CASES = ("stall_onset", "elevator_roll", "roll_yaw_rate_pitch", "servo_delay",
+         "alphadot_pitch")
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -37,3 +39,21 @@ def test_an_unknown_effect_or_suite_is_refused_with_the_known_ones():
         discovery(0, {"effect": "bird_strike"})
     with pytest.raises(ValueError, match="known: default, research"):
         discovery(0, {"suite": "military"})
+
+
+def test_the_evidence_rule_of_a_study_reaches_the_job(monkeypatch):
+    """``min_folds`` (bench_discovery.py --min-folds) is the rule the job runs with."""
+    rules = []
+
+    class Stop(Exception):
+        pass
+
+    def identify(log, params, *, seed, rule):
+        rules.append(rule)
+        raise Stop
+
+    monkeypatch.setattr(discovery_cases, "identify", identify)
+    for params, folds in (({"effect": "none"}, 5), ({"effect": "none", "min_folds": 4}, 4)):
+        with pytest.raises(Stop):
+            discovery(0, params)
+        assert rules[-1].min_folds == folds

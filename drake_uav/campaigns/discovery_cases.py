@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
+from drake_uav.identification.discovery import EvidenceRule
 from drake_uav.identification.fitted_point import unit_vectors_towards
 from drake_uav.identification.main_job import identify
 from drake_uav.identification.noise_floor import held_out_noise_floor
@@ -343,7 +344,9 @@ def discovery(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``effect`` (a key of :data:`INJECTED` or "none"), ``size``
     (0.3, share of the coefficient's variation), ``suite`` ("default" or "research"),
-    ``turbulence`` ("light").
+    ``turbulence`` ("light"), ``min_folds`` (the evidence rule's,
+    :attr:`~drake_uav.identification.discovery.EvidenceRule.min_folds`: how many of the
+    five folds an effect must improve; for studies of the rule).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
@@ -374,7 +377,8 @@ def discovery(seed: int, params: dict) -> dict:
         log = injection.sensors(log, strength)
     if injection is not None and injection.logged is not None:
         log = injection.logged(log, strength, seed)
-    run = identify(_measured_only(log), catalog, seed=seed)
+    rule = EvidenceRule(min_folds=int(params.get("min_folds", EvidenceRule.min_folds)))
+    run = identify(_measured_only(log), catalog, seed=seed, rule=rule)
     found = list(run.findings)
     expected = injection.expected if injection else None
     metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),
