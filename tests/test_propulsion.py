@@ -23,12 +23,15 @@ from drake_uav.identification import (
     isolate_coefficients,
 )
 from drake_uav.identification.flight_data import held_commands
-from drake_uav.identification.propulsion import catalog_propeller
+from drake_uav.identification.propulsion import catalog_propeller, thrust_correction_columns
+from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.propeller import (
+    THROTTLE_TERMS,
     advance_ratio,
     propeller_thrust,
     revolutions,
+    throttle_thrust_regressors,
     thrust_regressors,
 )
 from drake_uav.systems.excitation import orthogonal_multisines
@@ -216,6 +219,33 @@ def test_isolation_takes_the_identified_thrust_and_its_slope():
         return _rms(cx - true_cx)
 
     assert cx_error(identified) < 0.3 * cx_error(default)
+
+
+def test_the_discovery_columns_are_what_a_thrust_change_does_to_the_measured_drag():
+    """``thrust_correction_columns``: a thrust in the isolation larger by theta times each
+    term moves the measured C_D by theta times that term's column (the discovery can give
+    back to the thrust what its correction took)."""
+    data, _, _, _ = _flight("aerosonde_weak_motor", 5, 0.1)
+    catalog = aerosonde()
+    args = (catalog, data["time"], data["specific_force"], data["rates"], data["air_data"],
+            data["controls"])
+    airspeed, throttle = data["air_data"][:, 0], data["controls"][:, 3]
+    thrust = FixedWingModel(catalog).thrust(airspeed, throttle)[0]
+    slope = np.zeros_like(thrust)
+    base = isolate_coefficients(*args, thrust=thrust, thrust_airspeed_slope=slope,
+                                thrust_correction_terms=THROTTLE_TERMS)
+    columns = thrust_correction_columns(base)
+    assert list(columns) == [f"thrust:{t}" for t in THROTTLE_TERMS]
+    theta = (3.0, -2.0, 0.05)  # N, N, N s/m
+    change = sum(t * r for t, r in zip(theta, throttle_thrust_regressors(throttle, airspeed),
+                                       strict=True))
+    moved = isolate_coefficients(*args, thrust=thrust + change, thrust_airspeed_slope=slope)
+    predicted = sum(t * c for t, c in zip(theta, columns.values(), strict=True))
+    drag_change = moved.coefficients["CD"] - base.coefficients["CD"]
+    scale = np.abs(drag_change).max()
+    assert scale > 1e-3
+    np.testing.assert_allclose(drag_change, predicted, atol=2e-3 * scale)
+    assert thrust_correction_columns(isolate_coefficients(*args)) == {}
 
 
 def test_bad_input_names_the_array():

@@ -83,6 +83,7 @@ from drake_uav.identification.errors_in_variables import (
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
 from drake_uav.identification.parsimony import DroppedTerm, Pruning, prune
+from drake_uav.identification.propulsion import THRUST_COLUMN, thrust_correction_columns
 from drake_uav.identification.regression import RegressionResult, bcls, f_survival, r_factor
 from drake_uav.identification.regressor_noise import (
     AIR_DATA_SOURCES,
@@ -471,22 +472,27 @@ def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
 
 
 def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: str) -> _Design:
+    """The catalog's terms of ``coefficient``; for C_D also the terms of a thrust identified
+    from the flight (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`),
+    fitted again with every effect on the drag axis."""
     names = baseline_names(params, coefficient)
+    with_thrust = coefficient == "CD"
 
     def columns(smp):
         X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
-        return dict(zip(names, X.T, strict=True))
+        out = dict(zip(names, X.T, strict=True))
+        return out | thrust_correction_columns(smp) if with_thrust else out
 
     variance = source_variances(samples, coefficient)
     cols, jac = _columns_and_jacobians(columns, samples, variance)
     noise = PropagatedNoise(
-        columns=len(names),
+        columns=len(cols),
         regressors={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
         observation={s: v for s, v in observation_sensitivity(samples, coefficient,
                                                               params).items() if s in variance},
         variance=variance,
     )
-    return _Design(names=list(names), X=np.column_stack(list(cols.values())),
+    return _Design(names=list(cols), X=np.column_stack(list(cols.values())),
                    z=np.asarray(samples.coefficients[coefficient], dtype=float), noise=noise)
 
 
@@ -828,7 +834,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     edges = fold_edges(n_train, rule.folds)
     designs = {k: _baseline_design(train, params, k) for k in fitted}
     pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
-                       always=(f"{k}_0",)) if rule.parsimonious else Pruning(tuple(d.names), ())
+                       always=(f"{k}_0", *(n for n in d.names if n.startswith(THRUST_COLUMN))))
+              if rule.parsimonious else Pruning(tuple(d.names), ())
               for k, d in designs.items()}
     # Effects are judged against the catalog's whole structure, so that none takes the
     # place of a term the flight hardly supports; the model reported is the pruned one.

@@ -393,7 +393,9 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
                                 raw_noise_variance=noise)
         if model.terms:  # else the catalog model predicts best, or the data cannot tell
             value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
-            thrust = {"thrust": value, "thrust_airspeed_slope": slope}
+            thrust = {"thrust": value, "thrust_airspeed_slope": slope,
+                      "thrust_correction_terms": model.terms if model.source == "throttle"
+                      else ()}
     try:
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),

@@ -101,6 +101,11 @@ class AeroSamples:
     ay, az`` and ``logged:<channel>`` (units squared), for errors-in-variables corrections."""
     thrust_airspeed_slope: np.ndarray | None = None
     """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured)."""
+    thrust_correction_terms: tuple[str, ...] = ()
+    """The throttle terms of a thrust identified from this flight
+    (:data:`~drake_uav.model.propeller.THROTTLE_TERMS`), which the discovery fits again
+    with C_D (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`);
+    empty for the catalog's thrust or a measured one."""
     reference_area: float = 1.0
     """Wing area S [m^2] the coefficients refer to."""
     moment_view: AeroSamples | None = None
@@ -176,6 +181,7 @@ class AeroSamples:
             noise_variance=dict(self.noise_variance),
             thrust_airspeed_slope=(None if self.thrust_airspeed_slope is None
                                    else pick(self.thrust_airspeed_slope)),
+            thrust_correction_terms=self.thrust_correction_terms,
             reference_area=self.reference_area,
             moment_view=None if self.moment_view is None else self.moment_view.subset(index),
             signal_units=dict(self.signal_units),
@@ -265,6 +271,7 @@ def isolate_coefficients(
     moment_controls: np.ndarray | None = None,
     thrust_airspeed_slope: np.ndarray | None = None,
     logged: Mapping[str, tuple[np.ndarray, str]] | None = None,
+    thrust_correction_terms: tuple[str, ...] = (),
 ) -> AeroSamples:
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
@@ -292,6 +299,8 @@ def isolate_coefficients(
     ``thrust_airspeed_slope`` (N,) [N/(m/s)] goes with a ``thrust`` computed from the
     measured airspeed (an identified thrust model): its dT/dVa, which the
     errors-in-variables corrections carry; None for a thrust measured directly.
+    ``thrust_correction_terms`` name the throttle terms such a model was identified with
+    (:attr:`AeroSamples.thrust_correction_terms`).
 
     ``logged`` maps extra channels of the log (a tension, a voltage) to their raw
     samples (N,) and unit: they go through the same filters as the regressors (the
@@ -325,7 +334,7 @@ def isolate_coefficients(
         specific_force=forces.specific_force,
         signals={**extra, **{k: filters.sample(v) for k, v in channels.items()}},
         noise_variance=noise_variance, thrust_airspeed_slope=view.thrust_slope,
-        reference_area=params.S,
+        thrust_correction_terms=tuple(thrust_correction_terms), reference_area=params.S,
         signal_units={f"{LOGGED}{k}": unit for k, (_, unit) in (logged or {}).items()},
     )
     view = moments.view

@@ -29,6 +29,15 @@ airspeed, alpha and motor speed are measured with noise, carried into every colu
 their sensitivities, with a long-run (Newey-West) covariance for the correlated
 residual of smoothed flight data.
 
+**In the discovery.** A force the model lacks along the body x axis (a tow, a pull's x
+component) moves ``a_x`` like a thrust error; where it correlates with the throttle (the
+airspeed hold opens the throttle against it), the correction terms take part of it. The
+discovery loop therefore fits the chosen throttle terms again with C_D
+(:func:`thrust_correction_columns`: a thrust taken out of ``a_x`` in excess of the true
+one reads as drag, ``cos(alpha) / (qbar S)`` per newton), so an effect on the drag axis
+is judged with the thrust free to give back what it took. A force shaped like those
+terms stays with the thrust.
+
 **Identifiability.** When the throttle hardly moves, the thrust terms are nearly a
 constant and a multiple of Va, and a narrow airspeed range makes those collinear with
 ``qbar S C_X0``: thrust and drag trade against each other. The fit reports the
@@ -50,10 +59,10 @@ from typing import NamedTuple
 import numpy as np
 
 from drake_uav.identification.errors_in_variables import PropagatedNoise
-from drake_uav.identification.isolation import smoothed_noise_variance
+from drake_uav.identification.isolation import AeroSamples, smoothed_noise_variance
 from drake_uav.identification.regression import InsufficientExcitationWarning, bcls
 from drake_uav.model.air_data import dynamic_pressure
-from drake_uav.model.coefficients import AeroCondition, signal_values
+from drake_uav.model.coefficients import AeroCondition, body_to_lift_drag, signal_values
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.propeller import (
     THROTTLE_TERMS,
@@ -66,12 +75,17 @@ from drake_uav.model.propeller import (
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "identify_thrust",
-           "DRAG_TERMS", "PROPELLER_TERMS"]
+           "thrust_correction_columns", "DRAG_TERMS", "PROPELLER_TERMS", "THRUST_COLUMN",
+           "THROTTLE_TERM_UNITS"]
 
 DRAG_TERMS = ("CX_0", "CX_alpha", "CX_alpha2", "CX_q", "CX_elevator")
 """The C_X terms fitted with the thrust (signals of :mod:`drake_uav.model.coefficients`)."""
 PROPELLER_TERMS = ("C_T0", "C_T1")
 """The propeller coefficients identified from a logged motor speed."""
+THRUST_COLUMN = "thrust:"
+"""Name prefix of the thrust-correction columns of C_D (:func:`thrust_correction_columns`)."""
+THROTTLE_TERM_UNITS = {"throttle": "N", "throttle2": "N", "throttle_airspeed": "N s/m"}
+"""Unit of the thrust coefficient of each throttle term."""
 
 _CANDIDATES = {
     "motor_speed": (("C_T0",), PROPELLER_TERMS),
@@ -220,6 +234,24 @@ def _speed_diameter(motor_speed, diameter: float) -> np.ndarray:
         raise ValueError("ThrustModel.thrust: this model was identified from motor_speed; "
                          "pass the logged motor speed [rad/s]")
     return revolutions(np.asarray(motor_speed, float)) * diameter
+
+
+def thrust_correction_columns(samples: AeroSamples) -> dict[str, np.ndarray]:
+    """C_D columns of the identified thrust's
+    :attr:`~.isolation.AeroSamples.thrust_correction_terms`, named ``thrust:<term>``: the
+    change of the measured C_D per newton-per-unit of each term [1/(N unit)] by which the
+    thrust taken out of ``a_x`` exceeds the true one (the isolation reads an excess of
+    thrust as drag: minus the C_D of a body-x force). Empty for a thrust not identified
+    from the flight's throttle."""
+    terms = samples.thrust_correction_terms
+    if not terms:
+        return {}
+    condition = samples.condition
+    per_newton = 1.0 / (samples.dynamic_pressure * samples.reference_area)
+    drag = -body_to_lift_drag(per_newton, 0.0 * per_newton, condition.alpha)[1]
+    values = _thrust_columns(None, "throttle", condition.airspeed, samples.throttle, None,
+                             terms).value
+    return {f"{THRUST_COLUMN}{term}": drag * values[:, k] for k, term in enumerate(terms)}
 
 
 def _thrust_columns(params, source: str, airspeed, throttle, motor_speed,

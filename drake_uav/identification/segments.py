@@ -15,6 +15,7 @@ import numpy as np
 
 from drake_uav.identification.isolation import AeroSamples
 from drake_uav.model.coefficients import AeroCondition
+from drake_uav.model.propeller import THROTTLE_TERMS
 
 __all__ = ["concatenate_samples", "span_starts"]
 
@@ -69,6 +70,8 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
         signals={k: _joined(parts, lambda p, k=k: p.signals[k]) for k in first.signals},
         noise_variance=noise,
         thrust_airspeed_slope=slope,
+        thrust_correction_terms=tuple(t for t in THROTTLE_TERMS if any(
+            t in p.thrust_correction_terms for p in parts)),
         reference_area=first.reference_area,
         moment_view=view,
         signal_units=dict(first.signal_units),

@@ -31,6 +31,7 @@ from drake_uav.identification.noise_floor import (
     smoothing_gains,
 )
 from drake_uav.identification.plausibility import DerivativeWarning, implausible_derivatives
+from drake_uav.identification.propulsion import THROTTLE_TERM_UNITS, THRUST_COLUMN
 from drake_uav.model.coefficients import SIGNALS
 from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
@@ -263,7 +264,10 @@ _UNIT = re.compile(r"\[([^\]]*)\]$")
 
 def _derivative_unit(name: str) -> str:
     """Unit of a derivative: 1 / its regressor's unit (dimensionless for the constant and
-    the normalised rates); "effect" for an effect's column (see the effect)."""
+    the normalised rates); a thrust term's own; "effect" for an effect's column (see the
+    effect)."""
+    if name.startswith(THRUST_COLUMN):
+        return THROTTLE_TERM_UNITS[name.removeprefix(THRUST_COLUMN)]
     coefficient, _, signal = name.partition("_")
     if ":" in name or signal not in SIGNALS:
         return "effect"
@@ -282,7 +286,10 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
                     "A catalog term marked *dropped* improved neither the held-out "
                     "prediction nor the extrapolation to the flight's edges: it is 0 in the "
                     "identified model (its figures: the notes under Data used, `dropped_terms` in "
-                    "summary.json; docs/main_job.md, \"Baseline\").")
+                    "summary.json; docs/main_job.md, \"Baseline\"). C_D's `thrust:` rows, where "
+                    "the thrust was identified from the flight: by how much that thrust exceeds "
+                    "the one the data now give, per unit of each throttle term, fitted again "
+                    "with the effects on the drag axis.")
     for k, fit in run.discovery.final.items():
         r = fit.result
         report.add_table(
