@@ -106,11 +106,11 @@ def test_clean_flights_find_nothing(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 3, pytest.param(2, marks=pytest.mark.xfail(
-    strict=True, reason="thrust_propwash and force_air_velocity on C_D follow: the thrust "
-    "identified from C_X took part of the pull's x component (docs/main_job.md)"))])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_pull_towards_a_given_point_is_found_on_the_force_coefficients(seed):
-    """The anchor is at the flight's altitude: the pull is horizontal, on C_D and C_Y."""
+    """The anchor is at the flight's altitude: the pull is horizontal, on C_D and C_Y. On
+    seed 2 the thrust identified from the flight takes part of the pull's x component,
+    which the discovery gives back (drag terms used to follow the pull there)."""
     samples = _samples(seed, extend=pull_towards_point(PULL, ANCHOR)["extend"])
     result = discover(samples, PARAMS, vector_effects=GIVEN_POINT)
     assert _found(result) == [("force_towards_given_point", ("CD", "CY"))], result.message
@@ -125,11 +125,6 @@ def _pull(seed, suite):
     return discovery(seed, {"effect": "pull_to_point", "suite": suite, "size": 0.3})
 
 
-_THRUST = ("the thrust identified from C_X before the discovery took part of the pull's x "
-           "component and a term on C_D follows (none with the catalog thrust; "
-           "docs/main_job.md)")
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_pull_towards_an_unknown_point_is_found_with_the_point(seed):
     """Research-grade sensors: the one effect, its point within 25 m of the anchor (412 m
@@ -141,8 +136,7 @@ def test_a_pull_towards_an_unknown_point_is_found_with_the_point(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [3, pytest.param(4, marks=pytest.mark.xfail(
-    strict=True, reason=f"force_body_x_off_cg follows: {_THRUST}"))])
+@pytest.mark.parametrize("seed", [3, 4])
 def test_a_pull_towards_an_unknown_point_on_more_seeds(seed):
     test_a_pull_towards_an_unknown_point_is_found_with_the_point(seed)
 
@@ -150,9 +144,7 @@ def test_a_pull_towards_an_unknown_point_on_more_seeds(seed):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.xfail(
     strict=True, reason="the point 153 m off, all but 13 m of it in height (sigma 65 m): "
-    "the default sensors place its height to 30-90 m")), 1, 2, 3,
-    pytest.param(4, marks=pytest.mark.xfail(strict=True,
-                                            reason=f"thrust_propwash follows: {_THRUST}"))])
+    "the default sensors place its height to 30-90 m")), 1, 2, 3, 4])
 def test_a_pull_towards_an_unknown_point_with_the_default_sensors(seed):
     """The one effect, its point within 120 m of the anchor."""
     metrics = _pull(seed, "default")
