@@ -249,9 +249,10 @@ def thrust_correction_columns(samples: AeroSamples) -> dict[str, np.ndarray]:
     condition = samples.condition
     per_newton = 1.0 / (samples.dynamic_pressure * samples.reference_area)
     drag = -body_to_lift_drag(per_newton, 0.0 * per_newton, condition.alpha)[1]
-    values = _thrust_columns(None, "throttle", condition.airspeed, samples.throttle, None,
-                             terms).value
-    return {f"{THRUST_COLUMN}{term}": drag * values[:, k] for k, term in enumerate(terms)}
+    values = dict(zip(THROTTLE_TERMS, throttle_thrust_regressors(samples.throttle,
+                                                                 condition.airspeed),
+                      strict=True))
+    return {f"{THRUST_COLUMN}{term}": drag * values[term] for term in terms}
 
 
 def _thrust_columns(params, source: str, airspeed, throttle, motor_speed,
