@@ -1,5 +1,7 @@
 """Joining the samples of several flight segments."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from synthetic_flight import synthetic_samples
@@ -25,6 +27,18 @@ def test_joined_segments_equal_the_selected_samples(samples):
     np.testing.assert_array_equal(joined.specific_force, whole.specific_force)
     assert joined.noise_variance == pytest.approx(whole.noise_variance)
     assert (joined.moment_view is None) == (whole.moment_view is None)
+
+
+def test_joined_segments_keep_every_thrust_term_one_of_them_was_identified_with(samples):
+    n = len(samples)
+    first = dataclasses.replace(samples.subset(np.arange(0, n // 3)),
+                                thrust_correction_terms=("throttle_airspeed",))
+    second = dataclasses.replace(samples.subset(np.arange(n // 2, n)),
+                                 thrust_correction_terms=("throttle",))
+    joined = concatenate_samples([first, second])
+    assert joined.thrust_correction_terms == ("throttle", "throttle_airspeed")
+    assert joined.subset(np.arange(10)).thrust_correction_terms == (
+        "throttle", "throttle_airspeed")
 
 
 def test_overlapping_segments_are_refused(samples):
