@@ -185,7 +185,6 @@ class FixedWingModel:
         prm = self.params
         x, controls, wind_ned = as_list(x), as_list(controls), as_list(wind_ned)
         R = unit_quat_rotation(x[3:7])  # Argyropoulos 2020, eq. A.55, normalised
-        wind_rate_body = rotate_back(R, as_list(wind_rate_ned))
         u, v, w = x[7], x[8], x[9]
         omega = (x[10], x[11], x[12])
         v_rel = self._relative_velocity(x, R, wind_ned)
@@ -198,7 +197,7 @@ class FixedWingModel:
         if self.aerodynamics:
             coefficients, force, moment = self._aerodynamics(
                 air_data, omega, (elevator, aileron, rudder), thrust, (force, moment),
-                gravity_body, v_rel, wind_rate_body)
+                gravity_body, v_rel, (R, wind_rate_ned))
 
         m = prm.mass
         specific_force = [force[0] / m, force[1] / m, force[2] / m]
@@ -233,9 +232,10 @@ class FixedWingModel:
         return force, moment, thrust
 
     def _aerodynamics(self, air_data, omega, surfaces, thrust, force_moment, gravity_body,
-                      v_rel, wind_rate_body) -> tuple:
+                      v_rel, wind_rate) -> tuple:
         """Body-axis coefficients [C_X, C_Y, C_Z, C_l, C_m, C_n] and the body force [N] and
-        moment [N m] of ``force_moment`` with the aerodynamic ones added."""
+        moment [N m] of ``force_moment`` with the aerodynamic ones added; ``wind_rate`` is
+        (R, the wind's rate NED), read by the alpha-dot terms only."""
         prm, model = self.params, self.coefficient_model
         force, moment = force_moment
         q_bar_s = self.dynamic_pressure_area(air_data[0])
@@ -245,7 +245,8 @@ class FixedWingModel:
         coefficients = [CX, CY, CZ, Cl, Cm, Cn]
         if model.has_alphadot:
             coefficients = self._add_alphadot_terms(
-                coefficients, cond, force, gravity_body, omega, v_rel, wind_rate_body, q_bar_s)
+                coefficients, cond, force, gravity_body, omega, v_rel,
+                rotate_back(wind_rate[0], as_list(wind_rate[1])), q_bar_s)
         aero = self.aerodynamic_wrench(coefficients, q_bar_s)
         force = [force[i] + aero[i] for i in range(3)]
         moment = [moment[i] + aero[3 + i] for i in range(3)]

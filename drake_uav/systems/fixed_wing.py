@@ -50,8 +50,7 @@ def FixedWingPlant_(T):
         Controls saturate at the limits of the params. ``state`` and ``euler``
         have no direct feedthrough; ``air_data`` depends on ``wind_ned`` only and
         ``aero_coefficients`` on ``wind_ned``, ``wind_rate_ned`` and ``controls``, so a
-        wrench computed
-        from them may close the loop through ``external_wrench``.
+        wrench computed from them may close the loop through ``external_wrench``.
         """
 
         def _construct(self, params: FixedWingParams, model: FixedWingModel | None = None,
