@@ -12,10 +12,14 @@ rolling moment 18/20 (seeds 3 and 4 name control_nonlinearity instead), rate cou
 here.
 """
 
+import types
+
 import pytest
 
 import drake_uav.campaigns.discovery_cases as discovery_cases
 from drake_uav.campaigns.discovery_cases import INJECTED, discovery
+from drake_uav.identification.discovery import Evidence, FoundEffect
+from drake_uav.model.coefficients import COEFFICIENTS
 
 SEEDS = (0, 1, 2)
 CASES = ("stall_onset", "elevator_roll", "roll_yaw_rate_pitch", "servo_delay",
@@ -67,3 +71,53 @@ def test_the_evidence_rule_of_a_study_reaches_the_job(monkeypatch):
         with pytest.raises(Stop):
             discovery(0, params)
         assert rules[-1].min_folds == folds
+
+
+def test_a_study_of_the_flight_length_flies_and_calibrates_that_length(monkeypatch):
+    """``duration`` (bench_discovery.py --duration) is the flight's length, the sizes are
+    calibrated on flights as long, and a drift grows by its strength over the whole flight."""
+    calibrated, flown = [], []
+
+    class Stop(Exception):
+        pass
+
+    def calibration(turbulence, duration):
+        calibrated.append(duration)
+        return dict.fromkeys(INJECTED, 2.0)
+
+    def fly(**options):
+        flown.append(options)
+        raise Stop
+
+    monkeypatch.setattr(discovery_cases, "_calibration", calibration)
+    monkeypatch.setattr(discovery_cases, "fly", fly)
+    with pytest.raises(Stop):
+        discovery(0, {"effect": "drag_drift", "size": 0.5, "duration": 60.0})
+    assert calibrated == [60.0] and flown[-1]["duration"] == 60.0
+    drift = flown[-1]["disturbance"]
+    drag = COEFFICIENTS.index("CD")
+    assert drift(None, 30.0)[drag] == pytest.approx(0.5) and drift(None, 60.0)[drag] == 1.0
+    with pytest.raises(Stop):
+        discovery(0, {"effect": "none"})
+    assert flown[-1]["duration"] == discovery_cases.FLIGHT_DURATION
+
+
+def test_a_flight_too_short_for_the_job_is_refused():
+    with pytest.raises(ValueError, match="duration 10 s is too short"):
+        discovery(0, {"duration": 10})
+
+
+def _evidence(effect, gain):
+    return Evidence(effect, "Cm", (effect,), gain, 5, 100.0, 1e-20, -50.0, True)
+
+
+def test_a_miss_the_report_names_as_a_near_tie_is_told_apart():
+    """``tied``: the injected effect lost to another by less than the report's near-tie
+    margin (10 % of the winner's held-out gain), so the report names it beside the finding."""
+    winner = _evidence("thrust_propwash", 0.409)
+    found = FoundEffect("thrust_propwash", "", "named", ("Cm",), (winner,), {})
+    close, far = _evidence("force_body_x_off_cg", 0.407), _evidence("rate_coupling", 0.2)
+    run = types.SimpleNamespace(discovery=types.SimpleNamespace(
+        found=(found,), rounds=((winner, close, far),)))
+    assert discovery_cases._tied_alternatives(run) == {"force_body_x_off_cg"}
+    assert discovery_cases._tied_alternatives(types.SimpleNamespace(discovery=None)) == set()

@@ -38,6 +38,7 @@ from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
+from drake_uav.reporting.explanations import near_ties
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
@@ -75,6 +76,14 @@ class Injection:
     point: tuple[float, float, float] | None = None
     """The NED point [m] a force towards a point acts towards (its finding reports where
     the data put it)."""
+    over_flight: bool = False
+    """``flight`` also takes the flight's duration [s] (an effect that grows over it)."""
+
+    def fly_options(self, strength: float, params: FixedWingParams, duration: float) -> dict:
+        """Options of :func:`fly` that put the effect into a flight of ``duration`` [s]."""
+        if self.over_flight:
+            return self.flight(strength, params, duration)
+        return self.flight(strength, params)
 
 
 def _increment(index: int, shape: Callable[[AeroCondition], object]):
@@ -88,16 +97,21 @@ def _increment(index: int, shape: Callable[[AeroCondition], object]):
     return options
 
 
-def _drift(index: int, duration: float):
-    """Fly options: a coefficient growing linearly from 0 by ``strength`` over ``duration``
-    [s]."""
-    def options(strength, params):
+def _drift(index: int):
+    """Fly options: a coefficient growing linearly from 0 by ``strength`` over the flight's
+    ``duration`` [s]."""
+    def options(strength, params, duration):
         def increment(condition, t):
             out = [0.0] * 6
             out[index] = strength * t / duration
             return tuple(out)
         return {"disturbance": increment}
     return options
+
+
+def _share_of_flight(condition, flight, params):
+    """Time since the start over the flight's duration (its log's metadata) [-]."""
+    return (flight.time - flight.time[0]) / flight.metadata["duration"]
 
 
 def _body_force_x(strength, params):
@@ -233,7 +247,10 @@ def _skew_term(condition, flight, params):
     return -params.derivative("CL_alpha") * differentiate(flight.time, condition.alpha)
 
 
-_FLIGHT_DURATION = 120.0
+FLIGHT_DURATION = 120.0
+"""Length of a campaign flight [s] unless the scenario's ``duration`` says otherwise."""
+MIN_DURATION = 30.0
+"""Shortest flight [s] the scenario accepts."""
 
 
 def _index(coefficient: str) -> int:
@@ -268,8 +285,8 @@ INJECTED: dict[str, Injection] = {
     "tow_below_cg": Injection(
         "force_body_x_off_cg", "CD", _force_x_on_drag, _tow_below_cg),
     "drag_drift": Injection(
-        "coefficient_drift", "CD", lambda c, f, p: (f.time - f.time[0]) / _FLIGHT_DURATION,
-        _drift(_index("CD"), _FLIGHT_DURATION)),
+        "coefficient_drift", "CD", _share_of_flight, _drift(_index("CD")),
+        over_flight=True),
     "air_data_skew": Injection(
         "air_data_time_skew", "CL", _skew_term, sensors=_air_data_late, strength_step=0.01),
     "pull_to_point": Injection(
@@ -317,17 +334,19 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
 
 
 @functools.cache
-def _calibration(turbulence: str) -> dict[str, float]:
-    """Median unit-strength ratio of every injection over the calibration flights."""
+def _calibration(turbulence: str, duration: float) -> dict[str, float]:
+    """Median unit-strength ratio of every injection over the calibration flights of
+    ``duration`` [s]."""
     params = load_fixed_wing("aerosonde")
-    flights = [fly(params, turbulence=turbulence, seed=s, duration=_FLIGHT_DURATION)
+    flights = [fly(params, turbulence=turbulence, seed=s, duration=duration)
                for s in CALIBRATION_SEEDS]
     return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
             for key, injection in INJECTED.items()}
 
 
-def _strength(injection: Injection, key: str, size: float, turbulence: str) -> float:
-    strength = size * _calibration(turbulence)[key]
+def _strength(injection: Injection, key: str, size: float, turbulence: str,
+              duration: float) -> float:
+    strength = size * _calibration(turbulence, duration)[key]
     if injection.strength_step:
         strength = max(round(strength / injection.strength_step), 1) * injection.strength_step
     return strength
@@ -344,15 +363,19 @@ def discovery(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``effect`` (a key of :data:`INJECTED` or "none"), ``size``
     (0.3, share of the coefficient's variation), ``suite`` ("default" or "research"),
-    ``turbulence`` ("light"), ``min_folds`` (the evidence rule's,
+    ``turbulence`` ("light"), ``duration`` (:data:`FLIGHT_DURATION` s; the calibration of
+    the sizes flies the same length), ``min_folds`` (the evidence rule's,
     :attr:`~drake_uav.identification.discovery.EvidenceRule.min_folds`: how many of the
     five folds an effect must improve; for studies of the rule).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
     held-out RMS of its coefficient ``rms_before`` / ``rms_after``, its noise floor
-    ``floor`` and ``excess_explained`` (NaN when the error was at the floor); for a force
-    towards a point, ``point_error`` and ``point_sigma`` (:func:`_point_error`).
+    ``floor`` and ``excess_explained`` (NaN when the error was at the floor); ``tied``:
+    the effect was not found but the report names it as a near-tied alternative of a
+    finding (:func:`~drake_uav.reporting.explanations.near_ties`: the flight cannot tell
+    them apart); for a force towards a point, ``point_error`` and ``point_sigma``
+    (:func:`_point_error`).
     """
     key = params.get("effect", "none")
     if key != "none" and key not in INJECTED:
@@ -362,15 +385,19 @@ def discovery(seed: int, params: dict) -> dict:
         raise ValueError(f"discovery: suite {suite!r} unknown (known: {', '.join(SUITES)})")
     size = float(params.get("size", 0.3))
     turbulence = params.get("turbulence", "light")
+    duration = float(params.get("duration", FLIGHT_DURATION))
+    if not duration >= MIN_DURATION:
+        raise ValueError(f"discovery: duration {duration:g} s is too short for the main job's "
+                         f"folds and held-out tail; fly at least {MIN_DURATION:g} s")
     catalog = load_fixed_wing("aerosonde")
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
-               "duration": _FLIGHT_DURATION,
+               "duration": duration,
                "sensors": SUITES[suite](catalog.rho)}
     injection = INJECTED.get(key)
     strength = 0.0
     if injection is not None:
-        strength = _strength(injection, key, size, turbulence)
-        options.update(injection.flight(strength, catalog))
+        strength = _strength(injection, key, size, turbulence, duration)
+        options.update(injection.fly_options(strength, catalog, duration))
     log = fly(**options)
     truth = log
     if injection is not None and injection.sensors is not None:
@@ -387,6 +414,7 @@ def discovery(seed: int, params: dict) -> dict:
         return metrics | {"any_finding": bool(found)}
     metrics |= {"exact": found == [expected], "partial": expected in found and len(found) > 1,
                 "missed": expected not in found,
+                "tied": expected not in found and expected in _tied_alternatives(run),
                 "size_realised": _realised_size(injection, truth, catalog, strength)}
     if injection.sensors is None:
         floor = held_out_noise_floor(run.samples, run.discovery, catalog)[injection.coefficient]
@@ -396,6 +424,13 @@ def discovery(seed: int, params: dict) -> dict:
     if injection.point is not None:
         metrics |= _point_error(run, injection)
     return metrics
+
+
+def _tied_alternatives(run) -> set[str]:
+    """Effects the report names as near-tied alternatives of a finding."""
+    if run.discovery is None:
+        return set()
+    return {e.effect for tie in near_ties(run.discovery) for e in tie.alternatives}
 
 
 def _point_error(run, injection: Injection) -> dict:
