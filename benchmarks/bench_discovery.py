@@ -14,16 +14,19 @@ flights the false-discovery rate (flights with any finding).
     python benchmarks/bench_discovery.py [--seeds 0:20] [--clean-seeds 0:40]
         [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
         [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
-        [--min-folds N] [--duration SECONDS]
+        [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
 ``--min-folds`` runs the whole campaign with another evidence rule (how many of the five
 cross-validation folds an effect must improve; the job's is 5), to study what the rule
 costs in false discoveries and gains in detections. ``--duration`` flies longer or
 shorter flights (120 s by default; the sizes are calibrated on flights of the same
-length), to study what a longer flight buys. A miss whose effect the report names as a
-near-tied alternative of a finding (the flight cannot tell them apart) is counted as
-"tied".
+length), to study what a longer flight buys; ``--excitation multisine_throttle`` moves
+the throttle too (a fourth multisine), to study what a flight that moves the thrust on
+its own buys. Each option needs its own ``--out`` folder.
+
+A miss whose effect the report names as a near-tied alternative of a finding (the
+flight cannot tell them apart) is counted as "tied".
 """
 
 from __future__ import annotations
@@ -39,7 +42,12 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
-from drake_uav.campaigns.discovery_cases import FLIGHT_DURATION, INJECTED, SUITES
+from drake_uav.campaigns.discovery_cases import (
+    EXCITATIONS,
+    FLIGHT_DURATION,
+    INJECTED,
+    SUITES,
+)
 from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
 
 TARGETS = {("research", 0.2): 0.9, ("default", 0.3): 0.7}
@@ -143,6 +151,8 @@ def main() -> None:
                         help="folds an effect must improve (default: the job's rule, 5 of 5)")
     parser.add_argument("--duration", type=float, default=None,
                         help=f"flight length [s] (default {FLIGHT_DURATION:g})")
+    parser.add_argument("--excitation", default=None, choices=EXCITATIONS,
+                        help="the flight's excitation (default multisine)")
     args = parser.parse_args()
     effects = list(INJECTED) if args.effects == "all" else args.effects.split(",")
     sizes = [float(s) for s in args.sizes.split(",")]
@@ -154,6 +164,8 @@ def main() -> None:
     options = {} if args.min_folds is None else {"min_folds": args.min_folds}
     if args.duration is not None:
         options["duration"] = args.duration
+    if args.excitation is not None:
+        options["excitation"] = args.excitation
     effect_rows = []
     with _cluster(args.workers) as scheduler:
         clean = _run("clean", Campaign("discovery", seeds=parse_seeds(args.clean_seeds),

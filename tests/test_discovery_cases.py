@@ -73,16 +73,17 @@ def test_the_evidence_rule_of_a_study_reaches_the_job(monkeypatch):
         assert rules[-1].min_folds == folds
 
 
-def test_a_study_of_the_flight_length_flies_and_calibrates_that_length(monkeypatch):
-    """``duration`` (bench_discovery.py --duration) is the flight's length, the sizes are
-    calibrated on flights as long, and a drift grows by its strength over the whole flight."""
+def test_a_study_of_the_flight_flies_and_calibrates_that_flight(monkeypatch):
+    """``duration`` and ``excitation`` (bench_discovery.py --duration, --excitation) are the
+    flight's, the sizes are calibrated on flights like it, and a drift grows by its
+    strength over the whole flight."""
     calibrated, flown = [], []
 
     class Stop(Exception):
         pass
 
-    def calibration(turbulence, duration):
-        calibrated.append(duration)
+    def calibration(turbulence, duration, excitation):
+        calibrated.append((duration, excitation))
         return dict.fromkeys(INJECTED, 2.0)
 
     def fly(**options):
@@ -92,19 +93,24 @@ def test_a_study_of_the_flight_length_flies_and_calibrates_that_length(monkeypat
     monkeypatch.setattr(discovery_cases, "_calibration", calibration)
     monkeypatch.setattr(discovery_cases, "fly", fly)
     with pytest.raises(Stop):
-        discovery(0, {"effect": "drag_drift", "size": 0.5, "duration": 60.0})
-    assert calibrated == [60.0] and flown[-1]["duration"] == 60.0
+        discovery(0, {"effect": "drag_drift", "size": 0.5, "duration": 60.0,
+                      "excitation": "multisine_throttle"})
+    assert calibrated == [(60.0, "multisine_throttle")]
+    assert (flown[-1]["duration"], flown[-1]["excitation"]) == (60.0, "multisine_throttle")
     drift = flown[-1]["disturbance"]
     drag = COEFFICIENTS.index("CD")
     assert drift(None, 30.0)[drag] == pytest.approx(0.5) and drift(None, 60.0)[drag] == 1.0
     with pytest.raises(Stop):
         discovery(0, {"effect": "none"})
-    assert flown[-1]["duration"] == discovery_cases.FLIGHT_DURATION
+    assert (flown[-1]["duration"], flown[-1]["excitation"]) == (
+        discovery_cases.FLIGHT_DURATION, "multisine")
 
 
-def test_a_flight_too_short_for_the_job_is_refused():
+def test_a_flight_too_short_for_the_job_or_an_unknown_excitation_is_refused():
     with pytest.raises(ValueError, match="duration 10 s is too short"):
         discovery(0, {"duration": 10})
+    with pytest.raises(ValueError, match="known: multisine, multisine_throttle"):
+        discovery(0, {"excitation": "sweep"})
 
 
 def _evidence(effect, gain):

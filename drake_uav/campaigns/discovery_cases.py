@@ -251,6 +251,8 @@ FLIGHT_DURATION = 120.0
 """Length of a campaign flight [s] unless the scenario's ``duration`` says otherwise."""
 MIN_DURATION = 30.0
 """Shortest flight [s] the scenario accepts."""
+EXCITATIONS = ("multisine", "multisine_throttle")
+"""Excitations a campaign flight can fly."""
 
 
 def _index(coefficient: str) -> int:
@@ -334,19 +336,19 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
 
 
 @functools.cache
-def _calibration(turbulence: str, duration: float) -> dict[str, float]:
+def _calibration(turbulence: str, duration: float, excitation: str) -> dict[str, float]:
     """Median unit-strength ratio of every injection over the calibration flights of
-    ``duration`` [s]."""
+    ``duration`` [s] and ``excitation``."""
     params = load_fixed_wing("aerosonde")
-    flights = [fly(params, turbulence=turbulence, seed=s, duration=duration)
-               for s in CALIBRATION_SEEDS]
+    flights = [fly(params, turbulence=turbulence, seed=s, duration=duration,
+                   excitation=excitation) for s in CALIBRATION_SEEDS]
     return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
             for key, injection in INJECTED.items()}
 
 
 def _strength(injection: Injection, key: str, size: float, turbulence: str,
-              duration: float) -> float:
-    strength = size * _calibration(turbulence, duration)[key]
+              duration: float, excitation: str) -> float:
+    strength = size * _calibration(turbulence, duration, excitation)[key]
     if injection.strength_step:
         strength = max(round(strength / injection.strength_step), 1) * injection.strength_step
     return strength
@@ -363,8 +365,10 @@ def discovery(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``effect`` (a key of :data:`INJECTED` or "none"), ``size``
     (0.3, share of the coefficient's variation), ``suite`` ("default" or "research"),
-    ``turbulence`` ("light"), ``duration`` (:data:`FLIGHT_DURATION` s; the calibration of
-    the sizes flies the same length), ``min_folds`` (the evidence rule's,
+    ``turbulence`` ("light"), ``duration`` (:data:`FLIGHT_DURATION` s) and ``excitation``
+    ("multisine"; "multisine_throttle" also moves the throttle,
+    :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
+    calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
     :attr:`~drake_uav.identification.discovery.EvidenceRule.min_folds`: how many of the
     five folds an effect must improve; for studies of the rule).
 
@@ -386,17 +390,21 @@ def discovery(seed: int, params: dict) -> dict:
     size = float(params.get("size", 0.3))
     turbulence = params.get("turbulence", "light")
     duration = float(params.get("duration", FLIGHT_DURATION))
+    excitation = params.get("excitation", "multisine")
+    if excitation not in EXCITATIONS:
+        raise ValueError(f"discovery: excitation {excitation!r} unknown (known: "
+                         f"{', '.join(EXCITATIONS)})")
     if not duration >= MIN_DURATION:
         raise ValueError(f"discovery: duration {duration:g} s is too short for the main job's "
                          f"folds and held-out tail; fly at least {MIN_DURATION:g} s")
     catalog = load_fixed_wing("aerosonde")
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
-               "duration": duration,
+               "duration": duration, "excitation": excitation,
                "sensors": SUITES[suite](catalog.rho)}
     injection = INJECTED.get(key)
     strength = 0.0
     if injection is not None:
-        strength = _strength(injection, key, size, turbulence, duration)
+        strength = _strength(injection, key, size, turbulence, duration, excitation)
         options.update(injection.fly_options(strength, catalog, duration))
     log = fly(**options)
     truth = log

@@ -189,26 +189,38 @@ def _check_seed(seed) -> int:
     return int(seed)
 
 
+THROTTLE_PEAK = 0.1
+"""Peak of the throttle's multisine in "multisine_throttle" [-] (a tenth of full throttle)."""
+
+
 def default_excitation(kind: str, duration: float, start: float = 1.0) -> tuple:
-    """Excitation of elevator, aileron and rudder for ``kind``.
+    """Excitation of elevator, aileron and rudder (and throttle) for ``kind``.
 
     "multisine": mutually orthogonal low-peak-factor multisines, 0.1-1.5 Hz,
     period 20 s (or the flight, if shorter), peaks 2, 3, 3 deg, repeated to the end;
+    "multisine_throttle": the same with the throttle as a fourth channel (peak
+    :data:`THROTTLE_PEAK`), the four sharing out the band's harmonics: the thrust then
+    moves on its own, not only as the airspeed hold moves it against the drag, so a force
+    along the body x axis that is constant and one that scales with the thrust differ
+    in the data;
     "doublet": 1 s doublets of 3 deg, one surface after another every 8 s;
     "3211": 3-2-1-1 of 3 deg with a 0.3 s unit, one surface after another;
     "none": no excitation (trim only).
     """
     surfaces = ("elevator", "aileron", "rudder")
     amplitude = math.radians(3.0)
-    if kind == "multisine":
-        if duration - start < 3.0:
+    if kind in ("multisine", "multisine_throttle"):
+        channels, peaks = surfaces, list(np.radians([2.0, 3.0, 3.0]))
+        if kind == "multisine_throttle":
+            channels, peaks = (*surfaces, "throttle"), [*peaks, THROTTLE_PEAK]
+        if duration - start < len(channels):
             raise ValueError(
-                f"duration: the default multisine needs at least {start + 3.0:g} s of flight "
-                f"(3 harmonics up to 1.5 Hz after {start:g} s), got {duration:g} s"
+                f"duration: the default {kind} needs at least {start + len(channels):g} s of "
+                f"flight ({len(channels)} harmonics up to 1.5 Hz after {start:g} s), got "
+                f"{duration:g} s"
             )
         period = min(20.0, duration - start)
-        return orthogonal_multisines(surfaces, period, np.radians([2.0, 3.0, 3.0]),
-                                     band=(0.1, 1.5), start=start,
+        return orthogonal_multisines(channels, period, peaks, band=(0.1, 1.5), start=start,
                                      cycles=(duration - start) / period)
     if kind == "doublet":
         return tuple(Doublet(s, amplitude, 0.5, start + 8.0 * i) for i, s in enumerate(surfaces))
@@ -218,7 +230,8 @@ def default_excitation(kind: str, duration: float, start: float = 1.0) -> tuple:
     if kind == "none":
         return ()
     raise ValueError(
-        f"excitation: unknown kind {kind!r}; use 'multisine', 'doublet', '3211', 'none' "
+        f"excitation: unknown kind {kind!r}; use 'multisine', 'multisine_throttle', "
+        "'doublet', '3211', 'none' "
         "or a sequence of signals"
     )
 

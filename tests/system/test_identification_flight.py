@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 from pydrake.systems.primitives import LogVectorOutput
 
-from drake_uav.diagrams.identification_flight import build_identification_flight, fly
+from drake_uav.diagrams.identification_flight import (
+    THROTTLE_PEAK,
+    build_identification_flight,
+    default_excitation,
+    fly,
+)
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.rotations import quat_to_rotmat
 from drake_uav.systems.identifiers import (
@@ -115,6 +120,22 @@ def test_actuator_delay_and_disturbance_act_through_the_physics():
     pushed = fly("aerosonde", None, seed=3, duration=6.0, disturbance=[-20.0, 0, 0, 0, 0, 0])
     # A 20 N drag-like force shows up 1:1 in the accelerometer's truth.
     np.testing.assert_allclose(pushed["ax"][0] - base["ax"][0], -20.0 / 13.5, rtol=1e-9)
+
+
+def test_the_throttle_multisine_moves_the_throttle_on_its_own():
+    """"multisine_throttle": a fourth multisine on the throttle (peak THROTTLE_PEAK) sharing
+    no frequency with the surfaces', and the logged throttle command follows it."""
+    signals = default_excitation("multisine_throttle", 60.0)
+    assert [s.surface for s in signals] == ["elevator", "aileron", "rudder", "throttle"]
+    frequencies = [set(np.round(s.frequencies, 9)) for s in signals]
+    assert all(not a & b for i, a in enumerate(frequencies) for b in frequencies[i + 1:])
+    t = np.arange(1.0, 21.0, 0.001)
+    assert np.max(np.abs(signals[3](t))) == pytest.approx(THROTTLE_PEAK, rel=1e-3)
+    log = fly("aerosonde", None, excitation="multisine_throttle", seed=3, duration=21.0)
+    plain = fly("aerosonde", None, excitation="multisine", seed=3, duration=21.0)
+    moved = log["cmd_throttle"] - plain["cmd_throttle"]
+    assert np.std(moved) > 0.3 * THROTTLE_PEAK
+    assert np.corrcoef(moved, signals[3](log.time))[0, 1] > 0.8  # 0.91: the airspeed hold answers
 
 
 def test_extend_puts_an_online_identifier_into_the_flight():
