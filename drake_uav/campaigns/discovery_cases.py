@@ -127,14 +127,14 @@ def _tow_below_cg(strength, params):
     return {"disturbance": np.array([strength, 0.0, 0.0, 0.0, TOW_POINT_BELOW * strength, 0.0])}
 
 
-def _qbar_s_of(airspeed: np.ndarray, params: FixedWingParams) -> np.ndarray:
+def qbar_s(airspeed: np.ndarray, params: FixedWingParams) -> np.ndarray:
     """Dynamic pressure times wing area [N]."""
     return 0.5 * params.rho * airspeed**2 * params.S
 
 
 def _force_x_on_drag(condition, flight, params):
     """Drag change of a 1 N body force along +x."""
-    force = 1.0 / _qbar_s_of(condition.airspeed, params)
+    force = 1.0 / qbar_s(condition.airspeed, params)
     return body_to_lift_drag(force, 0.0 * force, condition.alpha)[1]
 
 
@@ -187,7 +187,7 @@ def _pull_on_side_force(condition, flight, params):
     towards = unit_vectors_towards(path, np.array([PULL_POINT]))[:, 0, :]
     rotation = euler_to_rotmat(np.array([flight["roll"], flight["pitch"], flight["yaw"]]))
     body = np.einsum("ijn,in->jn", rotation, towards)
-    return body[1] / _qbar_s_of(condition.airspeed, params)
+    return body[1] / qbar_s(condition.airspeed, params)
 
 
 TENSION_BAND = (0.02, 0.5)
@@ -210,7 +210,7 @@ def _tether(strength, params):
     """Fly options: a pull of ``strength`` times :func:`_tension` [N] along -x body at the
     centre of gravity (C_L -= F sin(alpha) / (qbar S), C_D += F cos(alpha) / (qbar S))."""
     def increment(condition, t):
-        force = strength * float(_tension(t)[0]) / _qbar_s_of(condition.airspeed, params)
+        force = strength * float(_tension(t)[0]) / qbar_s(condition.airspeed, params)
         return (-force * np.sin(condition.alpha), force * np.cos(condition.alpha),
                 0.0, 0.0, 0.0, 0.0)
     return {"disturbance": increment}
@@ -218,7 +218,7 @@ def _tether(strength, params):
 
 def _tension_on_drag(condition, flight, params):
     """Drag change of the tether at strength 1."""
-    return _tension(flight.time) * np.cos(condition.alpha) / _qbar_s_of(condition.airspeed,
+    return _tension(flight.time) * np.cos(condition.alpha) / qbar_s(condition.airspeed,
                                                                          params)
 
 
@@ -309,13 +309,13 @@ and standard deviation 1 N, logged by a load cell as the extra channel ``tension
 (expected: the logged channel, ``logged:tension``)."""
 
 
-def _condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
+def aero_condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
     """The aerodynamic condition along a flight's truth channels (the plant's surfaces)."""
     airspeed = flight["airspeed"]
     thrust = params.propulsion.thrust_torque(airspeed, flight["throttle"], params.rho)[0]
     return AeroCondition(airspeed, flight["alpha"], flight["beta"], flight["p"], flight["q"],
                          flight["r"], flight["elevator"], flight["aileron"], flight["rudder"],
-                         thrust_coefficient=thrust / _qbar_s_of(airspeed, params))
+                         thrust_coefficient=thrust / qbar_s(airspeed, params))
 
 
 def _coefficients(flight: FlightLog, condition: AeroCondition) -> dict[str, np.ndarray]:
@@ -329,7 +329,7 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
                         ) -> float:
     """``std(coefficient) / std(term at strength 1)`` over a flight's truth: the strength
     that gives a size of 1."""
-    condition = _condition(flight, params)
+    condition = aero_condition(flight, params)
     term = np.broadcast_to(injection.term(condition, flight, params), flight.time.shape)
     return float(np.std(_coefficients(flight, condition)[injection.coefficient])
                  / np.std(term))

@@ -75,8 +75,8 @@ from drake_uav.model.propeller import (
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "identify_thrust",
-           "thrust_correction_columns", "DRAG_TERMS", "PROPELLER_TERMS", "THRUST_COLUMN",
-           "THROTTLE_TERM_UNITS"]
+           "thrust_correction_columns", "thrust_drag_columns", "DRAG_TERMS", "PROPELLER_TERMS",
+           "THRUST_COLUMN", "THROTTLE_TERM_UNITS"]
 
 DRAG_TERMS = ("CX_0", "CX_alpha", "CX_alpha2", "CX_q", "CX_elevator")
 """The C_X terms fitted with the thrust (signals of :mod:`drake_uav.model.coefficients`)."""
@@ -246,11 +246,19 @@ def thrust_correction_columns(samples: AeroSamples) -> dict[str, np.ndarray]:
     terms = samples.thrust_correction_terms
     if not terms:
         return {}
-    condition = samples.condition
-    per_newton = 1.0 / (samples.dynamic_pressure * samples.reference_area)
-    drag = -body_to_lift_drag(per_newton, 0.0 * per_newton, condition.alpha)[1]
-    values = dict(zip(THROTTLE_TERMS, throttle_thrust_regressors(samples.throttle,
-                                                                 condition.airspeed),
+    return thrust_drag_columns(samples.condition.alpha, samples.condition.airspeed,
+                               samples.throttle,
+                               samples.dynamic_pressure * samples.reference_area, terms)
+
+
+def thrust_drag_columns(alpha, airspeed, throttle, qbar_s, terms=THROTTLE_TERMS
+                        ) -> dict[str, np.ndarray]:
+    """The C_D columns ``thrust:<term>`` of the throttle thrust terms at alpha [rad],
+    airspeed [m/s], throttle [0..1] and qbar S [N]: what a thrust in excess of the true
+    one by each term's unit does to the drag measured from ``a_x``."""
+    per_newton = 1.0 / np.asarray(qbar_s, float)
+    drag = -body_to_lift_drag(per_newton, 0.0 * per_newton, alpha)[1]
+    values = dict(zip(THROTTLE_TERMS, throttle_thrust_regressors(throttle, airspeed),
                       strict=True))
     return {f"{THRUST_COLUMN}{term}": drag * values[term] for term in terms}
 
