@@ -218,8 +218,7 @@ def _tether(strength, params):
 
 def _tension_on_drag(condition, flight, params):
     """Drag change of the tether at strength 1."""
-    return _tension(flight.time) * np.cos(condition.alpha) / qbar_s(condition.airspeed,
-                                                                         params)
+    return _tension(flight.time) * np.cos(condition.alpha) / qbar_s(condition.airspeed, params)
 
 
 def _tension_logged(log: FlightLog, strength: float, seed: int) -> FlightLog:
