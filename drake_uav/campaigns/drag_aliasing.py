@@ -23,7 +23,7 @@ from drake_uav.campaigns.discovery_cases import INJECTED, aero_condition, qbar_s
 from drake_uav.identification.discovery import baseline_names
 from drake_uav.identification.propulsion import thrust_drag_columns
 from drake_uav.io.flight_log import FlightLog
-from drake_uav.model.coefficients import signal_values
+from drake_uav.model.coefficients import regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["DRAG_AXIS", "CATALOG", "WITH_THRUST", "unique_share", "drag_axis_shares"]
@@ -46,9 +46,8 @@ def drag_axis_shares(flight: FlightLog, params: FixedWingParams) -> dict[str, di
     """effect -> set of columns -> the effect's unique share against it, along ``flight``'s
     truth (a flight of :func:`~drake_uav.diagrams.fly`)."""
     condition = aero_condition(flight, params)
-    signals = signal_values(condition, params.b, params.c)
-    catalog = [np.broadcast_to(signals[name.split("_", 1)[1]], flight.time.shape)
-               for name in baseline_names(params, "CD")]
+    catalog = list(regressor_matrix(baseline_names(params, "CD"), condition, params.b,
+                                    params.c).T)
     thrust = list(thrust_drag_columns(condition.alpha, condition.airspeed, flight["throttle"],
                                       qbar_s(condition.airspeed, params)).values())
     terms = {key: np.broadcast_to(INJECTED[key].term(condition, flight, params),
