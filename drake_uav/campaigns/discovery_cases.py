@@ -44,7 +44,8 @@ from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
-           "discovery", "PULL_POINT", "PullTowardsPoint", "pull_towards_point"]
+           "discovery", "true_coefficients", "aero_condition", "qbar_s", "PULL_POINT",
+           "PullTowardsPoint", "pull_towards_point"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -317,8 +318,9 @@ def aero_condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
                          thrust_coefficient=thrust / qbar_s(airspeed, params))
 
 
-def _coefficients(flight: FlightLog, condition: AeroCondition) -> dict[str, np.ndarray]:
-    """The catalog model's coefficients along the true trajectory (the truth channels)."""
+def true_coefficients(flight: FlightLog, condition: AeroCondition) -> dict[str, np.ndarray]:
+    """The catalog model's coefficients along the true trajectory (the truth channels of a
+    flight of :func:`~drake_uav.diagrams.fly`; ``condition`` from :func:`aero_condition`)."""
     lift, drag = body_to_lift_drag(flight["CX"], flight["CZ"], condition.alpha)
     return {"CL": lift, "CD": drag, "CY": flight["CY"], "Cl": flight["Cl"],
             "Cm": flight["Cm"], "Cn": flight["Cn"]}
@@ -330,7 +332,7 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
     that gives a size of 1."""
     condition = aero_condition(flight, params)
     term = np.broadcast_to(injection.term(condition, flight, params), flight.time.shape)
-    return float(np.std(_coefficients(flight, condition)[injection.coefficient])
+    return float(np.std(true_coefficients(flight, condition)[injection.coefficient])
                  / np.std(term))
 
 
