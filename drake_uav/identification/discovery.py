@@ -862,7 +862,6 @@ def discover(samples: AeroSamples, params: FixedWingParams,
             break
         found.append(new)
 
-    found = search.final_check(found)
     unchanged = {k for k in fitted if search.designs[k] is initial[k][0]
                  and search.tests[k] is initial[k][1]}
     for k in fitted:
@@ -871,6 +870,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
             search.designs[k], search.tests[k] = (
                 d.keeping([n for n in d.names if n not in dropped])
                 for d in (search.designs[k], search.tests[k]))
+    # The effects must also hold against the model reported, without the pruned terms.
+    found = search.final_check(found)
     # A coefficient whose designs the loop left as they were keeps its baseline fit.
     final = {k: baseline[k] if k in unchanged
              else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
