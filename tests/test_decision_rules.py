@@ -15,6 +15,7 @@ import pytest
 from synthetic_flight import synthetic_samples
 
 import drake_uav
+from drake_uav.campaigns.discovery_cases import measured_only
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.identification.discovery import (
@@ -72,9 +73,7 @@ def test_an_effect_must_also_hold_against_the_pruned_model_the_report_gives():
     params = load_fixed_wing("aerosonde")
     flight = fly(params, "light", seed=508, duration=120.0,
                  sensors=SensorSuiteParams.seed_table7(air_density=params.rho))
-    names = flight.measured_names
-    log = FlightLog(flight.time, {n: flight[n] for n in names},
-                    units={n: flight.unit(n) for n in names})
+    log = measured_only(flight)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = identify(log, params, rate_hz=100.0, seed=508)

@@ -4,10 +4,9 @@ prints the campaign's figures)."""
 import numpy as np
 import pytest
 
-from drake_uav.campaigns.discovery_cases import SUITES
+from drake_uav.campaigns.discovery_cases import SUITES, measured_only
 from drake_uav.campaigns.noise_budget import ALL, SENSOR_GROUPS, noise_budget
 from drake_uav.diagrams import fly
-from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.vehicles.loading import load_fixed_wing
 
@@ -51,8 +50,6 @@ def test_the_pitot_dominates_lift_through_the_dynamic_pressure(budget):
 def test_a_flight_without_truth_is_refused():
     params = load_fixed_wing("aerosonde")
     flight = fly(params, "light", seed=3, duration=30.0)
-    names = flight.measured_names
-    measured = FlightLog(flight.time, {n: flight[n] for n in names},
-                         units={n: flight.unit(n) for n in names})
+    measured = measured_only(flight)
     with pytest.raises(ValueError, match="truth channel"):
         noise_budget(measured, params)

@@ -44,8 +44,8 @@ from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
-           "discovery", "true_coefficients", "aero_condition", "qbar_s", "PULL_POINT",
-           "PullTowardsPoint", "pull_towards_point"]
+           "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
+           "PULL_POINT", "PullTowardsPoint", "pull_towards_point"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -414,7 +414,7 @@ def discovery(seed: int, params: dict) -> dict:
     if injection is not None and injection.logged is not None:
         log = injection.logged(log, strength, seed)
     rule = EvidenceRule(min_folds=int(params.get("min_folds", EvidenceRule.min_folds)))
-    run = identify(_measured_only(log), catalog, seed=seed, rule=rule)
+    run = identify(measured_only(log), catalog, seed=seed, rule=rule)
     found = list(run.findings)
     expected = injection.expected if injection else None
     metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),
@@ -455,7 +455,7 @@ def _point_error(run, injection: Injection) -> dict:
             "point_sigma": max(sigma for _, sigma in located)}
 
 
-def _measured_only(log: FlightLog) -> FlightLog:
+def measured_only(log: FlightLog) -> FlightLog:
     """The log as an autopilot would write it: measured channels, no truth, no metadata
     (no true sensor noise, no command rate)."""
     names = log.measured_names

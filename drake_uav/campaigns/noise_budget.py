@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from drake_uav.campaigns.discovery_cases import measured_only
+from drake_uav.estimation.signals import AIR_DATA, ATTITUDE, IMU, LOG_CHANNELS
 from drake_uav.identification.main_job import select_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.air_data import dynamic_pressure
@@ -30,13 +32,10 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["SENSOR_GROUPS", "ALL", "noise_budget"]
 
+_GROUPS = {"accelerometer": IMU[:3], "gyro": IMU[3:], "attitude": ATTITUDE,
+           "pitot": AIR_DATA[:1], "vanes": AIR_DATA[1:]}
 SENSOR_GROUPS: dict[str, dict[str, str]] = {
-    "accelerometer": {"imu_ax": "ax", "imu_ay": "ay", "imu_az": "az"},
-    "gyro": {"imu_p": "p", "imu_q": "q", "imu_r": "r"},
-    "attitude": {"att_roll": "roll", "att_pitch": "pitch", "att_yaw": "yaw"},
-    "pitot": {"pitot_airspeed": "airspeed"},
-    "vanes": {"vane_alpha": "alpha", "vane_beta": "beta"},
-}
+    group: {LOG_CHANNELS[name]: name for name in names} for group, names in _GROUPS.items()}
 """Sensor group -> its logged channels -> their truth channels in a simulated flight."""
 
 ALL = "all sensors"
@@ -46,16 +45,11 @@ ALL = "all sensors"
 def _with_truth(flight: FlightLog, logged: tuple[str, ...], rho: float) -> FlightLog:
     """The measured channels of ``flight``, those of the groups not in ``logged`` replaced
     by their truth (the dynamic pressure follows the true airspeed)."""
-    channels = {n: np.asarray(flight[n], float) for n in flight.measured_names}
-    for group, pairs in SENSOR_GROUPS.items():
-        if group in logged:
-            continue
-        for channel, truth in pairs.items():
-            channels[channel] = np.asarray(flight[truth], float)
-        if group == "pitot":
-            channels["pitot_qbar"] = dynamic_pressure(channels["pitot_airspeed"], rho)
-    return FlightLog(flight.time, channels,
-                     units={n: flight.unit(n) for n in flight.measured_names})
+    true = {channel: flight[truth] for group, pairs in SENSOR_GROUPS.items()
+            if group not in logged for channel, truth in pairs.items()}
+    if "pitot" not in logged:
+        true["pitot_qbar"] = dynamic_pressure(flight["airspeed"], rho)
+    return measured_only(flight).with_measured(true)
 
 
 def _coefficients(log: FlightLog, params: FixedWingParams, rate_hz: float):
