@@ -119,7 +119,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
                    air_data=args.air_data, sensor_noise_std=spec, segment=segment,
                    propulsion=args.propulsion,
-                   coefficients=_parse_coefficients(args.coefficients))
+                   coefficients=_parse_coefficients(args.coefficients),
+                   imu_position=_parse_imu_position(args.imu_position))
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()
@@ -164,6 +165,21 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
     if args.segment != "auto":
         _parse_segment(args.segment)
     _parse_coefficients(args.coefficients)
+    _parse_imu_position(args.imu_position)
+
+
+def _parse_imu_position(text: str | None) -> tuple[float, float, float] | None:
+    """``X,Y,Z`` [m] -> floats; None: the log's own (its autopilot parameters)."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not np.all(np.isfinite(values)):
+        raise ValueError(f"--imu-position: give X,Y,Z in metres (body axes, forward, right, "
+                         f"down from the centre of gravity), e.g. 0.2,0,0.05; got {text!r}")
+    return values
 
 
 _COEFFICIENTS = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
@@ -355,6 +371,11 @@ def _identify_parser(sub) -> None:
     ident.add_argument("--sensor-spec", metavar="FILE",
                        help="declared sensor noise (TOML table [noise_std]: channel = { std = "
                             "..., unit = \"...\" }); default: estimated from the data")
+    ident.add_argument("--imu-position", metavar="X,Y,Z",
+                       help="where the IMU sits from the centre of gravity [m], body axes "
+                            "forward, right, down; the accelerometers are moved to the centre "
+                            "of gravity (default: the log's INS_POS<n>_* or EKF2_IMU_POS_* "
+                            "parameters, else none)")
     ident.add_argument("--coefficients", default=",".join(_COEFFICIENTS),
                        metavar="CL,CD,...",
                        help="coefficients to fit, of CL,CD,CY (lift, drag, side force), "

@@ -31,15 +31,22 @@ def _lat_lon_alt(log):
     return geodetic_from_ned(log["gps_pn"], log["gps_pe"], log["gps_pd"], ORIGIN)
 
 
-def dataflash_from_log(log, path, max_deflection: float = FULL_DEFLECTION) -> Path:
+def dataflash_from_log(log, path, max_deflection: float = FULL_DEFLECTION,
+                       parameters: dict[str, float] | None = None) -> Path:
     """An ArduPilot ``.bin`` of a FlightLog with the canonical channels (one rate).
 
     Vanes go to a ``VANE`` message (fields ``AoA``, ``SSA`` in deg); surfaces to
     RCOU C1 aileron, C2 elevator (PWM above trim = nose-up = negative elevator),
     C3 throttle (1100..1900), C4 rudder (PWM above trim = negative rudder), with
-    ``max_deflection`` [rad] (default 25 deg) at +-500 us.
+    ``max_deflection`` [rad] (default 25 deg) at +-500 us. ``parameters`` go to PARM
+    messages at the start.
     """
     w = DataFlashWriter()
+    if parameters:
+        w.define("PARM", "QNff", "TimeUS,Name,Value,Default")
+        values = np.array(list(parameters.values()), dtype=float)
+        w.add("PARM", TimeUS=np.uint64(round(log.time[0] * 1e6)),
+              Name=np.array(list(parameters)), Value=values, Default=values)
     w.define("IMU", "QBffffffIIfBB", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH")
     w.define("ATT", "QccccCCffB",
              "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF")
@@ -85,16 +92,19 @@ def px4_imu_writer() -> ULogWriter:
     return w
 
 
-def ulog_from_log(log, path) -> Path:
+def ulog_from_log(log, path, parameters: dict[str, float] | None = None) -> Path:
     """A PX4 ``.ulg`` of a FlightLog with the canonical channels (one rate).
 
     Attitude as a quaternion, positions and velocities in ``vehicle_local_position``,
     surfaces as normalised ``actuator_controls_0`` (roll, pitch, yaw demand in
-    -1..1 for 25 deg, throttle 0..1), vanes in a ``vane_angles`` topic [rad].
+    -1..1 for 25 deg, throttle 0..1), vanes in a ``vane_angles`` topic [rad];
+    ``parameters`` as the log's initial parameters.
     """
     from drake_uav.model.rotations import euler_to_quat
 
     w = px4_imu_writer()
+    for name, value in (parameters or {}).items():
+        w.parameter(name, value)
     w.format("vehicle_local_position", "uint64_t timestamp;uint64_t timestamp_sample;"
              "float x;float y;float z;float vx;float vy;float vz")
     w.format("airspeed", "uint64_t timestamp;uint64_t timestamp_sample;"

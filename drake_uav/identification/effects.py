@@ -38,7 +38,7 @@ from drake_uav.identification.segments import span_starts
 from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
-from drake_uav.model.isolation import differentiate
+from drake_uav.model.isolation import differentiate, lever_arm_specific_force
 from drake_uav.model.rotations import euler_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -173,16 +173,10 @@ def _ned_force(samples, params, coefficient):
 def _lever_arm(samples, params, coefficient):
     k = _per_unit_force(samples, params)[:, None]
     c = samples.condition
-    w = np.column_stack([c.p, c.q, c.r])
-    w_dot = samples.rate_derivatives
-    columns = {}
-    # An accelerometer at r from the CG reads w_dot x r + w x (w x r) more.
-    for i, axis in enumerate("xyz"):
-        r = np.zeros(3)
-        r[i] = 1.0
-        extra = np.cross(w_dot, r) + np.cross(w, np.cross(w, r))
-        columns[f"lever_arm_{axis}"] = k * extra
-    return _force_columns(columns, samples, coefficient)
+    per_metre = lever_arm_specific_force(samples.rate_derivatives,
+                                         np.column_stack([c.p, c.q, c.r]))
+    return _force_columns({f"lever_arm_{axis}": k * per_metre[:, i]
+                           for i, axis in enumerate("xyz")}, samples, coefficient)
 
 
 MIN_HEADING_SPREAD = 0.5

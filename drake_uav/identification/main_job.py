@@ -13,6 +13,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from drake_uav.estimation.compatibility import CompatibilityResult, check_compatibility
+from drake_uav.estimation.imu_position import (
+    ImuPosition,
+    accelerometers_at_cg,
+    logged_imu_position,
+)
 from drake_uav.identification.air_data_source import choose_air_data, flow_angles
 from drake_uav.identification.discovery import (
     DiscoveryResult,
@@ -225,7 +230,8 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
              sensor_noise_std: dict[str, float] | None = None,
              propulsion: str = "data",
              phases: PhaseSettings = DEFAULT_PHASES,
-             coefficients: Sequence[str] = COEFFICIENTS) -> IdentificationRun:
+             coefficients: Sequence[str] = COEFFICIENTS,
+             imu_position: Sequence[float] | None = None) -> IdentificationRun:
     """Runs the main job on ``log`` for the aircraft ``params``.
 
     Only what a real log holds is read: the airborne fixed-wing spans
@@ -241,7 +247,11 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     not vary in the log is skipped with a note (:attr:`IdentificationRun.notes`). Before
     the isolation, the data-compatibility check of the airborne spans
     (:func:`check_log_compatibility`) removes the significant sensor biases, scale
-    factors and time skews it finds (:attr:`IdentificationRun.compatibility`).
+    factors and time skews it finds (:attr:`IdentificationRun.compatibility`). Before
+    both, the accelerometers are moved to the centre of gravity from the IMU position
+    (:mod:`~drake_uav.estimation.imu_position`): ``imu_position`` (x, y, z) [m, body axes
+    FRD] when given, else the one the log's autopilot parameters record (ArduPilot
+    ``INS_POS<n>_*``, PX4 ``EKF2_IMU_POS_*``), with a note.
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
     naming the problem when the log cannot be used, ``ValueError`` for an unknown
@@ -249,6 +259,11 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     """
     check_coefficients(coefficients)
     say = progress or (lambda message: None)
+    position = (logged_imu_position(log) if imu_position is None
+                else ImuPosition(tuple(float(v) for v in imu_position), "given"))
+    moved = position is not None and any(position.position)
+    if moved:
+        log = accelerometers_at_cg(log, position.position)
     compatibility = check_log_compatibility(log, params, source=source, segment=segment,
                                             phases=phases, progress=say)
     if compatibility is not None:
@@ -263,7 +278,8 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                                                     measured_command_delay(compatibility)),
                            vector_effects=testable_vector_effects(selection.air_data),
                            coefficients=coefficients)
-    selection = dataclasses.replace(selection, notes=selection.notes + run.discovery.notes)
+    notes = ((position.note(),) if moved else ()) + selection.notes + run.discovery.notes
+    selection = dataclasses.replace(selection, notes=notes)
     return dataclasses.replace(run, data=selection, compatibility=compatibility)
 
 

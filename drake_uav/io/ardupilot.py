@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.io.ardupilot_params import mode_name, servo_mapping, vehicle_type
+from drake_uav.io.ardupilot_params import imu_position, mode_name, servo_mapping, vehicle_type
 from drake_uav.io.dataflash import DataFlash
 from drake_uav.io.extras import (
     AHRS_CHANNELS,
@@ -306,6 +306,9 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     metadata = {"format": "ArduPilot DataFlash", "instance": instance, "actuators": described,
                 **_vehicle_metadata(log, params), "imu_rate_hz": _imu_rate(log, base),
                 "parameters": params}
+    position = imu_position(params, instance)
+    if position is not None:
+        metadata["imu_position"] = position
     streams = [_simple(log, "ATT", {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"},
                        scale=_DEG, angles=("att_roll", "att_yaw")),
                _airspeed(log, instance), *_optional_streams(log, instance)]

@@ -7,6 +7,8 @@
 * :func:`vehicle_type`: the MAV_TYPE from the firmware string (``MSG``) and the
   frame parameters (``Q_ENABLE``, ``FRAME_CLASS``).
 * :func:`mode_name`: ``MODE.ModeNum`` -> the firmware's mode name.
+* :func:`imu_position`: where the IMU sits from the centre of gravity
+  (``INS_POS<n>_X/Y/Z``).
 
 ArduPilot drives a surface servo at ``TRIM + servo * (MAX - TRIM)`` for a
 positive normalised demand ``servo`` (roll right, pitch up, yaw right) and at
@@ -24,7 +26,7 @@ from collections.abc import Mapping
 from drake_uav.io.flight_log import FlightLogError
 from drake_uav.io.streams import ActuatorChannel, ActuatorMapping
 
-__all__ = ["PWM_MARGIN", "mode_name", "servo_mapping", "vehicle_type"]
+__all__ = ["PWM_MARGIN", "imu_position", "mode_name", "servo_mapping", "vehicle_type"]
 
 PWM_MARGIN = 50.0
 """A PWM further than this outside ``SERVOn_MIN..SERVOn_MAX`` is an invalid sample [us]."""
@@ -194,3 +196,14 @@ def servo_mapping(params: Mapping[str, float], deflections: Mapping[str, float],
     mapping = ActuatorMapping("RCOU", **{c: channels.get(c) for c in
                                          ("elevator", "aileron", "rudder", "throttle")})
     return mapping.validate(), notes
+
+
+def imu_position(params: Mapping[str, float], instance: int) -> dict | None:
+    """``{"position": [x, y, z], "source": ...}`` [m, body axes FRD] of IMU ``instance``
+    (0-based) from ``INS_POS<instance + 1>_X/Y/Z`` (a missing axis is 0), or None when the
+    log sets none of them."""
+    names = [f"INS_POS{instance + 1}_{axis}" for axis in "XYZ"]
+    if not any(n in params for n in names):
+        return None
+    return {"position": [float(params.get(n, 0.0)) for n in names],
+            "source": f"INS_POS{instance + 1}_X/Y/Z"}

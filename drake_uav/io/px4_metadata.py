@@ -4,7 +4,9 @@ The keys are those every autopilot reader writes (docs/flight_logs.md):
 ``vehicle_type`` (MAVLink ``MAV_TYPE`` numbering), ``firmware``,
 ``flight_modes`` (``[[t_s, "MODE"], ...]`` at each change of
 ``vehicle_status.nav_state``), ``vtol_state`` (VTOLs only: ``"mc"``,
-``"transition"``, ``"fw"`` at each change) and ``parameters``.
+``"transition"``, ``"fw"`` at each change) and ``parameters``; ``imu_position`` when the
+log sets ``EKF2_IMU_POS_X/Y/Z`` (where the IMU sits from the centre of gravity, [m] body
+axes FRD).
 """
 
 from __future__ import annotations
@@ -133,4 +135,8 @@ def px4_metadata(log: ULogFile) -> dict:
             "parameter_changes": [list(change) for change in log.parameter_changes]}
     if kind["mav_type"] in VTOL_TYPES:
         meta["vtol_state"] = vtol_state(log)
+    names = [f"EKF2_IMU_POS_{axis}" for axis in "XYZ"]
+    if any(n in parameters for n in names):
+        meta["imu_position"] = {"position": [float(parameters.get(n, 0.0)) for n in names],
+                                "source": "EKF2_IMU_POS_X/Y/Z"}
     return meta

@@ -12,6 +12,9 @@ arrays of samples (vectors along the last axis). The batch isolation of a flight
 (``drake_uav.identification.isolation``) and the Monte-Carlo uncertainty of the
 measured coefficients both call them.
 
+:func:`lever_arm_specific_force` is what an accelerometer away from the centre of gravity
+reads more than the specific force there: ``w_dot x r + w x (w x r)``.
+
 :func:`differentiate` is the derivative of a sampled signal by a Savitzky-Golay
 filter (the angular accelerations of the moment equations; Vaiopoulos 2017, sec. 5.5).
 """
@@ -23,7 +26,8 @@ from scipy.signal import savgol_filter
 
 from drake_uav.model.coefficients import body_to_lift_drag
 
-__all__ = ["differentiate", "force_coefficients", "moment_coefficients"]
+__all__ = ["differentiate", "force_coefficients", "moment_coefficients",
+           "lever_arm_specific_force"]
 
 
 def force_coefficients(specific_force, thrust, dynamic_pressure, alpha, mass, wing_area):
@@ -57,6 +61,16 @@ def moment_coefficients(rate_derivatives, rates, inertia, propeller_torque, dyna
     return ((moment[..., 0] - propeller_torque) / (q_bar_s * span),
             moment[..., 1] / (q_bar_s * chord),
             moment[..., 2] / (q_bar_s * span))
+
+
+def lever_arm_specific_force(rate_derivatives, rates):
+    """Extra specific force [m/s^2] an accelerometer reads per metre of offset from the
+    centre of gravity along each body axis: ``out[..., i, :] = w_dot x e_i + w x (w x
+    e_i)`` for (p, q, r) ``rates`` [rad/s] and their ``rate_derivatives`` [rad/s^2] along
+    the last axis, so that an offset ``r`` [m] reads ``r @ out`` more."""
+    w_dot, w = np.asarray(rate_derivatives), np.asarray(rates)
+    return np.stack([np.cross(w_dot, e) + np.cross(w, np.cross(w, e)) for e in np.eye(3)],
+                    axis=-2)
 
 
 def differentiate(time: np.ndarray, values: np.ndarray, window: float = 0.2,
