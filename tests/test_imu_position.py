@@ -1,10 +1,12 @@
 """The accelerometers moved to the centre of gravity from the IMU position the log records.
 
 The flights carry an IMU 20 cm ahead of the centre of gravity, 5 cm left and 10 cm below
-(Aerosonde, default sensors, light turbulence, 120 s): its accelerometers read
-``w_dot x r + w x (w x r)`` more. Without that position the job took it for an air-data
-time skew of 14-18 ms and found an accelerometer lever arm and an unsteady alpha-dot on
-tuning flights 100-103; with it, nothing on the same four. The seeds below were run once.
+(:mod:`drake_uav.campaigns.imu_offset`; Aerosonde, default sensors, light turbulence,
+120 s): its accelerometers read ``w_dot x r + w x (w x r)`` more. Without that position
+the job took it for an air-data time skew of 14-18 ms and found an accelerometer lever
+arm and an unsteady alpha-dot on tuning flights 100-103; with it, nothing on the same
+four (rates over more flights: ``benchmarks/bench_imu_position.py``). The seeds below
+were run once.
 """
 
 import warnings
@@ -14,6 +16,8 @@ import pytest
 from log_writers import dataflash_from_log, ulog_from_log
 
 from drake_uav.campaigns.discovery_cases import measured_only
+from drake_uav.campaigns.imu_offset import OFFSET as IMU_OFFSET
+from drake_uav.campaigns.imu_offset import imu_away_from_cg
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.estimation.imu_position import accelerometers_at_cg, logged_imu_position
@@ -24,7 +28,7 @@ from drake_uav.model.isolation import lever_arm_specific_force
 from drake_uav.vehicles import aerosonde
 
 PARAMS = aerosonde()
-OFFSET = np.array([0.2, -0.05, 0.1])
+OFFSET = np.array(IMU_OFFSET)
 """[m] body axes FRD."""
 ACCELEROMETERS = ("imu_ax", "imu_ay", "imu_az")
 ARDUPILOT = {"INS_POS1_X": 0.2, "INS_POS1_Y": -0.05, "INS_POS1_Z": 0.1}
@@ -32,11 +36,7 @@ PX4 = {"EKF2_IMU_POS_X": 0.2, "EKF2_IMU_POS_Y": -0.05, "EKF2_IMU_POS_Z": 0.1}
 
 
 def _offset_imu(flight: FlightLog) -> FlightLog:
-    """The flight's accelerometers read at :data:`OFFSET` (from the true rates)."""
-    w = flight.stack(("p", "q", "r"))
-    extra = OFFSET @ lever_arm_specific_force(np.gradient(w, flight.time, axis=0), w)
-    return flight.with_measured({c: flight[c] + extra[:, i]
-                                 for i, c in enumerate(ACCELEROMETERS)})
+    return imu_away_from_cg(flight, OFFSET)
 
 
 @pytest.fixture(scope="module")
