@@ -49,7 +49,8 @@ def main() -> None:
             names = collections.Counter(x for f in found for x in f.split(","))
             print(f"  {key:7s} the IMU position: {len(found)}/{n} flights with a finding, "
                   f"{len(skewed)}/{n} with an air-data skew applied"
-                  + (f" ({min(skewed) * 1e3:.0f}-{max(skewed) * 1e3:.0f} ms)" if skewed else "")
+                  + (f" ({min(skewed) * 1e3:.0f} to {max(skewed) * 1e3:.0f} ms)" if skewed
+                     else "")
                   + (f"; {dict(names.most_common())}" if names else ""))
             figure(f"imu_position_{key}_{suite}_{turbulence}_flights_with_a_finding",
                    len(found) / n, "1", "lower")
