@@ -73,6 +73,8 @@ def test_a_bad_position_is_refused_by_name(flight):
         accelerometers_at_cg(flight, (0.1, 0.0))
     with pytest.raises(FlightLogError, match="imu_position"):
         accelerometers_at_cg(flight, (0.1, np.nan, 0.0))
+    with pytest.raises(FlightLogError, match="imu_position"):
+        identify(flight, PARAMS, imu_position=(0.0, 0.0))
 
 
 @pytest.mark.parametrize("kind, parameters, source", [

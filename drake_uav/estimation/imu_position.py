@@ -42,6 +42,16 @@ class ImuPosition(NamedTuple):
     source: str
     """Where it comes from: the log's parameters, or the user."""
 
+    @classmethod
+    def given(cls, position: Sequence[float]) -> ImuPosition:
+        """The position a user gives; raises :class:`FlightLogError` unless it is three
+        finite numbers."""
+        r = np.asarray(position, dtype=float).ravel()
+        if r.shape != (3,) or not np.all(np.isfinite(r)):
+            raise FlightLogError(f"imu_position: need three finite numbers x, y, z [m], got "
+                                 f"{list(r)}")
+        return cls(tuple(float(v) for v in r), "given")
+
     def note(self) -> str:
         """The report's line."""
         x, y, z = self.position
@@ -61,10 +71,7 @@ def accelerometers_at_cg(log: FlightLog, position: Sequence[float]) -> FlightLog
     """``log`` with its accelerometer channels read at the centre of gravity instead of at
     ``position`` [m] (body axes FRD). Raises :class:`FlightLogError` for a position that is
     not three finite numbers or a log without the gyros and accelerometers."""
-    r = np.asarray(position, dtype=float)
-    if r.shape != (3,) or not np.all(np.isfinite(r)):
-        raise FlightLogError(f"imu_position: need three finite numbers x, y, z [m], got "
-                             f"{list(np.ravel(position))}")
+    r = np.asarray(ImuPosition.given(position).position)
     log.require(*_ACCELEROMETERS, *_GYROS)
     rates = log.stack(_GYROS)
     extra = r @ lever_arm_specific_force(differentiate(log.time, rates), rates)

@@ -260,7 +260,7 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     check_coefficients(coefficients)
     say = progress or (lambda message: None)
     position = (logged_imu_position(log) if imu_position is None
-                else ImuPosition(tuple(float(v) for v in imu_position), "given"))
+                else ImuPosition.given(imu_position))
     moved = position is not None and any(position.position)
     if moved:
         log = accelerometers_at_cg(log, position.position)
