@@ -67,6 +67,8 @@ def test_real_logs_metadata_and_servo_mapping(name):
     assert [m[1] for m in meta["flight_modes"]] == ["MANUAL"]
     assert "vtol_state" not in meta
     assert len(meta["parameters"]) == 1081 and meta["parameters"]["SERVO2_FUNCTION"] == 19
+    # The IMU position parameters as ArduPlane 4.2 writes them (this airframe: at the origin).
+    assert meta["imu_position"] == {"position": [0.0, 0.0, 0.0], "source": "INS_POS1_X/Y/Z"}
     act = meta["actuators"]
     assert act["source"] == "SERVOn parameters" and act["message"] == "RCOU"
     fields = {c: act[c]["field"] for c in ("aileron", "elevator", "throttle", "rudder")}

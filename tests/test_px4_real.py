@@ -78,6 +78,9 @@ def test_vtol_metadata_without_the_streams():
     assert meta["vehicle_type"]["mav_type"] == 22 and meta["vtol_state"][0][1] == "mc"
     assert meta["actuators"]["message"] == "actuator_controls_1"
     assert meta["parameters"] == read_log(VTOL).metadata["parameters"]
+    # The IMU position parameters as PX4 1.11 writes them (this airframe: at the origin).
+    assert meta["imu_position"] == {"position": [0.0, 0.0, 0.0],
+                                    "source": "EKF2_IMU_POS_X/Y/Z"}
 
 
 def test_vtol_ground_log_options_fail_clearly():

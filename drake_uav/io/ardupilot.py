@@ -332,12 +332,17 @@ def read_ardupilot_metadata(path: str | Path, *, allow_truncated: bool = True,
 
     Returns the metadata keys of :func:`read_ardupilot` that need no IMU:
     ``vehicle_type``, ``firmware``, ``flight_modes`` (``vtol_state`` for a
-    quadplane), ``parameters`` and ``actuators`` (the mapping the reader would use).
+    quadplane), ``parameters``, ``actuators`` (the mapping the reader would use) and
+    ``imu_position`` (of IMU instance 0) when the log sets it.
     """
     log = DataFlash(Path(path), allow_truncated)
     params = log.parameters()
     _, described = _resolve_actuators(log, None, params, _deflections(deflections))
-    return {**_vehicle_metadata(log, params), "parameters": params, "actuators": described}
+    meta = {**_vehicle_metadata(log, params), "parameters": params, "actuators": described}
+    position = imu_position(params, 0)
+    if position is not None:
+        meta["imu_position"] = position
+    return meta
 
 
 def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:
