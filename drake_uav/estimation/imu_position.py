@@ -13,7 +13,9 @@ Autopilots record that position: ArduPilot's ``INS_POS<n>_X/Y/Z`` and PX4's
 for the centre of gravity). The readers put it in ``FlightLog.metadata["imu_position"]``
 (:data:`METADATA_KEY`: ``{"position": [x, y, z], "source": "<parameters>"}``);
 :func:`accelerometers_at_cg` moves the accelerometer channels there, with ``w`` from the
-gyros and ``w_dot`` their Savitzky-Golay derivative (the isolation's, 0.2 s).
+gyros and ``w_dot`` their Savitzky-Golay derivative (the isolation's, 0.2 s). Across a gap
+in the log that derivative is wrong within 0.1 s of it, where the job's airborne spans
+are cut anyway (they lose 1 s at each end inside the log).
 """
 
 from __future__ import annotations
