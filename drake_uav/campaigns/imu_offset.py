@@ -19,6 +19,7 @@ import numpy as np
 
 from drake_uav.campaigns.discovery_cases import FLIGHT_DURATION, SUITES, measured_only
 from drake_uav.diagrams import fly
+from drake_uav.estimation.imu_position import ACCELEROMETERS
 from drake_uav.identification.main_job import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.isolation import lever_arm_specific_force
@@ -29,9 +30,6 @@ __all__ = ["OFFSET", "imu_away_from_cg", "imu_offset_run"]
 OFFSET = (0.2, -0.05, 0.1)
 """[m] body axes FRD: 20 cm ahead of the centre of gravity, 5 cm left, 10 cm below."""
 
-_ACCELEROMETERS = ("imu_ax", "imu_ay", "imu_az")
-
-
 def imu_away_from_cg(flight: FlightLog, position: Sequence[float]) -> FlightLog:
     """``flight`` (of :func:`~drake_uav.diagrams.fly`, with its true rates ``p, q, r``)
     with its accelerometers read at ``position`` [m] instead of the centre of gravity."""
@@ -39,7 +37,7 @@ def imu_away_from_cg(flight: FlightLog, position: Sequence[float]) -> FlightLog:
     extra = np.asarray(position, float) @ lever_arm_specific_force(
         np.gradient(w, flight.time, axis=0), w)
     return flight.with_measured({c: flight[c] + extra[:, i]
-                                 for i, c in enumerate(_ACCELEROMETERS)})
+                                 for i, c in enumerate(ACCELEROMETERS)})
 
 
 def imu_offset_run(seed: int, turbulence: str = "light", suite: str = "default",

@@ -25,16 +25,19 @@ from typing import NamedTuple
 
 import numpy as np
 
+from drake_uav.estimation.signals import IMU, LOG_CHANNELS
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.isolation import differentiate, lever_arm_specific_force
 
-__all__ = ["ImuPosition", "METADATA_KEY", "logged_imu_position", "accelerometers_at_cg"]
+__all__ = ["ImuPosition", "METADATA_KEY", "ACCELEROMETERS", "logged_imu_position",
+           "accelerometers_at_cg"]
 
 METADATA_KEY = "imu_position"
 """The readers' metadata key of the IMU position."""
 
-_ACCELEROMETERS = ("imu_ax", "imu_ay", "imu_az")
-_GYROS = ("imu_p", "imu_q", "imu_r")
+ACCELEROMETERS = tuple(LOG_CHANNELS[n] for n in IMU[:3])
+"""The accelerometer channels [m/s^2] (body x, y, z)."""
+_GYROS = tuple(LOG_CHANNELS[n] for n in IMU[3:])
 
 
 class ImuPosition(NamedTuple):
@@ -74,7 +77,7 @@ def accelerometers_at_cg(log: FlightLog, position: Sequence[float]) -> FlightLog
     ``position`` [m] (body axes FRD). Raises :class:`FlightLogError` for a position that is
     not three finite numbers or a log without the gyros and accelerometers."""
     r = np.asarray(ImuPosition.given(position).position)
-    log.require(*_ACCELEROMETERS, *_GYROS)
+    log.require(*ACCELEROMETERS, *_GYROS)
     rates = log.stack(_GYROS)
     extra = r @ lever_arm_specific_force(differentiate(log.time, rates), rates)
-    return log.with_measured({c: log[c] - extra[:, i] for i, c in enumerate(_ACCELEROMETERS)})
+    return log.with_measured({c: log[c] - extra[:, i] for i, c in enumerate(ACCELEROMETERS)})

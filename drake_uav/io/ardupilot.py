@@ -305,10 +305,7 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     mapping, described = _resolve_actuators(log, actuators, params, deflections)
     metadata = {"format": "ArduPilot DataFlash", "instance": instance, "actuators": described,
                 **_vehicle_metadata(log, params), "imu_rate_hz": _imu_rate(log, base),
-                "parameters": params}
-    position = imu_position(params, instance)
-    if position is not None:
-        metadata["imu_position"] = position
+                "parameters": params, **imu_position(params, instance)}
     streams = [_simple(log, "ATT", {"att_roll": "Roll", "att_pitch": "Pitch", "att_yaw": "Yaw"},
                        scale=_DEG, angles=("att_roll", "att_yaw")),
                _airspeed(log, instance), *_optional_streams(log, instance)]
@@ -338,11 +335,8 @@ def read_ardupilot_metadata(path: str | Path, *, allow_truncated: bool = True,
     log = DataFlash(Path(path), allow_truncated)
     params = log.parameters()
     _, described = _resolve_actuators(log, None, params, _deflections(deflections))
-    meta = {**_vehicle_metadata(log, params), "parameters": params, "actuators": described}
-    position = imu_position(params, 0)
-    if position is not None:
-        meta["imu_position"] = position
-    return meta
+    return {**_vehicle_metadata(log, params), "parameters": params, "actuators": described,
+            **imu_position(params, 0)}
 
 
 def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:

@@ -24,7 +24,7 @@ import math
 from collections.abc import Mapping
 
 from drake_uav.io.flight_log import FlightLogError
-from drake_uav.io.streams import ActuatorChannel, ActuatorMapping
+from drake_uav.io.streams import ActuatorChannel, ActuatorMapping, imu_position_metadata
 
 __all__ = ["PWM_MARGIN", "imu_position", "mode_name", "servo_mapping", "vehicle_type"]
 
@@ -198,12 +198,8 @@ def servo_mapping(params: Mapping[str, float], deflections: Mapping[str, float],
     return mapping.validate(), notes
 
 
-def imu_position(params: Mapping[str, float], instance: int) -> dict | None:
-    """``{"position": [x, y, z], "source": ...}`` [m, body axes FRD] of IMU ``instance``
-    (0-based) from ``INS_POS<instance + 1>_X/Y/Z`` (a missing axis is 0), or None when the
-    log sets none of them."""
+def imu_position(params: Mapping[str, float], instance: int) -> dict:
+    """The reader's ``imu_position`` metadata (:func:`~.streams.imu_position_metadata`) of
+    IMU ``instance`` (0-based) from ``INS_POS<instance + 1>_X/Y/Z``."""
     names = [f"INS_POS{instance + 1}_{axis}" for axis in "XYZ"]
-    if not any(n in params for n in names):
-        return None
-    return {"position": [float(params.get(n, 0.0)) for n in names],
-            "source": f"INS_POS{instance + 1}_X/Y/Z"}
+    return imu_position_metadata(params, names, f"INS_POS{instance + 1}_X/Y/Z")

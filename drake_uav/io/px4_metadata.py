@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_uav.io.px4_ulog import ULogFile
+from drake_uav.io.streams import imu_position_metadata
 
 __all__ = ["MULTICOPTER_TYPES", "VTOL_TYPES", "px4_metadata", "vehicle_type"]
 
@@ -135,8 +136,6 @@ def px4_metadata(log: ULogFile) -> dict:
             "parameter_changes": [list(change) for change in log.parameter_changes]}
     if kind["mav_type"] in VTOL_TYPES:
         meta["vtol_state"] = vtol_state(log)
-    names = [f"EKF2_IMU_POS_{axis}" for axis in "XYZ"]
-    if any(n in parameters for n in names):
-        meta["imu_position"] = {"position": [float(parameters.get(n, 0.0)) for n in names],
-                                "source": "EKF2_IMU_POS_X/Y/Z"}
+    meta.update(imu_position_metadata(parameters, [f"EKF2_IMU_POS_{a}" for a in "XYZ"],
+                                      "EKF2_IMU_POS_X/Y/Z"))
     return meta

@@ -42,6 +42,7 @@ __all__ = [
     "FieldSource",
     "Stream",
     "align_streams",
+    "imu_position_metadata",
     "logged_rate",
     "require_channels",
 ]
@@ -648,6 +649,18 @@ def _aligned_log(base: Stream, kept: Sequence[Stream], segments: np.ndarray, sou
                  "segments": segments.tolist(), "dropped_streams": dropped,
                  "streams": info})
     return FlightLog(time, measured, units=units, metadata=meta)
+
+
+def imu_position_metadata(parameters: Mapping[str, float], names: Sequence[str],
+                          source: str) -> dict:
+    """``{"imu_position": {"position": [x, y, z], "source": source}}`` [m, body axes FRD]
+    from the autopilot ``parameters`` ``names`` (x, y, z; a missing one is 0), or ``{}``
+    when the log sets none of them: the readers' metadata key the main job moves the
+    accelerometers by (:mod:`drake_uav.estimation.imu_position`)."""
+    if not any(n in parameters for n in names):
+        return {}
+    return {"imu_position": {"position": [float(parameters.get(n, 0.0)) for n in names],
+                             "source": source}}
 
 
 def logged_rate(log: FlightLog, channel: str) -> float | None:
