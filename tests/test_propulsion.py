@@ -190,7 +190,9 @@ def test_constant_throttle_is_confounded_and_falls_back_to_the_catalog():
     with pytest.warns(InsufficientExcitationWarning, match="confounded"):
         model = identify_thrust(aerosonde_mavsim(), **data)
     assert model.source == "catalog" and not model.diagnostics.identifiable
-    assert model.diagnostics.relative_std > 0.25
+    # The one throttle term a constant throttle leaves is a constant force: a tow and a
+    # thrust error are one column.
+    assert model.diagnostics.correlation > 0.999
     prediction = model.thrust(data["air_data"][:, 0], data["controls"][:, 3])
     assert np.all(prediction.std == 0.0)
 
