@@ -99,8 +99,9 @@ def conditioned_spectrum(values: np.ndarray, inputs: np.ndarray, rate_hz: float,
 
 
 def white_floor(frequency: np.ndarray, density: np.ndarray, rate_hz: float,
-                lowest: float = LOWEST_FIT_FRACTION) -> float:
-    """Noise variance per sample [unit^2] of the noise floor of a one-sided spectrum.
+                lowest: float = LOWEST_FIT_FRACTION, averaged: int = 1) -> float:
+    """Noise variance per sample [unit^2] of the noise floor of a one-sided spectrum
+    (``averaged`` > 1: of the mean of that many consecutive samples, :func:`_mean_variance`).
 
     Fits ``a + b / s^2 + c / s^4`` (``s = sin(pi f / fs)``, all >= 0) to the ``density``
     [unit^2/Hz] between ``lowest`` times the Nyquist frequency and the Nyquist bin
@@ -122,8 +123,23 @@ def white_floor(frequency: np.ndarray, density: np.ndarray, rate_hz: float,
     dof = f.size - 2 - len(SIGNAL_SHAPES)
     gain = (white_misfit - coloured_misfit) / max(coloured_misfit / dof, 1e-300)
     if gain > f_distribution.isf(COLOURED_LEVEL, 1, dof):
+        if averaged > 1:
+            return _mean_variance(coloured[0], coloured[1], rate_hz, averaged)
         return float((coloured[0] + coloured[1]) * rate_hz / 4.0)
+    if averaged > 1:
+        return _mean_variance(white[0], white[0], rate_hz, averaged)
     return float(white[0] * rate_hz / 2.0)
+
+
+def _mean_variance(a: float, b: float, rate_hz: float, averaged: int) -> float:
+    """Variance [unit^2] of the mean of ``averaged`` consecutive samples of the noise of
+    one-sided density ``a (1 - s^2) + b s^2`` (``s = sin(pi f / fs)``): its integral times
+    the mean's power gain ``(sin(m pi f / fs) / (m sin(pi f / fs)))^2`` up to ``fs / 2``
+    (the midpoint rule on 4096 bins)."""
+    x = (np.arange(4096) + 0.5) / 4096 * np.pi / 2  # pi f / fs over (0, pi / 2)
+    s = np.sin(x)
+    gain = (np.sin(averaged * x) / (averaged * s)) ** 2
+    return float(np.mean((a * (1.0 - s**2) + b * s**2) * gain) * rate_hz / 2.0)
 
 
 def _weighted_fit(shapes: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]:
@@ -138,8 +154,9 @@ def _weighted_fit(shapes: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, float]
 
 
 def noise_floor_variance(values: np.ndarray, rate_hz: float,
-                         inputs: np.ndarray | None = None) -> float:
-    """White-noise variance per sample [unit^2] of a uniformly sampled channel.
+                         inputs: np.ndarray | None = None, averaged: int = 1) -> float:
+    """White-noise variance per sample [unit^2] of a uniformly sampled channel (``averaged``
+    > 1: of the mean of that many consecutive samples).
 
     ``values`` (n,) sampled at ``rate_hz`` [Hz]; ``inputs`` (n, m), the logged
     commands on the same samples, when known. The floor of the command-conditioned
@@ -153,11 +170,11 @@ def noise_floor_variance(values: np.ndarray, rate_hz: float,
     if not (rate_hz > 0 and np.isfinite(rate_hz)):
         raise ValueError(f"noise_floor_variance: rate_hz must be positive, got {rate_hz}")
     frequency, density, _ = cross_spectral_density(values[:, None], rate_hz)
-    floor = white_floor(frequency, density[:, 0, 0].real, rate_hz)
+    floor = white_floor(frequency, density[:, 0, 0].real, rate_hz, averaged=averaged)
     if inputs is not None:
         conditioned = conditioned_spectrum(values, inputs, rate_hz)
         if conditioned is not None:
-            without_commands = white_floor(*conditioned, rate_hz)
+            without_commands = white_floor(*conditioned, rate_hz, averaged=averaged)
             if without_commands >= FEEDBACK_RATIO * floor:
                 floor = without_commands
     return floor

@@ -36,8 +36,11 @@ lines between its samples when it was held like a slow sensor, and smoothed like
 regressors; :func:`usable_extras` leaves out, with a note, one that is constant, not
 finite or changes too rarely to regress on.
 
-The channels are resampled to a uniform rate, checked (no NaN, no gap longer
-than ``max_gap``), and passed to the coefficient isolation. Commands are taken
+The channels are checked (no NaN, no gap longer than ``max_gap``), brought onto a
+uniform grid and passed to the coefficient isolation. A log sampled an integer number of
+times faster than the grid is averaged over runs of that many samples, its commands
+alike (:mod:`~drake_uav.identification.decimation`), so that no sample's information is
+dropped; another log is interpolated onto the grid. Commands are taken
 as held from their time stamp to the next one (zero-order hold), which places
 them differently for forces and moments (:func:`held_commands`): a sensor
 sample sees the command in effect at its instant, the last one issued strictly
@@ -63,6 +66,7 @@ import numpy as np
 
 from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
+from drake_uav.identification.decimation import bin_means, binned_channels, decimation_factor
 from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
 from drake_uav.identification.propulsion import identify_thrust
 from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
@@ -122,18 +126,19 @@ def usable_extras(log: FlightLog, exclude=()) -> tuple[dict[str, str], tuple[str
 
 
 def white_noise_variance(values: np.ndarray, rate_hz: float,
-                         commands: np.ndarray | None = None) -> float:
-    """Variance of the white-noise floor of a uniformly sampled signal [unit^2].
+                         commands: np.ndarray | None = None, averaged: int = 1) -> float:
+    """Variance of the white-noise floor of a uniformly sampled signal [unit^2] (of the
+    mean of ``averaged`` consecutive samples).
 
     ``values`` sampled at ``rate_hz`` [Hz]; ``commands`` (n, m) the logged commands
     on the same samples, whose coherent part is set aside
     (:func:`~drake_uav.estimation.sensor_noise.noise_floor_variance`).
     """
-    return noise_floor_variance(values, rate_hz, commands)
+    return noise_floor_variance(values, rate_hz, commands, averaged)
 
 
 def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = None,
-                       air_density: float | None = None) -> dict[str, float]:
+                       air_density: float | None = None, averaged: int = 1) -> dict[str, float]:
     """Noise variance of the raw channels the isolation needs, by isolation name.
 
     ``declared`` (log channel -> standard deviation [channel unit], the user's
@@ -142,11 +147,12 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
     at the log's median airspeed with ``air_density`` [kg/m^3]. The other
     channels' noise is read from the data (:func:`white_noise_variance`, the
     log's commands set aside) at the rate the channel was logged
-    (:func:`native_noise_variance`).
+    (:func:`native_noise_variance`); with ``averaged`` > 1, that of the means of that many
+    consecutive samples of the log.
     """
     std = _declared_std(log, declared or {}, air_density)
     return {name: (std[channel] ** 2 if channel in std
-                   else native_noise_variance(log, channel))
+                   else native_noise_variance(log, channel, averaged))
             for name, channel in _NOISE_SOURCES.items()}
 
 
@@ -169,32 +175,38 @@ def _at_rate(noise: dict[str, float], log: FlightLog, rate_hz: float,
 
 
 def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
-                 rate_hz: float) -> dict[str, float]:
+                 rate_hz: float, averaged: int = 1) -> dict[str, float]:
     """Raw noise variance of each extra channel on the ``rate_hz`` grid, by its
     ``logged:<channel>`` name: the declared standard deviation where there is one, else
-    the white floor read from the data (:func:`native_noise_variance`)."""
+    the white floor read from the data (:func:`native_noise_variance`; of the means of
+    ``averaged`` samples)."""
     sources = {f"{LOGGED}{c}": c for c in extras}
     declared = declared or {}
-    noise = {name: (float(declared[c]) ** 2 if c in declared else native_noise_variance(log, c))
+    noise = {name: (float(declared[c]) ** 2 if c in declared
+                    else native_noise_variance(log, c, averaged))
              for name, c in sources.items()}
     return _at_rate(noise, log, rate_hz, sources)
 
 
-def native_noise_variance(log: FlightLog, channel: str) -> float:
-    """White-noise variance of ``channel`` at the rate it was logged [unit^2].
+def native_noise_variance(log: FlightLog, channel: str, averaged: int = 1) -> float:
+    """White-noise variance of ``channel`` at the rate it was logged [unit^2]; with
+    ``averaged`` > 1, of the mean of that many consecutive samples of the log
+    (:mod:`~drake_uav.identification.decimation`).
 
     A channel logged slower than the log's time base was interpolated onto it,
     which averages neighbouring samples and hides their noise. It is taken back to
     its own rate (every k-th sample); of the k phases, the one with the highest
-    floor lies closest to the logged samples and gives the estimate.
+    floor lies closest to the logged samples and gives the estimate (a mean of the log's
+    samples holds ``averaged / k`` of its own).
     """
     rate = 1.0 / float(np.median(np.diff(log.time)))
     logged = logged_rate(log, channel)
     step = 1 if logged is None else max(1, int(round(rate / logged)))
     values, commands = log[channel], log.stack(CONTROLS)
     if step == 1:
-        return white_noise_variance(values, rate, commands)
-    return max(white_noise_variance(values[j::step], rate / step, commands[j::step])
+        return white_noise_variance(values, rate, commands, averaged)
+    own = max(1, int(round(averaged / step)))  # its own samples in a mean of the log's
+    return max(white_noise_variance(values[j::step], rate / step, commands[j::step], own)
                for j in range(step))
 
 
@@ -224,6 +236,36 @@ def _air_data_unheld(log: FlightLog, extras=()) -> FlightLog:
                               if n in log})
 
 
+def _on_grid(log: FlightLog, rate_hz: float, factor: int):
+    """``log`` on the isolation's ``rate_hz`` [Hz] grid, with its held commands there (at
+    the instants, over the intervals: :func:`held_commands`).
+
+    A log ``factor`` times faster is averaged over runs of ``factor`` samples
+    (:mod:`~drake_uav.identification.decimation`), and so are the commands, taken at the
+    raw instants and over the grid step each raw instant starts; another log is
+    interpolated onto the grid. Misplacing held commands by half a hold period would leave
+    a spurious actuator delay (or lead) in the residual: forces and moments each get their
+    own alignment.
+    """
+    if factor == 1:
+        uniform = log.resample(rate_hz=rate_hz)
+        return uniform, *held_commands(log.time, log.stack(CONTROLS), uniform.time)
+    uniform = bin_means(log, factor, rate_hz)
+    rows = len(uniform.time) * factor
+    commands = held_commands(log.time, log.stack(CONTROLS), log.time, span=1.0 / rate_hz)
+    return uniform, *(c[:rows].reshape(-1, factor, c.shape[1]).mean(axis=1) for c in commands)
+
+
+def _averaged_specs(declared: Mapping[str, float] | None, averaged: tuple[str, ...],
+                    factor: int) -> Mapping[str, float] | None:
+    """The declared standard deviations of single samples as those of the means of
+    ``factor`` samples for the channels ``averaged`` (white noise: ``1 / sqrt(factor)``)."""
+    if declared is None or factor == 1:
+        return declared
+    return {c: float(std) / np.sqrt(factor) if c in averaged else std
+            for c, std in declared.items()}
+
+
 def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
     """``log`` with channels ``sources`` values copied under their keys' names."""
     log.require(*sources.values())
@@ -232,7 +274,8 @@ def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
 
 
 def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
-                  hold_period: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  hold_period: float | None = None,
+                  span: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Held commands on the sample times ``time``: (at the instants, over the intervals).
 
     ``values`` (N, m) are logged at ``stamps`` [s]. The commands are issued every
@@ -243,7 +286,7 @@ def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
     strictly before it (a sample and a command with the same stamp: the sample
     comes first); the second is the average of the held commands over
     ``[time_k, time_(k+1))`` (the last row over one more step), what the rate
-    increments integrate.
+    increments integrate; with ``span`` [s], over ``[time_k, time_k + span)``.
     """
     stamps = np.asarray(stamps, dtype=float)
     values = np.asarray(values, dtype=float)
@@ -265,6 +308,8 @@ def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
         i = np.clip(np.searchsorted(stamps, t, side="right") - 1, 0, len(stamps) - 1)
         return area[i] + values[i] * (t - stamps[i])[:, None]
 
+    if span is not None:
+        return values[index], (integral(time + span) - integral(time)) / span
     edges = np.append(time, 2.0 * time[-1] - time[-2])
     averages = np.diff(integral(edges), axis=0) / np.diff(edges)[:, None]
     return values[index], averages
@@ -366,22 +411,20 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     if extras is None:
         extras = usable_extras(log, exclude=flow_channels)[0]
     log.require(*extras)
-    noise = _at_rate(raw_noise_variance(log, _specs_for(sensor_noise_std, flow_channels),
-                                        params.rho), log, rate_hz)
-    extra_noise = _extra_noise(log, extras, sensor_noise_std, rate_hz)
+    factor = decimation_factor(log.time, rate_hz)
+    declared = _averaged_specs(sensor_noise_std, binned_channels(log, rate_hz), factor)
+    noise = _at_rate(raw_noise_variance(log, _specs_for(declared, flow_channels), params.rho,
+                                        averaged=factor), log, rate_hz)
+    extra_noise = _extra_noise(log, extras, declared, rate_hz, factor)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
             f"pitot_airspeed: never above {min_airspeed} m/s; no airborne data to identify")
     whole = log
     log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]), extras)
-    uniform = log.resample(rate_hz=rate_hz)
-    # Misplacing held commands by half a hold period would leave a spurious actuator
-    # delay (or lead) in the residual: forces and moments each get their own alignment.
-    controls, moment_controls = held_commands(log.time, log.stack(CONTROLS), uniform.time)
-    yaw = np.unwrap(log["att_yaw"])
-    yaw_uniform = np.interp(uniform.time, log.time, yaw)
-    signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"], "yaw": yaw_uniform}
+    uniform, controls, moment_controls = _on_grid(log, rate_hz, factor)
+    signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"],
+               "yaw": np.unwrap(uniform["att_yaw"])}
     if HEIGHT in uniform:
         signals["height"] = uniform[HEIGHT]
     signals.update(gps_signals(whole, uniform.time))
