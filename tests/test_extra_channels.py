@@ -205,8 +205,9 @@ def test_a_logged_tether_tension_is_found_as_the_logged_channel():
     samples = samples_from_log(log, PARAMS)
     assert samples.signal_units == {"logged:tension": "N"}
     # Its noise, read from the data (or declared), enters the errors-in-variables fit of
-    # every coefficient (smoothed like the regressors).
-    smoothed = TENSION_NOISE**2 * smoothing_gains(0.02)[0]
+    # every coefficient (averaged in pairs onto the 50 Hz grid and smoothed like the
+    # regressors).
+    smoothed = TENSION_NOISE**2 / 2 * smoothing_gains(0.02)[0]
     assert samples.noise_variance["logged:tension"] == pytest.approx(smoothed, rel=0.3)
     assert source_variances(samples, "CD")["logged:tension"] > 0
     declared = samples_from_log(log, PARAMS, sensor_noise_std={"tension": 0.1})
