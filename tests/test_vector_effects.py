@@ -142,9 +142,7 @@ def test_a_pull_towards_an_unknown_point_on_more_seeds(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.xfail(
-    strict=True, reason="the point 153 m off, all but 13 m of it in height (sigma 65 m): "
-    "the default sensors place its height to 30-90 m")), 1, 2, 3, 4])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
 def test_a_pull_towards_an_unknown_point_with_the_default_sensors(seed):
     """The one effect, its point within 120 m of the anchor."""
     metrics = _pull(seed, "default")

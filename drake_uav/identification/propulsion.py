@@ -46,9 +46,9 @@ constant and a multiple of Va, and a narrow airspeed range makes those collinear
 a constant force (a tow would be the same column). The fit reports the condition number
 of the column-equilibrated regressors, the multiple correlation of the thrust columns
 with the C_X columns (and a constant, for the throttle correction) and the thrust's
-standard deviation relative to its spread over the flight; past the limits it falls back to the catalog model with
-an :class:`~.regression.InsufficientExcitationWarning` instead of returning a thrust
-the data do not determine.
+standard deviation relative to its spread over the flight; past the limits it falls
+back to the catalog model with an :class:`~.regression.InsufficientExcitationWarning`
+instead of returning a thrust the data do not determine.
 """
 
 from __future__ import annotations
@@ -82,9 +82,9 @@ from drake_uav.model.propeller import (
 )
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "identify_thrust",
-           "thrust_correction_columns", "thrust_drag_columns", "DRAG_TERMS", "PROPELLER_TERMS",
-           "THRUST_COLUMN", "THROTTLE_TERM_UNITS"]
+__all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "HeldOutError",
+           "identify_thrust", "thrust_correction_columns", "thrust_drag_columns", "DRAG_TERMS",
+           "PROPELLER_TERMS", "THRUST_COLUMN", "THROTTLE_TERM_UNITS"]
 
 DRAG_TERMS = ("CX_0", "CX_alpha", "CX_alpha2", "CX_q", "CX_elevator")
 """The C_X terms fitted with the thrust (signals of :mod:`drake_uav.model.coefficients`)."""
