@@ -7,6 +7,8 @@ import pytest
 from drake_uav.diagrams import fly
 from drake_uav.identification.decimation import bin_means, decimation_factor
 from drake_uav.identification.flight_data import (
+    CONTROLS,
+    _on_grid,
     held_commands,
     raw_noise_variance,
     samples_from_log,
@@ -94,3 +96,15 @@ def test_averaging_a_100_hz_log_cuts_the_coefficients_error_by_the_square_root_o
         assert 1.25 < before[name] / errors[name] < 1.6, (name, before[name], errors[name])
     samples = samples_from_log(flight, PARAMS)
     assert np.median(np.diff(samples.time)) == pytest.approx(0.02)
+
+
+@pytest.mark.parametrize("rate", [100.0, 75.0])
+def test_a_yaw_across_the_wrap_reaches_the_grid_unwrapped(rate):
+    """Averaged (100 Hz) or interpolated (75 Hz) onto the 50 Hz grid, a yaw turning through
+    +-pi stays one continuous angle: neither a mean nor an interpolation spans the wrap."""
+    time = np.arange(400) / rate
+    yaw = (np.pi - 0.5 + 0.5 * time + np.pi) % (2 * np.pi) - np.pi
+    channels = {"att_yaw": yaw, **{c: np.zeros(time.size) for c in CONTROLS}}
+    log = FlightLog(time, channels, units={c: "rad" for c in channels})
+    uniform = _on_grid(log, 50.0, decimation_factor(time, 50.0))[0]
+    np.testing.assert_allclose(np.diff(uniform["att_yaw"]), 0.5 / 50.0, rtol=1e-6)

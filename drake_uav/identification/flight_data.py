@@ -245,8 +245,10 @@ def _on_grid(log: FlightLog, rate_hz: float, factor: int):
     raw instants and over the grid step each raw instant starts; another log is
     interpolated onto the grid. Misplacing held commands by half a hold period would leave
     a spurious actuator delay (or lead) in the residual: forces and moments each get their
-    own alignment.
+    own alignment. The yaw comes unwrapped, so that neither a mean nor an interpolation
+    spans the +-pi wrap.
     """
+    log = log.with_measured({"att_yaw": np.unwrap(log["att_yaw"])})
     if factor == 1:
         uniform = log.resample(rate_hz=rate_hz)
         return uniform, *held_commands(log.time, log.stack(CONTROLS), uniform.time)
@@ -424,7 +426,7 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]), extras)
     uniform, controls, moment_controls = _on_grid(log, rate_hz, factor)
     signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"],
-               "yaw": np.unwrap(uniform["att_yaw"])}
+               "yaw": uniform["att_yaw"]}
     if HEIGHT in uniform:
         signals["height"] = uniform[HEIGHT]
     signals.update(gps_signals(whole, uniform.time))
