@@ -229,6 +229,12 @@ class BlockMoments:
         C_xx, c_xz = self.noise_xx.sum(axis=-3), self.noise_xz.sum(axis=-2)
         return self.xx.sum(axis=-3) - C_xx, self.xz.sum(axis=-2) - c_xz, C_xx, c_xz
 
+    def held_in_least_squares(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K, n, n) and (K, n): the plain normal equations without block k (least squares,
+        no noise compensation; with the leading axis of a batch)."""
+        return (self.xx.sum(axis=-3)[..., None, :, :] - self.xx,
+                self.xz.sum(axis=-2)[..., None, :] - self.xz)
+
     def held_in(self) -> tuple[np.ndarray, np.ndarray]:
         """(K, n, n) and (K, n): the compensated normal equations without block k (with
         the leading axis of a batch)."""

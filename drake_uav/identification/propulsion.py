@@ -351,12 +351,10 @@ def _held_out_error(X: np.ndarray, z: np.ndarray, noise: PropagatedNoise,
     others (blocks, not random samples: neighbouring samples are correlated)."""
     blocks = BlockMoments.of(X, z, noise, fold_edges(len(z), folds))
     corrected = np.sum(held_out_errors(blocks, z, lambda theta: X @ theta.T)[1])
-    observed = []
-    for k, (a, b) in enumerate(zip(blocks.edges[:-1], blocks.edges[1:], strict=True)):
-        A = blocks.xx.sum(axis=0) - blocks.xx[k]
-        theta = solve_normal_equations(A, blocks.xz.sum(axis=0) - blocks.xz[k])
-        observed.append(z[a:b] - X[a:b] @ theta)
-    return HeldOutError(float(np.sqrt(np.mean(np.concatenate(observed) ** 2))),
+    prediction = X @ solve_normal_equations(*blocks.held_in_least_squares()).T
+    fold = np.repeat(np.arange(folds), np.diff(blocks.edges))
+    observed = z - prediction[np.arange(len(z)), fold]
+    return HeldOutError(float(np.sqrt(np.mean(observed**2))),
                         float(np.sqrt(max(corrected, 0.0) / len(z))))
 
 
