@@ -34,7 +34,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from drake_uav.identification.isolation import LOGGED, AeroSamples
-from drake_uav.identification.segments import span_starts
+from drake_uav.identification.segments import delayed
 from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
@@ -203,15 +203,6 @@ def _wind_left(samples, params, coefficient):
 _SURFACE_COEFFICIENTS = {"elevator": LONGITUDINAL, "aileron": LATERAL, "rudder": LATERAL}
 
 
-def _delayed(time: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
-    """``values`` at ``time - delay`` [s], straight lines between samples; within the first
-    ``delay`` of each span of the samples (joined spans keep their gaps) the span's first
-    value, since what came before is not in the log."""
-    starts = span_starts(time)
-    span_start = time[starts][np.searchsorted(starts, np.arange(len(time)), side="right") - 1]
-    return np.interp(np.maximum(time - delay, span_start), time, values)
-
-
 def _thrust_error(samples: AeroSamples, delay: float | None) -> np.ndarray:
     """The real thrust minus the modelled one [N] when the throttle acts ``delay`` [s] after
     its logged command (None: its first-order term, per second of delay). Only the
@@ -222,10 +213,10 @@ def _thrust_error(samples: AeroSamples, delay: float | None) -> np.ndarray:
         if samples.thrust_airspeed_slope is not None:
             error += samples.thrust_airspeed_slope * differentiate(samples.time, airspeed)
         return error
-    error = _delayed(samples.time, samples.thrust, delay) - samples.thrust
+    error = delayed(samples.time, samples.thrust, delay) - samples.thrust
     if samples.thrust_airspeed_slope is not None:
         error += samples.thrust_airspeed_slope * (
-            airspeed - _delayed(samples.time, airspeed, delay))
+            airspeed - delayed(samples.time, airspeed, delay))
     return error
 
 
@@ -241,7 +232,7 @@ def _actuator_delay(delay: float | None):
     def shift(samples, values):
         if delay is None:
             return -differentiate(samples.time, values)
-        return _delayed(samples.time, values, delay) - values
+        return delayed(samples.time, values, delay) - values
 
     suffix = "rate" if delay is None else "delayed"
 

@@ -69,6 +69,7 @@ from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
 from drake_uav.identification.decimation import bin_means, binned_channels, decimation_factor
 from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
 from drake_uav.identification.propulsion import identify_thrust
+from drake_uav.identification.segments import delayed
 from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
 from drake_uav.io.extras import extra_channels
 from drake_uav.io.flight_log import FlightLog, FlightLogError
@@ -385,7 +386,8 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
                      flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
                      sensor_noise_std: dict[str, float] | None = None,
                      propulsion: str = "catalog",
-                     extras: Mapping[str, str] | None = None) -> AeroSamples:
+                     extras: Mapping[str, str] | None = None,
+                     throttle_delay: float | None = None) -> AeroSamples:
     """Regression samples (measured coefficients and regressors) from a flight log.
 
     Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
@@ -398,6 +400,12 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     (:func:`~drake_uav.identification.propulsion.identify_thrust`: from the motor
     speed when logged, else a throttle and airspeed correction), which falls back to
     the catalog model with a warning when the flight cannot tell thrust from drag.
+    ``throttle_delay`` [s]: a servo delay measured before (the data-compatibility check's
+    command time skew); the throttle correction is fitted on the throttle that delay
+    late, as the motor saw it, and the coefficients are still isolated with the logged
+    one, so the delay stays in them for the discovery to name (its thrust column takes
+    the difference). Without it, a throttle that moves within the delay biases the
+    correction's terms, and their error reaches C_L as a body-x force.
     ``extras`` (channel -> unit) are the extra channels carried into the samples
     (module docstring); None takes :func:`usable_extras` of ``log``. The GPS velocity
     and position join the samples' signals where the log holds them (:func:`gps_signals`).
@@ -433,8 +441,12 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     thrust = {}
     if propulsion == "data":
         speed = uniform["motor_speed"] if "motor_speed" in uniform else None
+        seen = controls
+        if throttle_delay is not None and speed is None:
+            seen = controls.copy()
+            seen[:, 3] = delayed(uniform.time, controls[:, 3], throttle_delay)
         model = identify_thrust(params, uniform.time, uniform.stack(SPECIFIC_FORCE),
-                                uniform.stack(RATES), uniform.stack(AIR_DATA), controls, speed,
+                                uniform.stack(RATES), uniform.stack(AIR_DATA), seen, speed,
                                 raw_noise_variance=noise)
         if model.terms:  # else the catalog model predicts best, or the data cannot tell
             value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)

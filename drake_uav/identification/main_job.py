@@ -268,14 +268,15 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                                             phases=phases, progress=say)
     if compatibility is not None:
         log = compatibility.corrected(log)
+    command_delay = measured_command_delay(compatibility)
     samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
                                         air_data=air_data, segment=segment,
                                         sensor_noise_std=sensor_noise_std, phases=phases,
-                                        propulsion=propulsion, progress=say)
+                                        propulsion=propulsion, progress=say,
+                                        throttle_delay=command_delay)
     run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
                            progress=say, source=source, seed=seed,
-                           effects=testable_effects(selection.air_data,
-                                                    measured_command_delay(compatibility)),
+                           effects=testable_effects(selection.air_data, command_delay),
                            vector_effects=testable_vector_effects(selection.air_data),
                            coefficients=coefficients)
     notes = ((position.note(),) if moved else ()) + selection.notes + run.discovery.notes
@@ -359,9 +360,12 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                    phases: PhaseSettings = DEFAULT_PHASES,
                    propulsion: str = "data",
                    progress: Callable[[str], None] | None = None,
+                   throttle_delay: float | None = None,
                    ) -> tuple[AeroSamples, LogSelection]:
     """Regression samples of the usable spans of ``log`` and what was used (see
-    :func:`identify` for the arguments)."""
+    :func:`identify` for the arguments; ``throttle_delay`` [s], a measured servo delay
+    the thrust fit accounts for, :func:`~drake_uav.identification.flight_data.
+    samples_from_log`)."""
     check_fixed_wing(log, source)
     mode = choose_air_data(log, air_data, source)
     try:
@@ -379,7 +383,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
             part = samples_from_log(angles.log, params, rate_hz=rate_hz,
                                     flow_channels=angles.channels,
                                     sensor_noise_std=sensor_noise_std, propulsion=propulsion,
-                                    extras=extras)
+                                    extras=extras, throttle_delay=throttle_delay)
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
         parts.append(_with_flow_error(part, angles.error_variance))

@@ -17,7 +17,7 @@ from drake_uav.identification.isolation import AeroSamples
 from drake_uav.model.coefficients import AeroCondition
 from drake_uav.model.propeller import THROTTLE_TERMS
 
-__all__ = ["concatenate_samples", "span_starts"]
+__all__ = ["concatenate_samples", "delayed", "span_starts"]
 
 
 def span_starts(time: np.ndarray) -> np.ndarray:
@@ -25,6 +25,15 @@ def span_starts(time: np.ndarray) -> np.ndarray:
     after a gap longer than 1.5 sampling periods) of the times ``time`` [s]."""
     step = np.diff(time)
     return np.concatenate([[0], np.flatnonzero(step > 1.5 * np.median(step)) + 1])
+
+
+def delayed(time: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
+    """``values`` at ``time - delay`` [s], straight lines between samples; within the first
+    ``delay`` of each span of the samples (joined spans keep their gaps) the span's first
+    value, since what came before is not in the log."""
+    starts = span_starts(time)
+    span_start = time[starts][np.searchsorted(starts, np.arange(len(time)), side="right") - 1]
+    return np.interp(np.maximum(time - delay, span_start), time, values)
 
 
 def _joined(parts: Sequence, pick) -> np.ndarray:
