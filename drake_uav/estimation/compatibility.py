@@ -243,7 +243,12 @@ _RESPONSE = {"airspeed": ("imu_ax", "cmd_throttle"), "alpha": ("imu_az", "cmd_el
 specific force along the force the channel's flow angle or airspeed changes, which sees
 a gust when the air data do, and the commands that move that specific force directly
 (thrust, the surfaces' own lift and side force). Without the commands the specific force
-leads the flow angle by the surfaces' share and biases the skew by about +0.015 s."""
+leads the flow angle by the surfaces' share and biases the skew by about +0.015 s. The
+specific force also enters over the dynamic pressure (:meth:`_AirData._response`): a
+flow angle moves the force per dynamic pressure at once, while a throttle that moves the
+airspeed moves the force with no change of the flow angle, through the speed dynamics;
+with the force alone the skew came out 5 ms late on clean flights that move the throttle
+(research-grade sensors, tuning seeds 500 and 502), 1-2 ms with both."""
 
 
 class _AirData:
@@ -284,8 +289,7 @@ class _AirData:
         channels are corrected together."""
         c = self.c
         timed = [k for k in self.names if k != "airspeed"] or self.names
-        response = {k: np.column_stack([self._responding(n) for n in _RESPONSE[k] if c.has(n)])
-                    for k in timed}
+        response = {k: self._response(k, kinematic["airspeed"]) for k in timed}
         fit = air_data_skew(c.time, {k: kinematic[k] for k in timed},
                             {k: self.c.channels[_AIR[k][0]] for k in timed}, response,
                             c.max_skew)
@@ -295,6 +299,16 @@ class _AirData:
                            "the air data lag the IMU by this time")
         if effect.applied:
             c.read_later(channels, effect.estimate)
+
+    def _response(self, quantity: str, airspeed: np.ndarray) -> np.ndarray:
+        """(N, m) response signals of the air-data ``quantity`` (:data:`_RESPONSE`, those
+        logged), then its specific force over the dynamic pressure relative to its mean,
+        ``(airspeed / mean)^-2`` at the IMU's time (``airspeed``, the kinematic one [m/s])."""
+        signals = [self._responding(n) for n in _RESPONSE[quantity] if self.c.has(n)]
+        force = _RESPONSE[quantity][0]
+        if self.c.has(force):
+            signals.append(self.c.channels[force] * (airspeed / np.mean(airspeed)) ** -2)
+        return np.column_stack(signals)
 
     def _responding(self, channel: str) -> np.ndarray:
         """A response signal; a command at the time the aircraft responds to it."""
