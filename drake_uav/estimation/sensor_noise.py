@@ -122,13 +122,12 @@ def white_floor(frequency: np.ndarray, density: np.ndarray, rate_hz: float,
         np.column_stack([1.0 - s**2, s**2, *signal_shapes]), p)
     dof = f.size - 2 - len(SIGNAL_SHAPES)
     gain = (white_misfit - coloured_misfit) / max(coloured_misfit / dof, 1e-300)
-    if gain > f_distribution.isf(COLOURED_LEVEL, 1, dof):
-        if averaged > 1:
-            return _mean_variance(coloured[0], coloured[1], rate_hz, averaged)
-        return float((coloured[0] + coloured[1]) * rate_hz / 4.0)
+    # The white floor is the two-tap one with A = B = a.
+    coloured_floor = gain > f_distribution.isf(COLOURED_LEVEL, 1, dof)
+    a, b = (coloured[0], coloured[1]) if coloured_floor else (white[0], white[0])
     if averaged > 1:
-        return _mean_variance(white[0], white[0], rate_hz, averaged)
-    return float(white[0] * rate_hz / 2.0)
+        return _mean_variance(a, b, rate_hz, averaged)
+    return float((a + b) * rate_hz / 4.0)
 
 
 def _mean_variance(a: float, b: float, rate_hz: float, averaged: int) -> float:
