@@ -9,7 +9,7 @@ import pytest
 from synthetic_flight import NOISE, measured_samples, synthetic_flight
 
 from drake_uav.diagrams import fly
-from drake_uav.identification import discovery
+from drake_uav.identification import coefficient_design
 from drake_uav.identification.discovery import discover, fit_derivatives
 from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.regressor_noise import (
@@ -108,7 +108,7 @@ def test_alphadot_from_the_vane_is_estimated_without_attenuation(downwash_lag, m
         assert abs(estimate - CM_ALPHADOT) < 3 * sigma, (estimate, sigma)
         assert 0.8 < estimate / CM_ALPHADOT < 1.2
     # The same fits with alpha-dot taken as exact: attenuated.
-    monkeypatch.setattr(discovery, "source_variances", lambda samples, coefficient: {
+    monkeypatch.setattr(coefficient_design, "source_variances", lambda samples, coefficient: {
         s: v for s, v in source_variances(samples, coefficient).items() if s != "alphadot"})
     for params, samples in downwash_lag:
         assert _alphadot_estimate(params, samples)[0] / CM_ALPHADOT < 0.5

@@ -370,7 +370,7 @@ def discovery(seed: int, params: dict) -> dict:
     ("multisine"; "multisine_throttle" also moves the throttle,
     :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
     calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
-    :attr:`~drake_uav.identification.discovery.EvidenceRule.min_folds`: how many of the
+    :attr:`~drake_uav.identification.discovery_result.EvidenceRule.min_folds`: how many of the
     five folds an effect must improve; for studies of the rule).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,

@@ -23,12 +23,18 @@ and its parts, each usable alone:
 * :mod:`.crlb`: Cramer-Rao bounds.
 """
 
+from drake_uav.identification.coefficient_design import (
+    IdentifiedDerivatives,
+    baseline_names,
+    fit_derivatives,
+)
 from drake_uav.identification.crlb import (
     crlb_errors_in_variables,
     crlb_ols,
     sample_errors_in_variables,
 )
-from drake_uav.identification.discovery import (
+from drake_uav.identification.discovery import discover
+from drake_uav.identification.discovery_result import (
     NO_EFFECT_MESSAGE,
     CoefficientFit,
     DiscoveryResult,
@@ -36,10 +42,6 @@ from drake_uav.identification.discovery import (
     EvidenceRule,
     FoundEffect,
     HeldOutCheck,
-    IdentifiedDerivatives,
-    baseline_names,
-    discover,
-    fit_derivatives,
 )
 from drake_uav.identification.effects import Effect, effect_library
 from drake_uav.identification.errors_in_variables import PropagatedNoise

@@ -54,13 +54,32 @@ explain and no candidate that does, "the model is incomplete for C_D: ...".
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
 
-from drake_uav.identification.adequacy import Adequacy, AdequacyRule, assess, coefficient_symbol
+from drake_uav.identification.adequacy import Adequacy, AdequacyRule, assess
 from drake_uav.identification.blocked_folds import fold_edges, held_out_errors, squared_errors
+from drake_uav.identification.coefficient_design import (
+    ColumnFunction,
+    Design,
+    IdentifiedDerivatives,
+    Perturbations,
+    baseline_design,
+    baseline_names,
+    columns_and_jacobians,
+    fit_derivatives,
+)
+from drake_uav.identification.discovery_result import (
+    NO_EFFECT_MESSAGE,
+    CoefficientFit,
+    DiscoveryResult,
+    Evidence,
+    EvidenceRule,
+    FoundEffect,
+    HeldOutCheck,
+)
 from drake_uav.identification.effects import (
     PRODUCT_KEYS,
     Effect,
@@ -72,34 +91,22 @@ from drake_uav.identification.effects import (
 from drake_uav.identification.errors_in_variables import (
     BlockMoments,
     PropagatedNoise,
-    compensated_normal_equations,
     is_well_posed,
-    long_run_covariance,
-    moment_scores,
     noise_error_energy,
-    sandwich_covariance,
     solve_normal_equations,
 )
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
-from drake_uav.identification.parsimony import DroppedTerm, Pruning, prune
-from drake_uav.identification.propulsion import THRUST_COLUMN, thrust_correction_columns
-from drake_uav.identification.regression import RegressionResult, bcls, f_survival, r_factor
-from drake_uav.identification.regressor_noise import (
-    AIR_DATA_SOURCES,
-    noise_sources,
-    observation_sensitivity,
-    perturbed,
-    source_step,
-    source_variances,
-)
-from drake_uav.identification.residuals import ResidualDiagnosis, diagnose, effective_sample_size
+from drake_uav.identification.parsimony import Pruning, prune
+from drake_uav.identification.propulsion import THRUST_COLUMN
+from drake_uav.identification.regression import f_survival, r_factor
+from drake_uav.identification.residuals import diagnose, effective_sample_size
 from drake_uav.identification.vector_effects import (
     JointSearch,
     VectorEffect,
     vector_effect_library,
 )
-from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
+from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = [
@@ -114,435 +121,11 @@ __all__ = [
     "baseline_names",
     "IdentifiedDerivatives",
     "fit_derivatives",
+    "NO_EFFECT_MESSAGE",
 ]
 
-NO_EFFECT_MESSAGE = "no missing effect found"
 DATA_DRIVEN = "data_driven:"
 """Name prefix of the data-driven product effects."""
-
-
-@dataclasses.dataclass(frozen=True)
-class EvidenceRule:
-    """Thresholds a candidate must pass to be added (all of them).
-
-    ``p_value`` is the family-wise level: it is divided by the number of
-    candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
-    smallest held-out prediction-error reduction worth a new term (fraction of
-    the baseline PSE), and what a catalog term of the baseline must gain on the folds or
-    on the flight's edges to be kept (:mod:`~drake_uav.identification.parsimony`);
-    ``min_folds`` how many of the ``folds`` (at least 3) must improve (less the
-    effect's :attr:`~drake_uav.identification.effects.Effect.blind_folds`).
-
-    A candidate that passes is then checked, per coefficient, on the held-out tail
-    (``holdout_fraction`` of the flight, which no test above saw;
-    :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
-    prediction error falls with it by at least ``min_pse_reduction`` (the gain the
-    folds must show on average, so that cross-validation and the held-out tail ask
-    the same of an effect), for the bias-compensated fit (the noise of sources only
-    the effect's columns carry set aside) and the least-squares one alike, and its
-    contribution there (RMS of the
-    change it makes to the prediction) reaches both ``min_share_of_variation`` of the
-    coefficient's standard deviation over the flight and ``min_share_of_error`` of
-    the held-out error left with it. A coefficient whose standard deviation over the
-    training or the held-out part is at most ``constant_tolerance`` times
-    ``1 + |mean|`` does not vary and is not fitted.
-
-    ``named_first``: the data-driven products are scored only in a round where no named
-    effect is kept (each family at its own Bonferroni level); False puts both in one pool,
-    one level over all, where a product ranks ahead of a named effect only when its
-    held-out gain is larger by ``min_pse_reduction``.
-
-    ``parsimonious``: the baseline drops the catalog terms that the flight does not
-    support (:mod:`~drake_uav.identification.parsimony`); False fits the catalog's
-    structure as it is.
-    """
-
-    p_value: float = 1e-3
-    min_pse_reduction: float = 0.02
-    folds: int = 5
-    min_folds: int = 5
-    holdout_fraction: float = 0.3
-    max_rounds: int = 6
-    min_share_of_variation: float = 0.01
-    min_share_of_error: float = 0.1
-    constant_tolerance: float = 1e-9
-    named_first: bool = True
-    parsimonious: bool = True
-    adequacy: AdequacyRule = AdequacyRule()
-    """When the final fit's error is too far above the noise floor to call the model
-    complete (:mod:`~drake_uav.identification.adequacy`)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Evidence:
-    """Statistics of one candidate (an effect on one coefficient)."""
-
-    effect: str
-    coefficient: str
-    columns: tuple[str, ...]
-    pse_reduction: float
-    """Mean relative reduction of the held-out prediction error over the folds."""
-    folds_improved: int
-    f_statistic: float
-    p_value: float
-    """Partial F-test p-value with the effective sample size."""
-    delta_bic: float
-    """BIC(with) - BIC(without), effective sample size; negative favours the effect."""
-    passed: bool
-
-
-@dataclasses.dataclass(frozen=True)
-class FoundEffect:
-    """An effect the loop added, with its evidence and identified parameters."""
-
-    name: str
-    explanation: str
-    kind: str
-    coefficients: tuple[str, ...]
-    evidence: tuple[Evidence, ...]
-    parameters: Mapping[str, tuple[float, float]]
-    """``"<coefficient>:<column>" -> (estimate, sigma)``."""
-
-
-@dataclasses.dataclass(frozen=True)
-class HeldOutCheck:
-    """The held-out decision on one effect for one coefficient (:class:`EvidenceRule`).
-
-    Both fits are made on the training part; the errors and the contribution are read
-    on the held-out tail. Two predictions are judged. The bias-compensated fit's, right
-    for the aircraft's parameters, must improve, once the noise of the sources only the
-    effect's columns depend on is set aside: a true term on a regressor with noise of its
-    own (alpha-dot differentiated from the vane) passes that noise into the prediction
-    at full strength. Noise the effect shares with the other columns (the air data)
-    earns it nothing: an over-estimated variance would credit any column that depends on
-    it. The least-squares fit's, the best predictor of the measured coefficient from the
-    measured regressors, which no noise model enters, must improve as much.
-    """
-
-    effect: str
-    coefficient: str
-    stage: str
-    """"round": when the effect won a round; "final": against the final fit without it."""
-    rms_without: float
-    """Held-out equation-error RMS of the fit without the effect [-]."""
-    rms_with: float
-    """The same with the effect [-]."""
-    contribution: float
-    """RMS over the held-out samples of the change the effect makes to the prediction [-]."""
-    threshold: float
-    """Smallest contribution that matters [-]: the larger of the two shares of the rule."""
-    kept: bool
-    min_gain: float = 0.0
-    """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
-    own_noise: float = 0.0
-    """Mean square that the noise sources only the effect's columns depend on add to the
-    held-out error of the fit with it [-]
-    (:func:`~drake_uav.identification.errors_in_variables.noise_error_energy`)."""
-    prediction_gain: float = float("inf")
-    """Held-out mean-square reduction of the least-squares prediction with the effect,
-    fraction of the one without [-]."""
-
-    @property
-    def gain(self) -> float:
-        """Held-out prediction-error (mean-square) reduction without the noise of the
-        effect's own sources, fraction of the PSE without the effect [-]."""
-        if self.rms_without <= 0:
-            return 0.0
-        return 1.0 - (self.rms_with**2 - self.own_noise) / self.rms_without**2
-
-    @property
-    def reason(self) -> str:
-        """Why the effect was not kept on the coefficient ("" when it was)."""
-        if self.gain < 0.0:
-            return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
-                    f"{self.rms_with:.4g}"
-                    + (f", {np.sqrt(max(self.rms_with**2 - self.own_noise, 0.0)):.4g} without "
-                       "the noise of its own sources)" if self.own_noise else ")"))
-        if self.gain < self.min_gain:
-            return (f"its held-out prediction error falls by {100 * self.gain:.2g} %, less "
-                    f"than {100 * self.min_gain:.2g} %")
-        if self.prediction_gain < self.min_gain:
-            return (f"the held-out error of its least-squares prediction falls by "
-                    f"{100 * self.prediction_gain:.2g} %, less than {100 * self.min_gain:.2g} %")
-        if self.contribution < self.threshold:
-            return (f"its held-out contribution {self.contribution:.2g} is below "
-                    f"{self.threshold:.2g}")
-        return ""
-
-
-@dataclasses.dataclass(frozen=True)
-class CoefficientFit:
-    """A fitted coefficient model: structure, OLS result and held-out error."""
-
-    coefficient: str
-    names: tuple[str, ...]
-    result: RegressionResult
-    rms_train: float
-    rms_holdout: float
-    holdout_residual: np.ndarray
-    holdout_design: np.ndarray
-    """(N_holdout, n) regressor columns on the held-out samples, in ``names`` order."""
-    diagnosis: ResidualDiagnosis
-    holdout_noise: PropagatedNoise | None = None
-    """The sensor noise the errors-in-variables fit carries to ``holdout_design`` and to the
-    held-out coefficient (the noise floor of ``rms_holdout`` reads it)."""
-    training_design: np.ndarray | None = None
-    """(N_train, n) regressor columns on the training samples, in ``names`` order."""
-
-
-@dataclasses.dataclass(frozen=True)
-class DiscoveryResult:
-    """Everything the loop found, before and after."""
-
-    baseline: Mapping[str, CoefficientFit]
-    final: Mapping[str, CoefficientFit]
-    found: tuple[FoundEffect, ...]
-    rounds: tuple[tuple[Evidence, ...], ...]
-    """Ranked evidence of every round."""
-    holdout_start: float
-    """Time [s] where the held-out tail begins."""
-    checks: tuple[HeldOutCheck, ...] = ()
-    """Every held-out decision on a passing candidate, in the order made."""
-    skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
-    """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
-    adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
-    """Fitted coefficient -> its final fit's error against the noise floor."""
-    dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
-    """Fitted coefficient -> the catalog's terms its baseline dropped, which the flight does
-    not support (:mod:`~drake_uav.identification.parsimony`); each is 0 in the identified
-    model."""
-
-    @property
-    def incomplete(self) -> dict[str, Adequacy]:
-        """The coefficients whose final error the sensor noise does not explain: the model
-        is incomplete there (:class:`~drake_uav.identification.adequacy.Adequacy`)."""
-        return {k: a for k, a in self.adequacy.items() if a.incomplete}
-
-    @property
-    def notes(self) -> tuple[str, ...]:
-        """One line per skipped coefficient, per baseline term dropped and per effect not
-        kept on a coefficient where it passed the evidence tests."""
-        notes = [f"{k} skipped: {why}" for k, why in self.skipped.items()]
-        notes += [term.line for terms in self.dropped.values() for term in terms]
-        notes += [f"{c.effect} not kept on {c.coefficient}: {c.reason}"
-                  for c in self.checks if not c.kept]
-        return tuple(notes)
-
-    @property
-    def message(self) -> str:
-        """One line: the effects found, or that none was; and where the model is still
-        incomplete ("the model is incomplete for C_D: held-out error 2.1x the noise
-        floor, ...")."""
-        incomplete = "; ".join(f"{coefficient_symbol(k)}: {a.explanation}"
-                               for k, a in self.incomplete.items())
-        if not self.found:
-            return f"the model is incomplete for {incomplete}" if incomplete else \
-                NO_EFFECT_MESSAGE
-        found = "missing effect(s) found: " + ", ".join(
-            f"{f.name} ({', '.join(f.coefficients)})" for f in self.found)
-        return f"{found}; the model is still incomplete for {incomplete}" if incomplete \
-            else found
-
-    def rms_change(self) -> dict[str, tuple[float, float]]:
-        """Held-out equation-error RMS (before, after) per coefficient."""
-        return {k: (self.baseline[k].rms_holdout, self.final[k].rms_holdout)
-                for k in self.baseline}
-
-
-ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
-
-
-class _Perturbations:
-    """Samples and their copies with one noise source moved by +-its step
-    (:func:`~drake_uav.identification.regressor_noise.perturbed`), and the probe: every
-    source but the air data moved at once, which tells the columns that depend on none
-    of them (most) from the others.
-
-    The copies are made once and shared by every column function evaluated on them.
-    """
-
-    def __init__(self, samples: AeroSamples):
-        self.samples = samples
-        self._copies: dict[tuple, AeroSamples] = {}
-
-    def __call__(self, source: str, step: float) -> AeroSamples:
-        key = (source, step)
-        if key not in self._copies:
-            self._copies[key] = perturbed(self.samples, source, step)
-        return self._copies[key]
-
-    def probe(self, sources: tuple[str, ...]) -> AeroSamples:
-        """The samples with every one of ``sources`` moved by its step."""
-        if sources not in self._copies:
-            moved = self.samples
-            for source in sources:
-                moved = perturbed(moved, source, source_step(source))
-            self._copies[sources] = moved
-        return self._copies[sources]
-
-
-def _columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | _Perturbations,
-                           variance):
-    """Columns of ``function(samples)`` and their derivatives w.r.t. the noise sources of
-    ``variance``: the air data always, the others (rates, derivatives) where a column
-    depends on them."""
-    variants = samples if isinstance(samples, _Perturbations) else _Perturbations(samples)
-    columns = dict(function(variants.samples))
-    sources = [s for s in AIR_DATA_SOURCES if variance.get(s, 0.0) > 0.0]
-    others = tuple(s for s in noise_sources(variance)
-                   if s not in AIR_DATA_SOURCES and variance[s] > 0.0)
-    probe = function(variants.probe(others)) if others else columns
-    if any(not np.array_equal(probe[k], v) for k, v in columns.items()):
-        sources += others
-    jac = {}
-    for signal in sources:
-        step = source_step(signal)
-        up = function(variants(signal, step))
-        if signal not in AIR_DATA_SOURCES and all(np.array_equal(up[k], v)
-                                                  for k, v in columns.items()):
-            continue
-        down = function(variants(signal, -step))
-        jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
-    return columns, jac
-
-
-@dataclasses.dataclass
-class _Design:
-    """One coefficient's regression on some samples, with its noise model.
-
-    The estimator is :func:`~drake_uav.identification.regression.bcls`; this class adds
-    the bookkeeping of the loop (added columns, folds, noise-corrected errors).
-    """
-
-    names: list[str]
-    X: np.ndarray
-    z: np.ndarray
-    noise: PropagatedNoise
-
-    def extended(self, columns: Mapping[str, np.ndarray], jac, prefix: str = "") -> _Design:
-        names = [f"{prefix}{k}" for k in columns]
-        X = np.column_stack([self.X, *columns.values()])
-        added = {s: np.column_stack([jac[s][k] for k in columns]) for s in jac}
-        return _Design(self.names + names, X, self.z, self.noise.extended(added, len(columns)))
-
-    def without(self, prefix: str) -> _Design:
-        """The design without the columns whose names start with ``prefix``."""
-        return self.keeping([name for name in self.names if not name.startswith(prefix)])
-
-    def keeping(self, names: Sequence[str]) -> _Design:
-        """The design with only the columns ``names``, in its own order."""
-        keep = [i for i, name in enumerate(self.names) if name in names]
-        noise = PropagatedNoise(len(keep), {s: J[:, keep] for s, J in
-                                            self.noise.regressors.items()},
-                                self.noise.observation, self.noise.variance)
-        return _Design([self.names[i] for i in keep], self.X[:, keep], self.z, noise)
-
-    def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
-        """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
-        return compensated_normal_equations(self.X, self.z, self.noise, rows)
-
-    def solve(self, rows=None) -> np.ndarray:
-        return solve_normal_equations(*self.moments(rows))
-
-    def block_moments(self, edges: Sequence[int]) -> BlockMoments:
-        """The moments of the design summed over the blocked folds ``edges``."""
-        return BlockMoments.of(self.X, self.z, self.noise, edges)
-
-    def scores(self, theta: np.ndarray) -> np.ndarray:
-        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``."""
-        return moment_scores(self.X, self.z, theta, self.noise)
-
-    def inverse_normal_matrix(self) -> np.ndarray:
-        """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse)."""
-        return np.linalg.pinv(self.moments()[0])
-
-    def result(self, confidence: float = 0.95,
-               scores_covariance: np.ndarray | None = None) -> RegressionResult:
-        """The bias-compensated fit (:func:`~drake_uav.identification.regression.bcls`)."""
-        return bcls(self.X, self.z, self.noise, names=self.names, confidence=confidence,
-                    scores_covariance=scores_covariance)
-
-
-def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
-    """The aircraft's derivative names for ``coefficient`` (a constant term always)."""
-    names = [n for n in params.derivatives if n.split("_", 1)[0] == coefficient]
-    if f"{coefficient}_0" not in names:
-        names.insert(0, f"{coefficient}_0")
-    return names
-
-
-def _baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: str) -> _Design:
-    """The catalog's terms of ``coefficient``; for C_D also the terms of a thrust identified
-    from the flight (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`),
-    fitted again with every effect on the drag axis."""
-    names = baseline_names(params, coefficient)
-    with_thrust = coefficient == "CD"
-
-    def columns(smp):
-        X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
-        out = dict(zip(names, X.T, strict=True))
-        return out | thrust_correction_columns(smp) if with_thrust else out
-
-    variance = source_variances(samples, coefficient)
-    cols, jac = _columns_and_jacobians(columns, samples, variance)
-    noise = PropagatedNoise(
-        columns=len(cols),
-        regressors={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
-        observation={s: v for s, v in observation_sensitivity(samples, coefficient,
-                                                              params).items() if s in variance},
-        variance=variance,
-    )
-    return _Design(names=list(cols), X=np.column_stack(list(cols.values())),
-                   z=np.asarray(samples.coefficients[coefficient], dtype=float), noise=noise)
-
-
-@dataclasses.dataclass(frozen=True)
-class IdentifiedDerivatives:
-    """The aircraft model's derivatives identified from one flight (:func:`fit_derivatives`)."""
-
-    fits: Mapping[str, RegressionResult]
-    """Coefficient (``"CL"`` ...) -> its bias-compensated fit (method "BCLS")."""
-    names: tuple[str, ...]
-    """Every derivative name, coefficient after coefficient."""
-    estimate: np.ndarray
-    """(n,) estimates in ``names`` order."""
-    covariance: np.ndarray
-    """(n, n) joint covariance: the six fits share sensor noise (e.g. the sideslip vane
-    enters C_Y, C_l and C_n), so their errors are correlated; the diagonal blocks are
-    the fits' own covariances."""
-
-    def __getitem__(self, coefficient: str) -> RegressionResult:
-        """The fit of one coefficient."""
-        return self.fits[coefficient]
-
-    @property
-    def sigma(self) -> np.ndarray:
-        """(n,) standard errors in ``names`` order."""
-        return np.sqrt(np.diag(self.covariance))
-
-
-def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
-                    coefficients: Sequence[str] = COEFFICIENTS) -> IdentifiedDerivatives:
-    """Fits the aircraft's derivative structure (:func:`baseline_names`) to every sample.
-
-    The same errors-in-variables corrected fits as the discovery loop's baseline, on
-    the whole flight. The long-run covariance of all the fits' scores together gives
-    their joint covariance.
-    """
-    designs = [_baseline_design(samples, params, k) for k in coefficients]
-    scores = np.hstack([d.scores(d.solve()) for d in designs])
-    S = long_run_covariance(scores)
-    edges = np.cumsum([0] + [len(d.names) for d in designs])
-    blocks = [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
-    fits = {k: d.result(scores_covariance=S[b, b])
-            for k, d, b in zip(coefficients, designs, blocks, strict=True)}
-    A_inv = np.zeros_like(S)
-    for d, b in zip(designs, blocks, strict=True):
-        A_inv[b, b] = d.inverse_normal_matrix()
-    return IdentifiedDerivatives(
-        fits=fits, names=tuple(n for d in designs for n in d.names),
-        estimate=np.concatenate([fits[k].estimate for k in coefficients]),
-        covariance=sandwich_covariance(A_inv, S))
 
 
 def _column_space(X: np.ndarray) -> np.ndarray:
@@ -570,7 +153,7 @@ def _redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
 class _RoundBase:
     """The current design of one coefficient and its statistics, shared by the candidates."""
 
-    design: _Design
+    design: Design
     n_eff: float
     fold_errors: np.ndarray
     """(2, K) observed and noise-corrected held-out errors."""
@@ -582,7 +165,7 @@ class _RoundBase:
     """Orthonormal basis of the design's columns (redundancy test of candidate columns)."""
 
 
-def _round_base(design: _Design, edges: Sequence[int]) -> _RoundBase:
+def _round_base(design: Design, edges: Sequence[int]) -> _RoundBase:
     blocks = design.block_moments(edges)
     A, b, C_xx, c_xz = blocks.total()
     theta = solve_normal_equations(A, b)
@@ -698,7 +281,7 @@ def _batch_fold_errors(blocks: BlockMoments, X: np.ndarray, X_new: np.ndarray, z
     return out
 
 
-def _fit(coefficient: str, train: _Design, test: _Design, rate: float) -> CoefficientFit:
+def _fit(coefficient: str, train: Design, test: Design, rate: float) -> CoefficientFit:
     result = train.result()
     residual_test = test.z - test.X @ result.estimate
     return CoefficientFit(
@@ -753,14 +336,14 @@ class _Candidates:
     """
 
     def __init__(self, train: AeroSamples, params: FixedWingParams):
-        self.variants = _Perturbations(train)
+        self.variants = Perturbations(train)
         self.params = params
         self._cache: dict[tuple[str, str], _Columns] = {}
         self._matrices: dict[tuple[str, str], tuple[np.ndarray, dict[str, np.ndarray]]] = {}
 
     def _get(self, key: tuple[str, str], function: ColumnFunction, variance) -> _Columns:
         if key not in self._cache:
-            self._cache[key] = _Columns(*_columns_and_jacobians(function, self.variants,
+            self._cache[key] = _Columns(*columns_and_jacobians(function, self.variants,
                                                                 variance))
         return self._cache[key]
 
@@ -832,21 +415,21 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     train = samples.subset(slice(0, n_train))
     test = samples.subset(slice(n_train, n))
     edges = fold_edges(n_train, rule.folds)
-    designs = {k: _baseline_design(train, params, k) for k in fitted}
+    designs = {k: baseline_design(train, params, k) for k in fitted}
     pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
                        always=(f"{k}_0", *(n for n in d.names if n.startswith(THRUST_COLUMN))))
               if rule.parsimonious else Pruning(tuple(d.names), ())
               for k, d in designs.items()}
     # Effects are judged against the catalog's whole structure, so that none takes the
     # place of a term the flight hardly supports; the model reported is the pruned one.
-    search = _Search(designs, {k: _baseline_design(test, params, k) for k in fitted},
-                     _Candidates(train, params), _Perturbations(test), effects, rule,
+    search = _Search(designs, {k: baseline_design(test, params, k) for k in fitted},
+                     _Candidates(train, params), Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k].keeping(pruned[k].kept),
                         search.tests[k].keeping(pruned[k].kept), rate) for k in fitted}
     initial = {k: (search.designs[k], search.tests[k]) for k in fitted}
     vectors = JointSearch(vector_effect_library() if vector_effects is None else vector_effects,
-                          samples, _columns_and_jacobians, Evidence, FoundEffect)
+                          samples)
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
@@ -884,8 +467,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                            dropped={k: p.dropped for k, p in pruned.items() if p.dropped})
 
 
-def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, _Design],
-              test: tuple[AeroSamples, _Design], params: FixedWingParams, scale: float,
+def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, Design],
+              test: tuple[AeroSamples, Design], params: FixedWingParams, scale: float,
               rule: AdequacyRule) -> Adequacy:
     """The final fit's error against its noise floor on the training part and the
     held-out tail (:func:`~drake_uav.identification.adequacy.assess`)."""
@@ -974,8 +557,8 @@ class _Search:
     them, and the held-out decisions on the effects that pass the evidence tests
     (:class:`EvidenceRule`, :class:`HeldOutCheck`)."""
 
-    def __init__(self, designs: dict[str, _Design], tests: dict[str, _Design],
-                 pool: _Candidates, test_variants: _Perturbations, effects: Sequence[Effect],
+    def __init__(self, designs: dict[str, Design], tests: dict[str, Design],
+                 pool: _Candidates, test_variants: Perturbations, effects: Sequence[Effect],
                  rule: EvidenceRule, scales: Mapping[str, float]):
         self.designs, self.tests = designs, tests
         self.pool, self.test_variants = pool, test_variants
@@ -1014,8 +597,8 @@ class _Search:
         margin = self.rule.min_pse_reduction if data_driven else 0.0
         return margin - evidence.pse_reduction
 
-    def check(self, name: str, k: str, without: tuple[_Design, _Design],
-              with_effect: tuple[_Design, _Design], stage: str) -> HeldOutCheck:
+    def check(self, name: str, k: str, without: tuple[Design, Design],
+              with_effect: tuple[Design, Design], stage: str) -> HeldOutCheck:
         """The held-out decision on effect ``name`` for coefficient ``k``: each pair of
         (training, held-out) designs fitted on the first and evaluated on the second."""
         before, after = (_HeldOut.of(*designs, f"{name}:") for designs in (without, with_effect))
@@ -1068,7 +651,7 @@ class _HeldOut(NamedTuple):
     """Held-out RMS of the least-squares fit [-]."""
 
     @classmethod
-    def of(cls, train: _Design, test: _Design, prefix: str) -> _HeldOut:
+    def of(cls, train: Design, test: Design, prefix: str) -> _HeldOut:
         theta = train.solve()
         prediction = test.X @ theta
         own = np.array([name.startswith(prefix) for name in test.names])
@@ -1092,8 +675,8 @@ def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | No
                                evidence=evidence)
 
 
-def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effect | None,
-                 pool: _Candidates, test_variants: _Perturbations) -> tuple[_Design, _Design]:
+def _with_effect(train: Design, test: Design, evidence: Evidence, effect: Effect | None,
+                 pool: _Candidates, test_variants: Perturbations) -> tuple[Design, Design]:
     """The training and held-out designs of one coefficient with an accepted effect's columns
     (``effect`` None: a data-driven product)."""
     k, prefix = evidence.coefficient, f"{evidence.effect}:"
@@ -1103,7 +686,7 @@ def _with_effect(train: _Design, test: _Design, evidence: Evidence, effect: Effe
     else:
         function = _product_function(pool.params, k, evidence.columns)
         columns = pool.products(k, train.noise.variance)
-    held_out = _Columns(*_columns_and_jacobians(function, test_variants, test.noise.variance))
+    held_out = _Columns(*columns_and_jacobians(function, test_variants, test.noise.variance))
     columns, held_out = columns.pick(evidence.columns), held_out.pick(evidence.columns)
     return (train.extended(columns.columns, columns.jacobians, prefix=prefix),
             test.extended(held_out.columns, held_out.jacobians, prefix=prefix))

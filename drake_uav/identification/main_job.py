@@ -215,7 +215,7 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     The first steps of :func:`identify` without the search for missing effects: the
     log is isolated into coefficients (:func:`select_samples`) and each coefficient
     is fitted on the aircraft's own derivative names over the whole flight
-    (:func:`~drake_uav.identification.discovery.fit_derivatives`). Raises
+    (:func:`~drake_uav.identification.coefficient_design.fit_derivatives`). Raises
     :class:`~drake_uav.io.flight_log.FlightLogError` naming the problem when the log
     cannot be used.
     """

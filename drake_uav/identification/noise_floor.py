@@ -44,7 +44,7 @@ from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 if TYPE_CHECKING:
-    from drake_uav.identification.discovery import DiscoveryResult
+    from drake_uav.identification.discovery_result import DiscoveryResult
 
 __all__ = ["NoiseFloor", "held_out_noise_floor", "noise_variance_per_sample",
            "smoothing_gains", "ISOLATION_WINDOW"]

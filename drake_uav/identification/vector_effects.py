@@ -17,9 +17,9 @@ elimination of each coefficient's columns (the equation-error estimation of seve
 outputs sharing parameters, Klein & Morelli 2006, ch. 5 and 6; Frisch-Waugh-Lovell).
 One partial F-test with as many degrees of freedom as parameters, blocked
 cross-validation of the weighted sum of the coefficients' held-out errors and the BIC
-decide (:class:`~drake_uav.identification.discovery.EvidenceRule`, in the same family-wise
-Bonferroni count as the per-coefficient candidates); the held-out rules
-(:class:`~drake_uav.identification.discovery.HeldOutCheck`) then decide coefficient by
+decide (:class:`~drake_uav.identification.discovery_result.EvidenceRule`, in the same
+family-wise Bonferroni count as the per-coefficient candidates); the held-out rules
+(:class:`~drake_uav.identification.discovery_result.HeldOutCheck`) then decide coefficient by
 coefficient. An accepted effect enters each coefficient it is kept on as one column, its
 jointly estimated shape; its reported parameters come from a joint refit against the
 final fits, with a sandwich covariance over all the coefficients' scores.
@@ -45,10 +45,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from drake_uav.identification.coefficient_design import columns_and_jacobians
+from drake_uav.identification.discovery_result import Evidence, EvidenceRule, FoundEffect
 from drake_uav.identification.errors_in_variables import (
     is_well_posed,
     long_run_covariance,
@@ -69,9 +70,6 @@ from drake_uav.identification.residuals import effective_sample_size
 from drake_uav.model.air_data import velocity_from_air_data
 from drake_uav.model.coefficients import body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import FixedWingParams
-
-if TYPE_CHECKING:
-    from drake_uav.identification.discovery import Evidence, EvidenceRule, FoundEffect
 
 __all__ = ["VectorEffect", "JointEvidence", "JointSearch", "vector_effect",
            "vector_effect_library", "DIRECTIONS", "ATTITUDE", "GPS_VELOCITY", "GPS_POSITION"]
@@ -371,23 +369,17 @@ class JointEvidence:
         return float(sum(self.reductions.values()))
 
 
-
 class JointSearch:
     """The vector effects of one discovery: their columns, their joint evidence in each
     round, their acceptance against the per-coefficient candidates and their parameters.
 
     ``search`` arguments are the discovery's ``_Search`` (its designs, held-out check and
     sample variants); ``bases`` its round bases (design, effective sample size, fold
-    errors, block moments, basis). The discovery also hands over how it evaluates columns
-    with their noise sensitivities and its result types (this module does not import it).
+    errors, block moments, basis).
     """
 
-    def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples,
-                 columns_and_jacobians: Callable, evidence_type: type[Evidence],
-                 found_type: type[FoundEffect]):
+    def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples):
         self.effects = [e for e in effects if e.available(samples)]
-        self._columns_and_jacobians = columns_and_jacobians
-        self._evidence_type, self._found_type = evidence_type, found_type
         self._train: dict[tuple[VectorEffect, str], tuple[dict, dict]] = {}
         self._accepted: dict[str, VectorEffect] = {}
         """The effects accepted, by name, with the point they were accepted at."""
@@ -397,7 +389,7 @@ class JointSearch:
                  coefficients: Sequence[str] | None = None) -> list[Evidence]:
         """One ``Evidence`` per effect and coefficient (``coefficients``: only those): the
         joint statistics with the coefficient's own held-out reduction."""
-        return [self._evidence_type(j.effect.name, k, j.parameters, j.reductions[k],
+        return [Evidence(j.effect.name, k, j.parameters, j.reductions[k],
                                     j.improved[k], j.f_statistic, j.p_value, j.delta_bic,
                                     j.passed)
                 for j in joint for k in j.coefficients
@@ -412,7 +404,7 @@ class JointSearch:
         if test or key not in self._train:
             variants = search.test_variants if test else search.pool.variants
             design = (search.tests if test else search.designs)[k]
-            columns, jac = self._columns_and_jacobians(
+            columns, jac = columns_and_jacobians(
                 lambda smp: effect.columns(smp, search.pool.params, k), variants,
                 design.noise.variance)
             names = [n for n, v in columns.items() if np.any(v != 0.0)]
@@ -490,7 +482,7 @@ class JointSearch:
                     if magnitude else 1.0)
             return {i: _force_column(view, params, k, size * ned_to_body(
                 view, np.broadcast_to(np.eye(3)[i], (len(view), 3)))) for i in range(3)}
-        columns, jac = self._columns_and_jacobians(along_axes, search.pool.variants, variance)
+        columns, jac = columns_and_jacobians(along_axes, search.pool.variants, variance)
         return (np.column_stack([columns[i] for i in range(3)]),
                 {s: np.column_stack([j[i] for i in range(3)]) for s, j in jac.items()})
 
@@ -628,7 +620,7 @@ class JointSearch:
         if not kept:
             return None
         self._accepted[effect.name] = effect
-        return self._found_type(effect.name, effect.explanation, "aerodynamic", tuple(kept),
+        return FoundEffect(effect.name, effect.explanation, "aerodynamic", tuple(kept),
                                 tuple(self.evidence([joint], kept)), {})
 
     def _with_shape(self, search, joint: JointEvidence, k: str, design, test: bool = False):

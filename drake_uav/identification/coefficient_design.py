@@ -1,0 +1,237 @@
+"""One coefficient's regression with its noise model, as the discovery loop fits it.
+
+The columns of a candidate come with their derivatives with respect to the noise sources
+(:func:`columns_and_jacobians`), which the errors-in-variables fits read
+(:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`); :class:`Design`
+is one coefficient's regression on some samples with that noise model;
+:func:`baseline_design` the catalog's structure of a coefficient; :func:`fit_derivatives`
+the whole aircraft's derivatives from one flight, with their joint covariance.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from drake_uav.identification.errors_in_variables import (
+    BlockMoments,
+    PropagatedNoise,
+    compensated_normal_equations,
+    long_run_covariance,
+    moment_scores,
+    sandwich_covariance,
+    solve_normal_equations,
+)
+from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.propulsion import thrust_correction_columns
+from drake_uav.identification.regression import RegressionResult, bcls
+from drake_uav.identification.regressor_noise import (
+    AIR_DATA_SOURCES,
+    noise_sources,
+    observation_sensitivity,
+    perturbed,
+    source_step,
+    source_variances,
+)
+from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
+from drake_uav.vehicles.fixed_wing import FixedWingParams
+
+__all__ = ["ColumnFunction", "Perturbations", "columns_and_jacobians", "Design",
+           "baseline_names", "baseline_design", "IdentifiedDerivatives", "fit_derivatives"]
+
+ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
+
+
+class Perturbations:
+    """Samples and their copies with one noise source moved by +-its step
+    (:func:`~drake_uav.identification.regressor_noise.perturbed`), and the probe: every
+    source but the air data moved at once, which tells the columns that depend on none
+    of them (most) from the others.
+
+    The copies are made once and shared by every column function evaluated on them.
+    """
+
+    def __init__(self, samples: AeroSamples):
+        self.samples = samples
+        self._copies: dict[tuple, AeroSamples] = {}
+
+    def __call__(self, source: str, step: float) -> AeroSamples:
+        key = (source, step)
+        if key not in self._copies:
+            self._copies[key] = perturbed(self.samples, source, step)
+        return self._copies[key]
+
+    def probe(self, sources: tuple[str, ...]) -> AeroSamples:
+        """The samples with every one of ``sources`` moved by its step."""
+        if sources not in self._copies:
+            moved = self.samples
+            for source in sources:
+                moved = perturbed(moved, source, source_step(source))
+            self._copies[sources] = moved
+        return self._copies[sources]
+
+
+def columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | Perturbations,
+                           variance):
+    """Columns of ``function(samples)`` and their derivatives w.r.t. the noise sources of
+    ``variance``: the air data always, the others (rates, derivatives) where a column
+    depends on them."""
+    variants = samples if isinstance(samples, Perturbations) else Perturbations(samples)
+    columns = dict(function(variants.samples))
+    sources = [s for s in AIR_DATA_SOURCES if variance.get(s, 0.0) > 0.0]
+    others = tuple(s for s in noise_sources(variance)
+                   if s not in AIR_DATA_SOURCES and variance[s] > 0.0)
+    probe = function(variants.probe(others)) if others else columns
+    if any(not np.array_equal(probe[k], v) for k, v in columns.items()):
+        sources += others
+    jac = {}
+    for signal in sources:
+        step = source_step(signal)
+        up = function(variants(signal, step))
+        if signal not in AIR_DATA_SOURCES and all(np.array_equal(up[k], v)
+                                                  for k, v in columns.items()):
+            continue
+        down = function(variants(signal, -step))
+        jac[signal] = {k: (up[k] - down[k]) / (2.0 * step) for k in columns}
+    return columns, jac
+
+
+@dataclasses.dataclass
+class Design:
+    """One coefficient's regression on some samples, with its noise model.
+
+    The estimator is :func:`~drake_uav.identification.regression.bcls`; this class adds
+    the bookkeeping of the loop (added columns, folds, noise-corrected errors).
+    """
+
+    names: list[str]
+    X: np.ndarray
+    z: np.ndarray
+    noise: PropagatedNoise
+
+    def extended(self, columns: Mapping[str, np.ndarray], jac, prefix: str = "") -> Design:
+        names = [f"{prefix}{k}" for k in columns]
+        X = np.column_stack([self.X, *columns.values()])
+        added = {s: np.column_stack([jac[s][k] for k in columns]) for s in jac}
+        return Design(self.names + names, X, self.z, self.noise.extended(added, len(columns)))
+
+    def without(self, prefix: str) -> Design:
+        """The design without the columns whose names start with ``prefix``."""
+        return self.keeping([name for name in self.names if not name.startswith(prefix)])
+
+    def keeping(self, names: Sequence[str]) -> Design:
+        """The design with only the columns ``names``, in its own order."""
+        keep = [i for i, name in enumerate(self.names) if name in names]
+        noise = PropagatedNoise(len(keep), {s: J[:, keep] for s, J in
+                                            self.noise.regressors.items()},
+                                self.noise.observation, self.noise.variance)
+        return Design([self.names[i] for i in keep], self.X[:, keep], self.z, noise)
+
+    def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
+        return compensated_normal_equations(self.X, self.z, self.noise, rows)
+
+    def solve(self, rows=None) -> np.ndarray:
+        return solve_normal_equations(*self.moments(rows))
+
+    def block_moments(self, edges: Sequence[int]) -> BlockMoments:
+        """The moments of the design summed over the blocked folds ``edges``."""
+        return BlockMoments.of(self.X, self.z, self.noise, edges)
+
+    def scores(self, theta: np.ndarray) -> np.ndarray:
+        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``."""
+        return moment_scores(self.X, self.z, theta, self.noise)
+
+    def inverse_normal_matrix(self) -> np.ndarray:
+        """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse)."""
+        return np.linalg.pinv(self.moments()[0])
+
+    def result(self, confidence: float = 0.95,
+               scores_covariance: np.ndarray | None = None) -> RegressionResult:
+        """The bias-compensated fit (:func:`~drake_uav.identification.regression.bcls`)."""
+        return bcls(self.X, self.z, self.noise, names=self.names, confidence=confidence,
+                    scores_covariance=scores_covariance)
+
+
+def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
+    """The aircraft's derivative names for ``coefficient`` (a constant term always)."""
+    names = [n for n in params.derivatives if n.split("_", 1)[0] == coefficient]
+    if f"{coefficient}_0" not in names:
+        names.insert(0, f"{coefficient}_0")
+    return names
+
+
+def baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: str) -> Design:
+    """The catalog's terms of ``coefficient``; for C_D also the terms of a thrust identified
+    from the flight (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`),
+    fitted again with every effect on the drag axis."""
+    names = baseline_names(params, coefficient)
+    with_thrust = coefficient == "CD"
+
+    def columns(smp):
+        X = regressor_matrix(names, smp.aligned(coefficient).condition, params.b, params.c)
+        out = dict(zip(names, X.T, strict=True))
+        return out | thrust_correction_columns(smp) if with_thrust else out
+
+    variance = source_variances(samples, coefficient)
+    cols, jac = columns_and_jacobians(columns, samples, variance)
+    noise = PropagatedNoise(
+        columns=len(cols),
+        regressors={s: np.column_stack([j[k] for k in cols]) for s, j in jac.items()},
+        observation={s: v for s, v in observation_sensitivity(samples, coefficient,
+                                                              params).items() if s in variance},
+        variance=variance,
+    )
+    return Design(names=list(cols), X=np.column_stack(list(cols.values())),
+                   z=np.asarray(samples.coefficients[coefficient], dtype=float), noise=noise)
+
+
+@dataclasses.dataclass(frozen=True)
+class IdentifiedDerivatives:
+    """The aircraft model's derivatives identified from one flight (:func:`fit_derivatives`)."""
+
+    fits: Mapping[str, RegressionResult]
+    """Coefficient (``"CL"`` ...) -> its bias-compensated fit (method "BCLS")."""
+    names: tuple[str, ...]
+    """Every derivative name, coefficient after coefficient."""
+    estimate: np.ndarray
+    """(n,) estimates in ``names`` order."""
+    covariance: np.ndarray
+    """(n, n) joint covariance: the six fits share sensor noise (e.g. the sideslip vane
+    enters C_Y, C_l and C_n), so their errors are correlated; the diagonal blocks are
+    the fits' own covariances."""
+
+    def __getitem__(self, coefficient: str) -> RegressionResult:
+        """The fit of one coefficient."""
+        return self.fits[coefficient]
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """(n,) standard errors in ``names`` order."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
+                    coefficients: Sequence[str] = COEFFICIENTS) -> IdentifiedDerivatives:
+    """Fits the aircraft's derivative structure (:func:`baseline_names`) to every sample.
+
+    The same errors-in-variables corrected fits as the discovery loop's baseline, on
+    the whole flight. The long-run covariance of all the fits' scores together gives
+    their joint covariance.
+    """
+    designs = [baseline_design(samples, params, k) for k in coefficients]
+    scores = np.hstack([d.scores(d.solve()) for d in designs])
+    S = long_run_covariance(scores)
+    edges = np.cumsum([0] + [len(d.names) for d in designs])
+    blocks = [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    fits = {k: d.result(scores_covariance=S[b, b])
+            for k, d, b in zip(coefficients, designs, blocks, strict=True)}
+    A_inv = np.zeros_like(S)
+    for d, b in zip(designs, blocks, strict=True):
+        A_inv[b, b] = d.inverse_normal_matrix()
+    return IdentifiedDerivatives(
+        fits=fits, names=tuple(n for d in designs for n in d.names),
+        estimate=np.concatenate([fits[k].estimate for k in coefficients]),
+        covariance=sandwich_covariance(A_inv, S))

@@ -1,0 +1,254 @@
+"""The discovery loop's rule and what it returns.
+
+:class:`EvidenceRule`, the thresholds a candidate must pass; :class:`Evidence`, what one
+candidate showed on the folds; :class:`HeldOutCheck`, the decision on the held-out tail;
+:class:`FoundEffect`, :class:`CoefficientFit` and :class:`DiscoveryResult`, what
+:func:`~drake_uav.identification.discovery.discover` found. The loop and the rules'
+reasons are in :mod:`~drake_uav.identification.discovery`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+
+from drake_uav.identification.adequacy import Adequacy, AdequacyRule, coefficient_symbol
+from drake_uav.identification.errors_in_variables import PropagatedNoise
+from drake_uav.identification.parsimony import DroppedTerm
+from drake_uav.identification.regression import RegressionResult
+from drake_uav.identification.residuals import ResidualDiagnosis
+
+__all__ = ["NO_EFFECT_MESSAGE", "EvidenceRule", "Evidence", "FoundEffect", "HeldOutCheck",
+           "CoefficientFit", "DiscoveryResult"]
+
+NO_EFFECT_MESSAGE = "no missing effect found"
+
+
+@dataclasses.dataclass(frozen=True)
+class EvidenceRule:
+    """Thresholds a candidate must pass to be added (all of them).
+
+    ``p_value`` is the family-wise level: it is divided by the number of
+    candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
+    smallest held-out prediction-error reduction worth a new term (fraction of
+    the baseline PSE), and what a catalog term of the baseline must gain on the folds or
+    on the flight's edges to be kept (:mod:`~drake_uav.identification.parsimony`);
+    ``min_folds`` how many of the ``folds`` (at least 3) must improve (less the
+    effect's :attr:`~drake_uav.identification.effects.Effect.blind_folds`).
+
+    A candidate that passes is then checked, per coefficient, on the held-out tail
+    (``holdout_fraction`` of the flight, which no test above saw;
+    :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
+    prediction error falls with it by at least ``min_pse_reduction`` (the gain the
+    folds must show on average, so that cross-validation and the held-out tail ask
+    the same of an effect), for the bias-compensated fit (the noise of sources only
+    the effect's columns carry set aside) and the least-squares one alike, and its
+    contribution there (RMS of the
+    change it makes to the prediction) reaches both ``min_share_of_variation`` of the
+    coefficient's standard deviation over the flight and ``min_share_of_error`` of
+    the held-out error left with it. A coefficient whose standard deviation over the
+    training or the held-out part is at most ``constant_tolerance`` times
+    ``1 + |mean|`` does not vary and is not fitted.
+
+    ``named_first``: the data-driven products are scored only in a round where no named
+    effect is kept (each family at its own Bonferroni level); False puts both in one pool,
+    one level over all, where a product ranks ahead of a named effect only when its
+    held-out gain is larger by ``min_pse_reduction``.
+
+    ``parsimonious``: the baseline drops the catalog terms that the flight does not
+    support (:mod:`~drake_uav.identification.parsimony`); False fits the catalog's
+    structure as it is.
+    """
+
+    p_value: float = 1e-3
+    min_pse_reduction: float = 0.02
+    folds: int = 5
+    min_folds: int = 5
+    holdout_fraction: float = 0.3
+    max_rounds: int = 6
+    min_share_of_variation: float = 0.01
+    min_share_of_error: float = 0.1
+    constant_tolerance: float = 1e-9
+    named_first: bool = True
+    parsimonious: bool = True
+    adequacy: AdequacyRule = AdequacyRule()
+    """When the final fit's error is too far above the noise floor to call the model
+    complete (:mod:`~drake_uav.identification.adequacy`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Evidence:
+    """Statistics of one candidate (an effect on one coefficient)."""
+
+    effect: str
+    coefficient: str
+    columns: tuple[str, ...]
+    pse_reduction: float
+    """Mean relative reduction of the held-out prediction error over the folds."""
+    folds_improved: int
+    f_statistic: float
+    p_value: float
+    """Partial F-test p-value with the effective sample size."""
+    delta_bic: float
+    """BIC(with) - BIC(without), effective sample size; negative favours the effect."""
+    passed: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class FoundEffect:
+    """An effect the loop added, with its evidence and identified parameters."""
+
+    name: str
+    explanation: str
+    kind: str
+    coefficients: tuple[str, ...]
+    evidence: tuple[Evidence, ...]
+    parameters: Mapping[str, tuple[float, float]]
+    """``"<coefficient>:<column>" -> (estimate, sigma)``."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HeldOutCheck:
+    """The held-out decision on one effect for one coefficient (:class:`EvidenceRule`).
+
+    Both fits are made on the training part; the errors and the contribution are read
+    on the held-out tail. Two predictions are judged. The bias-compensated fit's, right
+    for the aircraft's parameters, must improve, once the noise of the sources only the
+    effect's columns depend on is set aside: a true term on a regressor with noise of its
+    own (alpha-dot differentiated from the vane) passes that noise into the prediction
+    at full strength. Noise the effect shares with the other columns (the air data)
+    earns it nothing: an over-estimated variance would credit any column that depends on
+    it. The least-squares fit's, the best predictor of the measured coefficient from the
+    measured regressors, which no noise model enters, must improve as much.
+    """
+
+    effect: str
+    coefficient: str
+    stage: str
+    """"round": when the effect won a round; "final": against the final fit without it."""
+    rms_without: float
+    """Held-out equation-error RMS of the fit without the effect [-]."""
+    rms_with: float
+    """The same with the effect [-]."""
+    contribution: float
+    """RMS over the held-out samples of the change the effect makes to the prediction [-]."""
+    threshold: float
+    """Smallest contribution that matters [-]: the larger of the two shares of the rule."""
+    kept: bool
+    min_gain: float = 0.0
+    """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
+    own_noise: float = 0.0
+    """Mean square that the noise sources only the effect's columns depend on add to the
+    held-out error of the fit with it [-]
+    (:func:`~drake_uav.identification.errors_in_variables.noise_error_energy`)."""
+    prediction_gain: float = float("inf")
+    """Held-out mean-square reduction of the least-squares prediction with the effect,
+    fraction of the one without [-]."""
+
+    @property
+    def gain(self) -> float:
+        """Held-out prediction-error (mean-square) reduction without the noise of the
+        effect's own sources, fraction of the PSE without the effect [-]."""
+        if self.rms_without <= 0:
+            return 0.0
+        return 1.0 - (self.rms_with**2 - self.own_noise) / self.rms_without**2
+
+    @property
+    def reason(self) -> str:
+        """Why the effect was not kept on the coefficient ("" when it was)."""
+        if self.gain < 0.0:
+            return (f"its held-out error rises with it ({self.rms_without:.4g} -> "
+                    f"{self.rms_with:.4g}"
+                    + (f", {np.sqrt(max(self.rms_with**2 - self.own_noise, 0.0)):.4g} without "
+                       "the noise of its own sources)" if self.own_noise else ")"))
+        if self.gain < self.min_gain:
+            return (f"its held-out prediction error falls by {100 * self.gain:.2g} %, less "
+                    f"than {100 * self.min_gain:.2g} %")
+        if self.prediction_gain < self.min_gain:
+            return (f"the held-out error of its least-squares prediction falls by "
+                    f"{100 * self.prediction_gain:.2g} %, less than {100 * self.min_gain:.2g} %")
+        if self.contribution < self.threshold:
+            return (f"its held-out contribution {self.contribution:.2g} is below "
+                    f"{self.threshold:.2g}")
+        return ""
+
+
+@dataclasses.dataclass(frozen=True)
+class CoefficientFit:
+    """A fitted coefficient model: structure, OLS result and held-out error."""
+
+    coefficient: str
+    names: tuple[str, ...]
+    result: RegressionResult
+    rms_train: float
+    rms_holdout: float
+    holdout_residual: np.ndarray
+    holdout_design: np.ndarray
+    """(N_holdout, n) regressor columns on the held-out samples, in ``names`` order."""
+    diagnosis: ResidualDiagnosis
+    holdout_noise: PropagatedNoise | None = None
+    """The sensor noise the errors-in-variables fit carries to ``holdout_design`` and to the
+    held-out coefficient (the noise floor of ``rms_holdout`` reads it)."""
+    training_design: np.ndarray | None = None
+    """(N_train, n) regressor columns on the training samples, in ``names`` order."""
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscoveryResult:
+    """Everything the loop found, before and after."""
+
+    baseline: Mapping[str, CoefficientFit]
+    final: Mapping[str, CoefficientFit]
+    found: tuple[FoundEffect, ...]
+    rounds: tuple[tuple[Evidence, ...], ...]
+    """Ranked evidence of every round."""
+    holdout_start: float
+    """Time [s] where the held-out tail begins."""
+    checks: tuple[HeldOutCheck, ...] = ()
+    """Every held-out decision on a passing candidate, in the order made."""
+    skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
+    adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
+    """Fitted coefficient -> its final fit's error against the noise floor."""
+    dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
+    """Fitted coefficient -> the catalog's terms its baseline dropped, which the flight does
+    not support (:mod:`~drake_uav.identification.parsimony`); each is 0 in the identified
+    model."""
+
+    @property
+    def incomplete(self) -> dict[str, Adequacy]:
+        """The coefficients whose final error the sensor noise does not explain: the model
+        is incomplete there (:class:`~drake_uav.identification.adequacy.Adequacy`)."""
+        return {k: a for k, a in self.adequacy.items() if a.incomplete}
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """One line per skipped coefficient, per baseline term dropped and per effect not
+        kept on a coefficient where it passed the evidence tests."""
+        notes = [f"{k} skipped: {why}" for k, why in self.skipped.items()]
+        notes += [term.line for terms in self.dropped.values() for term in terms]
+        notes += [f"{c.effect} not kept on {c.coefficient}: {c.reason}"
+                  for c in self.checks if not c.kept]
+        return tuple(notes)
+
+    @property
+    def message(self) -> str:
+        """One line: the effects found, or that none was; and where the model is still
+        incomplete ("the model is incomplete for C_D: held-out error 2.1x the noise
+        floor, ...")."""
+        incomplete = "; ".join(f"{coefficient_symbol(k)}: {a.explanation}"
+                               for k, a in self.incomplete.items())
+        if not self.found:
+            return f"the model is incomplete for {incomplete}" if incomplete else \
+                NO_EFFECT_MESSAGE
+        found = "missing effect(s) found: " + ", ".join(
+            f"{f.name} ({', '.join(f.coefficients)})" for f in self.found)
+        return f"{found}; the model is still incomplete for {incomplete}" if incomplete \
+            else found
+
+    def rms_change(self) -> dict[str, tuple[float, float]]:
+        """Held-out equation-error RMS (before, after) per coefficient."""
+        return {k: (self.baseline[k].rms_holdout, self.final[k].rms_holdout)
+                for k in self.baseline}
