@@ -140,7 +140,8 @@ def _force_x_on_drag(condition, flight, params):
 
 
 def _alphadot_term(condition, flight, params):
-    return differentiate(flight.time, condition.alpha) * params.c / (2.0 * condition.airspeed)
+    """Pitching-moment change of C_m_alphadot = -1, a downwash lag's sign."""
+    return -differentiate(flight.time, condition.alpha) * params.c / (2.0 * condition.airspeed)
 
 
 def _delay_term(condition, flight, params):
@@ -278,7 +279,7 @@ INJECTED: dict[str, Injection] = {
             p.b / (2 * c.airspeed)) ** 2)(k, p)),
     "alphadot_pitch": Injection(
         "unsteady_alphadot", "Cm", _alphadot_term,
-        lambda k, p: {"aircraft": p.with_derivatives(Cm_alphadot=k)}),
+        lambda k, p: {"aircraft": p.with_derivatives(Cm_alphadot=-k)}),
     "servo_delay": Injection(
         "actuator_time_delay", "Cm", _delay_term,
         lambda k, p: {"actuator_delay": k}, strength_step=0.01),
@@ -298,10 +299,10 @@ INJECTED: dict[str, Injection] = {
         "logged:tension", "CD", _tension_on_drag, _tether, logged=_tension_logged),
 }
 """The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
-alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = 1; a 1 s
-elevator and throttle delay; a 1 N tow force along +x body; the same force 0.3 m
-below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D growing by 1 over the
-flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
+alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = -1 (a
+downwash lag's sign); a 1 s elevator and throttle delay; a 1 N tow force along +x body;
+the same force 0.3 m below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D
+growing by 1 over the flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
 groups: a calibration error the data-compatibility check names); a 1 N pull towards the
 fixed point :data:`PULL_POINT` at the centre of gravity (a vector effect on C_L, C_D and
 C_Y, its size measured on C_Y); a tether pulling along -x body with a tension of mean 3 N
