@@ -98,6 +98,7 @@ from drake_uav.identification.errors_in_variables import (
 from drake_uav.identification.isolation import LOGGED, AeroSamples
 from drake_uav.identification.noise_floor import noise_variance_per_sample
 from drake_uav.identification.parsimony import Pruning, prune
+from drake_uav.identification.plausibility import implausible_derivatives
 from drake_uav.identification.propulsion import THRUST_COLUMN
 from drake_uav.identification.regression import f_survival, r_factor
 from drake_uav.identification.residuals import diagnose, effective_sample_size
@@ -605,11 +606,14 @@ class _Search:
         contribution = float(np.sqrt(np.mean((after.prediction - before.prediction) ** 2)))
         threshold = max(self.rule.min_share_of_variation * self.scales[k],
                         self.rule.min_share_of_error * after.rms)
+        implausible = implausible_derivatives(
+            {f"{k}_{column}": value for column, value in after.parameters.items()})
         check = HeldOutCheck(name, k, stage, before.rms, after.rms, contribution, threshold,
                              kept=False, min_gain=self.rule.min_pse_reduction,
                              own_noise=after.own_noise,
                              prediction_gain=1.0 - (after.least_squares_rms
-                                                    / before.least_squares_rms) ** 2)
+                                                    / before.least_squares_rms) ** 2,
+                             implausible="; ".join(w.message for w in implausible))
         return dataclasses.replace(check, kept=not check.reason)
 
     def final_check(self, found: Sequence[FoundEffect]) -> list[FoundEffect]:
@@ -649,6 +653,8 @@ class _HeldOut(NamedTuple):
     add to its error [-]."""
     least_squares_rms: float
     """Held-out RMS of the least-squares fit [-]."""
+    parameters: dict[str, float]
+    """The fitted values of the columns named ``prefix...``, by the rest of their name."""
 
     @classmethod
     def of(cls, train: Design, test: Design, prefix: str) -> _HeldOut:
@@ -663,7 +669,10 @@ class _HeldOut(NamedTuple):
         least_squares = solve_normal_equations(train.X.T @ train.X, train.X.T @ train.z)
         return cls(float(np.sqrt(np.mean((test.z - prediction) ** 2))), prediction,
                    float(own_noise) / len(test.z),
-                   float(np.sqrt(np.mean((test.z - test.X @ least_squares) ** 2))))
+                   float(np.sqrt(np.mean((test.z - test.X @ least_squares) ** 2))),
+                   {name[len(prefix):]: float(value)
+                    for name, value in zip(test.names, theta, strict=True)
+                    if name.startswith(prefix)})
 
 
 def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | None:

@@ -121,7 +121,8 @@ class HeldOutCheck:
     at full strength. Noise the effect shares with the other columns (the air data)
     earns it nothing: an over-estimated variance would credit any column that depends on
     it. The least-squares fit's, the best predictor of the measured coefficient from the
-    measured regressors, which no noise model enters, must improve as much.
+    measured regressors, which no noise model enters, must improve as much. A term named
+    like a derivative of known sign must have a plausible value (:attr:`implausible`).
     """
 
     effect: str
@@ -146,6 +147,10 @@ class HeldOutCheck:
     prediction_gain: float = float("inf")
     """Held-out mean-square reduction of the least-squares prediction with the effect,
     fraction of the one without [-]."""
+    implausible: str = ""
+    """Why a term of the effect fitted on the training part is not the physics it names
+    (a value outside :data:`~drake_uav.identification.plausibility.PLAUSIBLE_RANGES`:
+    a downwash lag's alpha-dot derivative of the wrong sign); "" when none is."""
 
     @property
     def gain(self) -> float:
@@ -172,7 +177,7 @@ class HeldOutCheck:
         if self.contribution < self.threshold:
             return (f"its held-out contribution {self.contribution:.2g} is below "
                     f"{self.threshold:.2g}")
-        return ""
+        return self.implausible
 
 
 @dataclasses.dataclass(frozen=True)

@@ -14,6 +14,16 @@ tail-aft layout, the magnitudes are a few times the typical small-UAV values of 
 McLain 2012, ch. 4 and app. E (Aerosonde: C_L_alpha 5.61, C_L_q 7.95, C_m_alpha -2.74,
 C_m_q -38.2, C_Y_beta -0.98, C_l_p -0.51, C_n_beta 0.073, C_n_r -0.095). Surface
 derivatives are bounded in magnitude only (catalogs disagree on the deflection sign).
+The alpha-dot derivatives are those of the downwash lag (Etkin & Reid 1996, ch. 5):
+``C_L_alphadot = 2 a_t V_H d(epsilon)/d(alpha)``, positive, and ``C_m_alphadot`` that
+times ``-l_t / c``, negative (tail lift slope ``a_t``, tail volume ``V_H``, tail arm
+``l_t``; about 1.6 and -8 for ``a_t = 4``, ``V_H = 0.5``, ``d(epsilon)/d(alpha) = 0.4``,
+``l_t = 5 c``).
+
+The same table decides whether the discovery keeps an effect's term
+(:class:`~drake_uav.identification.discovery_result.HeldOutCheck`): a term named like a
+derivative of the table (``unsteady_alphadot`` on C_L and C_m) is not kept with a value
+outside its range, which is not the physics the effect names.
 """
 
 from __future__ import annotations
@@ -26,6 +36,8 @@ __all__ = ["PlausibleRange", "PLAUSIBLE_RANGES", "DerivativeWarning", "implausib
 
 _STABILITY = "Beard & McLain 2012, ch. 4 (stability derivatives of a tail-aft aircraft)"
 _TYPICAL = "Beard & McLain 2012, app. E (Aerosonde), a few times over"
+_DOWNWASH_LAG = ("Etkin & Reid 1996, ch. 5 (the alpha-dot derivatives: the tail meets the "
+                 "downwash of an earlier alpha), typical values a few times over")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +60,8 @@ PLAUSIBLE_RANGES: Mapping[str, PlausibleRange] = {
     "CL_q": PlausibleRange(-10.0, 30.0, "lift from pitch rate: tail lift, of order 10",
                            _TYPICAL),
     "CL_elevator": PlausibleRange(-1.0, 1.0, "elevator lift effectiveness", _TYPICAL),
+    "CL_alphadot": PlausibleRange(0.0, 10.0, "lift from the downwash lag at the tail: "
+                                  "positive", _DOWNWASH_LAG),
     "CD_0": PlausibleRange(0.0, 0.3, "zero-lift drag: positive, a few hundredths",
                            _TYPICAL),
     "CD_alpha2": PlausibleRange(0.0, 5.0, "induced drag grows with alpha^2: positive",
@@ -61,6 +75,8 @@ PLAUSIBLE_RANGES: Mapping[str, PlausibleRange] = {
                                "unstable)", _STABILITY),
     "Cm_q": PlausibleRange(-80.0, 0.0, "pitch damping: negative", _STABILITY),
     "Cm_elevator": PlausibleRange(-3.0, 3.0, "elevator pitch effectiveness", _TYPICAL),
+    "Cm_alphadot": PlausibleRange(-40.0, 0.0, "pitching moment from the downwash lag at the "
+                                  "tail: negative", _DOWNWASH_LAG),
     "Cn_beta": PlausibleRange(0.0, 0.5, "weathercock stability: positive", _STABILITY),
     "Cn_r": PlausibleRange(-1.0, 0.0, "yaw damping: negative", _STABILITY),
 }
