@@ -71,9 +71,9 @@ def test_each_source_moves_its_own_signal_in_both_views(noisy_and_exact):
         np.testing.assert_array_equal(view.condition.q, before.condition.q)
 
 
-def _with_downwash_lag(seed):
+def _with_downwash_lag(seed, cm_alphadot=CM_ALPHADOT):
     """(aircraft, samples) of a 120 s flight with the default sensors in light turbulence,
-    whose measured C_m has C_m_alphadot * c alpha_dot / (2 Va) added, alpha-dot the
+    whose measured C_m has ``cm_alphadot * c alpha_dot / (2 Va)`` added, alpha-dot the
     isolation's derivative of the true angle of attack: the term a lagging downwash adds
     (put into the data, so that the vane's noise is the only error of its regressor)."""
     params = aerosonde()
@@ -81,7 +81,7 @@ def _with_downwash_lag(seed):
     samples = samples_from_log(log, params)
     alpha = np.interp(samples.time, log.time, log["alpha"])
     airspeed = np.interp(samples.time, log.time, log["airspeed"])
-    lag = CM_ALPHADOT * params.c * differentiate(samples.time, alpha) / (2.0 * airspeed)
+    lag = cm_alphadot * params.c * differentiate(samples.time, alpha) / (2.0 * airspeed)
     return params, dataclasses.replace(
         samples, coefficients={**samples.coefficients, "Cm": samples.coefficients["Cm"] + lag})
 
@@ -121,3 +121,23 @@ def test_the_loop_finds_the_downwash_lag_at_its_size(downwash_lag):
     estimate, sigma = result.found[0].parameters["Cm:alphadot"]
     assert abs(estimate - CM_ALPHADOT) < 3 * sigma, (estimate, sigma)
     assert not result.incomplete
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_a_lag_of_the_wrong_sign_is_not_named_a_downwash_lag(seed):
+    """The same term with C_m_alphadot = +6, a sign no tail-aft aircraft has: the evidence
+    finds it on C_m and the held-out check refuses the name, saying why, on every seed
+    (none tolerated otherwise). Where the error left is high enough above the noise floor
+    (seeds 3 and 4), the result says C_m is incomplete and names alpha-dot first."""
+    params, samples = _with_downwash_lag(seed, -CM_ALPHADOT)
+    result = discover(samples, params)
+    assert result.found == ()
+    refused = [c for c in result.checks if c.effect == "unsteady_alphadot"]
+    assert [c.coefficient for c in refused] == ["Cm"] and not refused[0].kept
+    assert refused[0].implausible.startswith("Cm_alphadot = ") and "above" in refused[0].implausible
+    assert f"unsteady_alphadot not kept on Cm: {refused[0].implausible}" in result.notes
+    if seed in (3, 4):
+        assert list(result.incomplete) == ["Cm"]
+        assert result.incomplete["Cm"].correlations[0][0] == "alphadot"
+    else:
+        assert result.message == "no missing effect found"

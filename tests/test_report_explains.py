@@ -125,9 +125,10 @@ def test_implausible_derivatives_are_named_and_the_catalog_passes():
     # UnATRaP's printed C_Ybeta is positive (the catalog calls it doubtful).
     assert [w.derivatives for w in implausible_derivatives(
         load_fixed_wing("unatrap").derivatives)] == [("CY_beta",)]
-    wrong = dict(aerosonde().derivatives, Cm_q=3.0, CL_q=62.7, CL_alpha=1.45, Cl_p=0.2)
+    wrong = dict(aerosonde().derivatives, Cm_q=3.0, CL_q=62.7, CL_alpha=1.45, Cl_p=0.2,
+                 Cm_alphadot=6.0, CL_alphadot=-3.0)
     named = [w.derivatives[0] for w in implausible_derivatives(wrong)]
-    assert sorted(named) == ["CL_alpha", "CL_q", "Cl_p", "Cm_q"]
+    assert sorted(named) == ["CL_alpha", "CL_alphadot", "CL_q", "Cl_p", "Cm_alphadot", "Cm_q"]
     noisy = implausible_derivatives({"Cn_r": 0.01}, {"Cn_r": 0.05})[0].message
     sure = implausible_derivatives({"Cn_r": 0.5}, {"Cn_r": 0.05})[0].message
     assert "possibly noise" in noisy and "10.0 sigma outside" in sure
