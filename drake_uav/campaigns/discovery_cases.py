@@ -298,11 +298,11 @@ INJECTED: dict[str, Injection] = {
     "logged_tension": Injection(
         "logged:tension", "CD", _tension_on_drag, _tether, logged=_tension_logged),
 }
-"""The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -=
-alpha^3; C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = -1 (a
-downwash lag's sign); a 1 s elevator and throttle delay; a 1 N tow force along +x body;
-the same force 0.3 m below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D
-growing by 1 over the flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
+"""The effects of the campaign by key. Strength 1 is: C_D += T_c (propwash); C_L -= alpha^3;
+C_l += delta_e; C_m += delta_e^2; C_m += p_hat r_hat; C_m_alphadot = -1 (a downwash lag's
+sign); a 1 s elevator and throttle delay; a 1 N tow force along +x body; the same force
+0.3 m below the centre of gravity (a vector effect: C_L, C_D and C_m); C_D growing by 1 over
+the flight; pitot and vanes logged 1 s late against the IMU (a time skew between channel
 groups: a calibration error the data-compatibility check names); a 1 N pull towards the
 fixed point :data:`PULL_POINT` at the centre of gravity (a vector effect on C_L, C_D and
 C_Y, its size measured on C_Y); a tether pulling along -x body with a tension of mean 3 N
