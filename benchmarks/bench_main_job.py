@@ -118,7 +118,8 @@ def _peer_designs(run) -> tuple[list, int]:
     joint (vector-effect) candidates were scored besides, which have no such design."""
     import numpy as np
 
-    from drake_uav.identification.discovery import EvidenceRule, baseline_names
+    from drake_uav.identification.coefficient_design import baseline_names
+    from drake_uav.identification.discovery_result import EvidenceRule
     from drake_uav.identification.effects import effect_library, product_candidates
     from drake_uav.model.coefficients import regressor_matrix
 

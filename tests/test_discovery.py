@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 from synthetic_flight import measured_samples, synthetic_flight, synthetic_samples
 
-from drake_uav.identification.discovery import NO_EFFECT_MESSAGE, discover, fit_derivatives
+from drake_uav.identification.coefficient_design import fit_derivatives
+from drake_uav.identification.discovery import discover
+from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
 from drake_uav.identification.reconstruction import reconstruct
 
 
@@ -79,7 +81,7 @@ def test_fit_sigma_is_the_spread_of_the_estimates_over_noise_draws():
 def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clean):
     params, samples, truth = clean
     test = samples.subset(slice(len(samples) // 2, len(samples)))
-    from drake_uav.identification.discovery import baseline_names
+    from drake_uav.identification.coefficient_design import baseline_names
     from drake_uav.model.coefficients import regressor_matrix
 
     def models(scale_lift_slope):

@@ -18,7 +18,8 @@ from log_writers import DataFlashWriter, px4_imu_writer
 
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
-from drake_uav.identification.discovery import NO_EFFECT_MESSAGE, discover
+from drake_uav.identification.discovery import discover
+from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
 from drake_uav.identification.flight_data import (
     MIN_EXTRA_CHANGES,
     samples_from_log,

@@ -10,7 +10,8 @@ from synthetic_flight import NOISE, measured_samples, synthetic_flight
 
 from drake_uav.diagrams import fly
 from drake_uav.identification import coefficient_design
-from drake_uav.identification.discovery import discover, fit_derivatives
+from drake_uav.identification.coefficient_design import fit_derivatives
+from drake_uav.identification.discovery import discover
 from drake_uav.identification.flight_data import samples_from_log
 from drake_uav.identification.regressor_noise import (
     DERIVATIVES,

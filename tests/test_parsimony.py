@@ -15,7 +15,8 @@ import pytest
 
 from drake_uav.diagrams import fly
 from drake_uav.identification.blocked_folds import fold_edges
-from drake_uav.identification.discovery import baseline_names, discover, fit_derivatives
+from drake_uav.identification.coefficient_design import baseline_names, fit_derivatives
+from drake_uav.identification.discovery import discover
 from drake_uav.identification.errors_in_variables import PropagatedNoise
 from drake_uav.identification.main_job import select_samples
 from drake_uav.identification.parsimony import prune

@@ -12,12 +12,8 @@ from scipy.signal import savgol_coeffs
 from synthetic_flight import NOISE, synthetic_flight
 
 import drake_uav
-from drake_uav.identification.discovery import (
-    DiscoveryResult,
-    Evidence,
-    FoundEffect,
-    discover,
-)
+from drake_uav.identification.discovery import discover
+from drake_uav.identification.discovery_result import DiscoveryResult, Evidence, FoundEffect
 from drake_uav.identification.identifiability import (
     correlated_regressors,
     unexcited_derivatives,

@@ -25,7 +25,8 @@ import pytest
 from drake_uav.campaigns.discovery_cases import SUITES, discovery, pull_towards_point
 from drake_uav.diagrams import fly
 from drake_uav.diagrams.identification_flight import default_excitation
-from drake_uav.identification.discovery import NO_EFFECT_MESSAGE, discover
+from drake_uav.identification.discovery import discover
+from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
 from drake_uav.identification.fitted_point import NEAREST, candidate_points
 from drake_uav.identification.main_job import identify, select_samples
 from drake_uav.identification.vector_effects import (

@@ -30,7 +30,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
-from drake_uav.identification.discovery import EvidenceRule
+from drake_uav.identification.discovery_result import EvidenceRule
 from drake_uav.identification.fitted_point import unit_vectors_towards
 from drake_uav.identification.main_job import identify
 from drake_uav.identification.noise_floor import held_out_noise_floor

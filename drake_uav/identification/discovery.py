@@ -64,15 +64,11 @@ from drake_uav.identification.blocked_folds import fold_edges, held_out_errors, 
 from drake_uav.identification.coefficient_design import (
     ColumnFunction,
     Design,
-    IdentifiedDerivatives,
     Perturbations,
     baseline_design,
-    baseline_names,
     columns_and_jacobians,
-    fit_derivatives,
 )
 from drake_uav.identification.discovery_result import (
-    NO_EFFECT_MESSAGE,
     CoefficientFit,
     DiscoveryResult,
     Evidence,
@@ -110,20 +106,7 @@ from drake_uav.identification.vector_effects import (
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = [
-    "EvidenceRule",
-    "Evidence",
-    "FoundEffect",
-    "CoefficientFit",
-    "DiscoveryResult",
-    "HeldOutCheck",
-    "check_coefficients",
-    "discover",
-    "baseline_names",
-    "IdentifiedDerivatives",
-    "fit_derivatives",
-    "NO_EFFECT_MESSAGE",
-]
+__all__ = ["discover", "check_coefficients"]
 
 DATA_DRIVEN = "data_driven:"
 """Name prefix of the data-driven product effects."""
@@ -671,8 +654,7 @@ class _HeldOut(NamedTuple):
                    float(own_noise) / len(test.z),
                    float(np.sqrt(np.mean((test.z - test.X @ least_squares) ** 2))),
                    {name[len(prefix):]: float(value)
-                    for name, value in zip(test.names, theta, strict=True)
-                    if name.startswith(prefix)})
+                    for name, value, mine in zip(test.names, theta, own, strict=True) if mine})
 
 
 def _keep(found: FoundEffect, dropped: set[tuple[str, str]]) -> FoundEffect | None:

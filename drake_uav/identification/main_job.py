@@ -19,16 +19,13 @@ from drake_uav.estimation.imu_position import (
     logged_imu_position,
 )
 from drake_uav.identification.air_data_source import choose_air_data, flow_angles
-from drake_uav.identification.discovery import (
-    DiscoveryResult,
-    EvidenceRule,
-    FoundEffect,
+from drake_uav.identification.coefficient_design import (
     IdentifiedDerivatives,
     baseline_names,
-    check_coefficients,
-    discover,
     fit_derivatives,
 )
+from drake_uav.identification.discovery import check_coefficients, discover
+from drake_uav.identification.discovery_result import DiscoveryResult, EvidenceRule, FoundEffect
 from drake_uav.identification.effects import Effect, effect_library
 from drake_uav.identification.flight_data import samples_from_log, usable_extras
 from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans

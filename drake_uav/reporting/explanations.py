@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
-from drake_uav.identification.discovery import DiscoveryResult, Evidence
+from drake_uav.identification.discovery_result import DiscoveryResult, Evidence
 from drake_uav.identification.residuals import ResidualDiagnosis
 
 __all__ = ["NEAR_TIE_MARGIN", "NearTie", "near_ties", "accepted_evidence", "residual_meaning",

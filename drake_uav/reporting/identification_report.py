@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.identification.discovery import Evidence
+from drake_uav.identification.discovery_result import Evidence
 from drake_uav.identification.identifiability import (
     correlated_regressors,
     unexcited_derivatives,
