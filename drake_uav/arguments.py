@@ -33,11 +33,9 @@ class OneLineParser(argparse.ArgumentParser):
 
 def _bounds_text(above, at_least, below, at_most, unit: str) -> str:
     unit = f" {unit}" if unit else ""
-    parts = [f"> {above:g}{unit}" if above is not None else None,
-             f">= {at_least:g}{unit}" if at_least is not None else None,
-             f"< {below:g}{unit}" if below is not None else None,
-             f"<= {at_most:g}{unit}" if at_most is not None else None]
-    return " and ".join(p for p in parts if p)
+    bounds = ((">", above), (">=", at_least), ("<", below), ("<=", at_most))
+    return " and ".join(f"{sign} {value:g}{unit}" if isinstance(value, float) else
+                        f"{sign} {value}{unit}" for sign, value in bounds if value is not None)
 
 
 def real(*, above: float | None = None, at_least: float | None = None,

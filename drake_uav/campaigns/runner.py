@@ -23,6 +23,7 @@ the merged file is sorted by (point, seed). Only ``wall_time_s`` differs.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import sys
 import time
@@ -144,8 +145,11 @@ def _client(workers: int | None, scheduler: str | None):
         return Client(scheduler), None
     n = os.cpu_count() or 1 if workers is None else workers
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
+        # Dask's own log lines below ERROR (a run cancelled by Ctrl-C, a worker stopped
+        # on shutdown) are not the user's business: the command prints one line.
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, scheduler_kwargs={"dashboard": False})
+                               dashboard_address=None, scheduler_kwargs={"dashboard": False},
+                               silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
