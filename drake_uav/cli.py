@@ -91,6 +91,16 @@ def _vane_fields(text: str) -> list[str]:
     return fields
 
 
+def _extra_fields(text: str) -> list[str]:
+    """``"BAT.Temp,RPM.rpm2"`` -> the field names, each MESSAGE.FIELD."""
+    fields = [f.strip() for f in text.split(",") if f.strip()]
+    bad = [f for f in fields if not all(f.partition(".")[::2])]
+    if bad or not fields:
+        raise ValueError(f"--extra-channels: expected MESSAGE.FIELD names separated by commas, "
+                         f"got {text!r}")
+    return fields
+
+
 def _vane_sources(text: str, unit: str) -> dict:
     """``"MSG.AoA,MSG.SSA"`` -> FieldSource mapping of the vane channels."""
     from drake_uav.io.streams import FieldSource
@@ -174,6 +184,8 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
     check_output_folder(args.out, inputs=[log])
     if args.vanes:
         _vane_fields(args.vanes)
+    if args.extra_channels:
+        _extra_fields(args.extra_channels)
     _check_aircraft(args.aircraft)
     if args.sensor_spec:
         _check_toml(Path(args.sensor_spec), "--sensor-spec")
@@ -277,6 +289,8 @@ def _parse_segment(text: str) -> tuple[float, float]:
     except ValueError:
         raise ValueError(f"--segment {text}: expected auto or START:END in seconds of log "
                          "time, e.g. 120:300") from None
+    if not (np.isfinite(start) and np.isfinite(end)):
+        raise ValueError(f"--segment {text}: START and END must be finite numbers of seconds")
     if not start < end:
         raise ValueError(f"--segment {text}: START must be before END")
     return start, end

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 
 from drake_uav.arguments import MAX_SEED, integer, real
 from drake_uav.reporting.output import check_output_folder
@@ -59,13 +61,35 @@ def _seeds(text: str) -> tuple[int, ...]:
     return seeds
 
 
+def _distribution(name: str, spec: str) -> list:
+    """``--dist NAME=KIND:A:B`` -> ``[KIND, A, B]``, the bounds checked (finite numbers, low
+    below high, a standard deviation >= 0)."""
+    kind, *values = [_value(v) for v in spec.split(":")]
+    if kind == "choice":
+        return [kind, *values]
+    numbers = [v for v in values if isinstance(v, int | float) and not isinstance(v, bool)
+               and math.isfinite(v)]
+    shown = f"--dist {name}={spec}"
+    if kind not in ("uniform", "loguniform", "normal") or len(numbers) != 2 or len(values) != 2:
+        raise ValueError(f"{shown}: expected uniform:LOW:HIGH, loguniform:LOW:HIGH, "
+                         "normal:MEAN:STD (finite numbers) or choice:[V1, V2, ...]")
+    if kind == "normal" and numbers[1] < 0:
+        raise ValueError(f"{shown}: the standard deviation must be >= 0")
+    if kind != "normal" and not numbers[0] < numbers[1]:
+        raise ValueError(f"{shown}: LOW must be below HIGH")
+    return [kind, *values]
+
+
+_SCHEDULER = re.compile(r"^[a-z][a-z0-9+.-]*://\S+$|^[^\s:/]+:\d+$")
+"""A Dask scheduler address: ``tcp://host:8786``, ``tls://...`` or ``host:8786``."""
+
+
 def _campaign(args: argparse.Namespace):
     from drake_uav.campaigns.definition import Campaign
 
     grid = {k: [_value(v) for v in values.split(",")]
             for k, values in _pairs(args.grid, "--grid").items()}
-    dists = {k: [_value(v) for v in spec.split(":")]
-             for k, spec in _pairs(args.dist, "--dist").items()}
+    dists = {k: _distribution(k, spec) for k, spec in _pairs(args.dist, "--dist").items()}
     fixed = {k: _value(v) for k, v in _pairs(args.param, "--param").items()}
     try:
         return Campaign(args.scenario, _seeds(args.seeds), grid=grid, distributions=dists,
@@ -79,6 +103,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from drake_uav.campaigns.results import check_results_target
 
     campaign = _campaign(args)
+    if args.scheduler is not None and not _SCHEDULER.match(args.scheduler):
+        raise ValueError(f"--scheduler {args.scheduler}: expected an address such as "
+                         "tcp://host:8786")
     check_scenario(campaign.scenario)
     check_results_target(args.out)
     if args.report:
@@ -148,7 +175,7 @@ def _run_parser(sub) -> None:
     run.add_argument("--out", default="campaign.parquet",
                      help="results file (Parquet): new, or the results of the same campaign "
                           "(resumed); any other file is refused, never overwritten")
-    run.add_argument("--workers", type=integer(at_least=0), default=None,
+    run.add_argument("--workers", type=integer(at_least=0, at_most=1024), default=None,
                      help="local Dask workers (default: one per core; 0: in this process)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="address of an existing Dask scheduler, e.g. tcp://host:8786")
