@@ -15,6 +15,7 @@ import math
 import re
 
 from drake_uav.arguments import MAX_SEED, integer, real
+from drake_uav.campaigns.registry import BUILT_IN, check_scenario
 from drake_uav.reporting.output import check_output_folder
 
 __all__ = ["add_campaign_parser"]
@@ -99,7 +100,6 @@ def _campaign(args: argparse.Namespace):
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from drake_uav.campaigns.registry import check_scenario
     from drake_uav.campaigns.results import check_results_target
 
     campaign = _campaign(args)
@@ -162,14 +162,14 @@ def _run_parser(sub) -> None:
         description="Run SCENARIO once per seed and grid point on a Dask cluster (a local one "
                     "with one worker per core by default) and stream one row per run to OUT. "
                     "Run it again with the same arguments to resume an interrupted campaign.")
-    run.add_argument("scenario", help="built-in scenario (main_job, air_data_ekf, "
-                                      "tracking_nmpc) or package.module:function")
+    run.add_argument("scenario", help=f"built-in scenario ({', '.join(BUILT_IN)}) or "
+                                      "package.module:function (seed, params) -> metrics")
     run.add_argument("--seeds", default="0:40", help="START:STOP or a comma list (default 0:40)")
     run.add_argument("--grid", action="append", metavar="NAME=V1,V2",
                      help="a grid parameter and its values (repeatable)")
     run.add_argument("--dist", action="append", metavar="NAME=KIND:A:B",
                      help="a parameter drawn per run: uniform:LOW:HIGH, loguniform:LOW:HIGH, "
-                          "normal:MEAN:STD (repeatable)")
+                          "normal:MEAN:STD, choice:[V1,V2,...] (repeatable)")
     run.add_argument("--param", action="append", metavar="NAME=VALUE",
                      help="a fixed parameter (repeatable), e.g. duration=60")
     run.add_argument("--out", default="campaign.parquet",
@@ -179,7 +179,8 @@ def _run_parser(sub) -> None:
                      help="local Dask workers (default: one per core; 0: in this process)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="address of an existing Dask scheduler, e.g. tcp://host:8786")
-    run.add_argument("--report", metavar="DIR", help="also write the HTML summary to DIR")
+    run.add_argument("--report", metavar="DIR", help="also write the HTML summary to DIR "
+                                                     "(new, empty or an earlier report)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(handler=_cmd_run)
 
@@ -208,7 +209,8 @@ def add_campaign_parser(sub) -> None:
                       help="family-wise false-alarm probability (default 0.05)")
     comp.add_argument("--metrics", help="comma list of the metrics to check (default: all)")
     comp.add_argument("--json", action="store_true", help="print the checks as JSON")
-    comp.add_argument("--report", metavar="DIR", help="also write the HTML summary to DIR")
+    comp.add_argument("--report", metavar="DIR", help="also write the HTML summary to DIR "
+                                                      "(new, empty or an earlier report)")
     comp.set_defaults(handler=_cmd_compare)
     rep = commands.add_parser("report", help="HTML summary of a campaign",
                               description="Write an HTML summary: rates with Wilson intervals, "

@@ -236,10 +236,12 @@ def _write_synced(path: Path, text: str) -> None:
 @contextlib.contextmanager
 def _parent_locked(target: Path) -> Iterator[None]:
     """An exclusive ``flock`` on the parent folder of ``target`` (released on close, also
-    when the process dies): writers of one parent take turns, nothing is left on disk."""
+    when the process dies): writers of one parent take turns, nothing is left on disk. On a
+    file system without ``flock`` (some network mounts) the writers are not ordered."""
     fd = os.open(target.parent, os.O_RDONLY)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        with contextlib.suppress(OSError):  # no flock on this file system: writers unordered
+            fcntl.flock(fd, fcntl.LOCK_EX)
         yield
     finally:
         os.close(fd)
