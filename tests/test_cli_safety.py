@@ -229,10 +229,14 @@ def test_a_scenario_that_is_not_one_is_refused_in_one_line(scenario, message, tm
 
 
 def test_the_built_in_scenario_names_are_the_registered_ones():
-    from drake_uav.campaigns.registry import BUILT_IN, scenario
+    """The names checked without loading a module are the ones the modules register."""
+    from drake_uav.campaigns.registry import BUILT_IN, scenario, scenario_names
 
     for name, module in BUILT_IN.items():
         assert scenario(name).__module__ == module
+    built_in_modules = set(BUILT_IN.values())
+    assert {n for n in scenario_names()
+            if scenario(n).__module__ in built_in_modules} == set(BUILT_IN)
 
 
 # ----------------------------------------------------------------------------- Ctrl-C
