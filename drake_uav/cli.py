@@ -296,14 +296,15 @@ def _parse_segment(text: str) -> tuple[float, float]:
     return start, end
 
 
-def _replay_page(args: argparse.Namespace) -> Path:
-    """The page ``replay`` writes, checked (docs/cli.md, the overwrite rule)."""
+def _replay_page(args: argparse.Namespace) -> Path | None:
+    """The page ``replay`` writes (None: served live), checked (docs/cli.md, the overwrite
+    rule)."""
     log = Path(args.log)
     _check_log(log, args.format)
     if args.live:
         if args.html:
             raise ValueError("--html: not written with --live (the replay is served instead)")
-        return log
+        return None
     return check_output_file(args.html or log.with_suffix(".html"), ours=is_replay_page,
                              what="--html", inputs=[log])
 

@@ -107,7 +107,9 @@ def _listing(names: Iterable[str]) -> str:
     return ", ".join(names[:_SHOWN]) + more
 
 
-def _inside(path: Path, folder: Path) -> bool:
+def _inside(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
+    """True if ``path`` is ``folder`` or lies in it (links resolved)."""
+    path, folder = Path(os.path.realpath(path)), Path(os.path.realpath(folder))
     return path == folder or folder in path.parents
 
 
@@ -153,12 +155,12 @@ def check_output_folder(path: str | os.PathLike, *, what: str = "--out",
         raise OutputRefusedError(f"{shown}: is a link; give a folder for the output")
     if path.exists() and not path.is_dir():
         raise OutputRefusedError(f"{shown}: is an existing file; give a folder for the output")
-    if _inside(Path(os.path.abspath(os.getcwd())), path):
+    if _inside(os.getcwd(), path):
         raise OutputRefusedError(f"{shown}: is the current folder or contains it; the output "
                                  "replaces its folder as a whole, give a sub-folder, e.g. "
                                  f"{what} report")
     for item in inputs:
-        if _inside(Path(os.path.abspath(item)), path):
+        if _inside(item, path):
             raise OutputRefusedError(f"{shown}: holds the input {item}; give another folder "
                                      "for the output")
     if path.is_dir():
