@@ -101,6 +101,18 @@ def is_replay_page(path: str | os.PathLike) -> bool:
     return REPLAY_MARKER.encode() in head
 
 
+@contextlib.contextmanager
+def _os_errors_refused(what: str, path: str | os.PathLike) -> Iterator[None]:
+    """An OSError while looking at ``path`` (a folder that cannot be searched) refuses it."""
+    try:
+        yield
+    except OutputRefusedError:
+        raise
+    except OSError as err:
+        raise OutputRefusedError(f"{what} {os.fspath(path)}: cannot be checked "
+                                 f"({err.strerror or err})") from None
+
+
 def _listing(names: Iterable[str]) -> str:
     names = sorted(names)
     more = f", ... ({len(names)} entries)" if len(names) > _SHOWN else ""
@@ -147,7 +159,11 @@ def check_output_folder(path: str | os.PathLike, *, what: str = "--out",
         ``path`` is a file, the current folder or one of its parents, holds an input, holds
         anything but an earlier drake_uav output, or cannot be written.
     """
-    path = Path(os.path.abspath(path))
+    with _os_errors_refused(what, path):
+        return _checked_folder(Path(os.path.abspath(path)), what, inputs)
+
+
+def _checked_folder(path: Path, what: str, inputs: Sequence[str | os.PathLike]) -> Path:
     if path.name in ("", ".", ".."):
         raise OutputRefusedError(f"{what} {path}: give a folder name for the output")
     shown = f"{what} {os.fspath(path)}"
@@ -158,7 +174,7 @@ def check_output_folder(path: str | os.PathLike, *, what: str = "--out",
     if _inside(os.getcwd(), path):
         raise OutputRefusedError(f"{shown}: is the current folder or contains it; the output "
                                  "replaces its folder as a whole, give a sub-folder, e.g. "
-                                 f"{what} report")
+                                 f"{path / 'report'}")
     for item in inputs:
         if _inside(item, path):
             raise OutputRefusedError(f"{shown}: holds the input {item}; give another folder "
@@ -193,7 +209,12 @@ def check_output_file(path: str | os.PathLike, *, ours: Callable[[Path], bool],
     OutputRefusedError
         ``path`` is an input, a folder, a file drake_uav did not write, or cannot be written.
     """
-    path = Path(os.path.abspath(path))
+    with _os_errors_refused(what, path):
+        return _checked_file(Path(os.path.abspath(path)), ours, what, inputs)
+
+
+def _checked_file(path: Path, ours: Callable[[Path], bool], what: str,
+                  inputs: Sequence[str | os.PathLike]) -> Path:
     shown = f"{what} {os.fspath(path)}"
     for item in inputs:
         item = Path(item)
