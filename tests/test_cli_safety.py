@@ -283,24 +283,25 @@ def test_ctrl_c_during_the_swap_takes_effect_once_the_report_is_in_place(tmp_pat
 # ----------------------------------------------------------------------------- concurrency
 
 
-def test_two_writers_of_one_report_folder_take_turns(tmp_path):
-    """2 processes x 150 replacements of a small report: no error, nothing left beside it."""
+@pytest.mark.parametrize("replacements", [150, pytest.param(2000, marks=pytest.mark.slow)])
+def test_two_writers_of_one_report_folder_take_turns(replacements, tmp_path):
+    """2 processes x N replacements of a small report: no error, nothing left beside it."""
     out = tmp_path / "report"
     code = textwrap.dedent(f"""
         import sys
         from drake_uav.reporting.report import Report
-        for i in range(150):
+        for i in range({replacements}):
             Report(f"writer {{sys.argv[1]}}").add_text(f"run {{i}}").write({str(out)!r},
                                                                           {{"i": i}})
     """)
     jobs = [subprocess.Popen([sys.executable, "-c", code, tag], stderr=subprocess.PIPE,
                              text=True) for tag in "ab"]
-    errors = [job.communicate(timeout=300)[1] for job in jobs]
+    errors = [job.communicate(timeout=1200)[1] for job in jobs]
     assert [job.returncode for job in jobs] == [0, 0], errors
     assert errors == ["", ""]
     assert [p.name for p in tmp_path.iterdir()] == ["report"]  # no .old nor .partial folder
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["i"] == 149 and summary["complete"] is True
+    assert summary["i"] == replacements - 1 and summary["complete"] is True
 
 
 def test_the_swap_rechecks_the_target_under_its_lock(tmp_path):
