@@ -113,6 +113,8 @@ def test_the_folder_rule_of_the_writer(tmp_path, monkeypatch):
     (tmp_path / "empty").mkdir()
     write(tmp_path / "empty")
     write(tmp_path / "empty")  # now an earlier report: replaced
+    (tmp_path / "empty" / "report.md").unlink()  # a file of it deleted: still replaced
+    write(tmp_path / "empty")
     assert json.loads((tmp_path / "empty" / MANIFEST).read_text())["files"] == [
         "report.html", "report.md", "summary.json"]
     cases = {"a user's file": ("user", {"notes.txt": b"mine"}),

@@ -6,10 +6,10 @@ An output **folder** (a report, the tracking plots) may be
 
 * missing: it is created (with its parents);
 * an empty folder: it receives the output;
-* a folder holding exactly an earlier output: it is replaced as a whole. Such a folder is
-  recognised by its manifest, ``drake_uav_manifest.json``, the last file written into it,
-  which lists every file of the folder; a folder holding anything else (a file the user added,
-  a flight log, code) is never replaced;
+* a folder holding an earlier output and nothing else: it is replaced as a whole. Such a
+  folder is recognised by its manifest, ``drake_uav_manifest.json``, the last file written
+  into it, which lists every file of the folder; a folder holding anything the manifest does
+  not list (a file the user added, a flight log, code) is never replaced;
 * anything else (a folder with other files, a file, the current folder or one of its
   parents, a folder that cannot be written): refused with a one-line
   :class:`OutputRefusedError`, before any work when the caller checks first
@@ -78,8 +78,9 @@ def _read_manifest(folder: Path) -> dict | None:
 
 
 def is_drake_uav_output(folder: str | os.PathLike) -> bool:
-    """True if ``folder`` holds exactly an output drake_uav wrote: its manifest lists every
-    other entry of the folder, and nothing else is there."""
+    """True if ``folder`` holds an output drake_uav wrote and nothing else: its manifest, and
+    only entries the manifest lists (one the user deleted does not matter, one the user added
+    does)."""
     folder = Path(folder)
     manifest = _read_manifest(folder)
     if manifest is None:
@@ -88,7 +89,7 @@ def is_drake_uav_output(folder: str | os.PathLike) -> bool:
         entries = {p.name for p in folder.iterdir()}
     except OSError:
         return False
-    return entries == {*map(str, manifest["files"]), MANIFEST}
+    return MANIFEST in entries and entries <= {*map(str, manifest["files"]), MANIFEST}
 
 
 def is_replay_page(path: str | os.PathLike) -> bool:
@@ -187,8 +188,8 @@ def _checked_folder(path: Path, what: str, inputs: Sequence[str | os.PathLike]) 
         if entries and not is_drake_uav_output(path):
             raise OutputRefusedError(
                 f"{shown}: holds files drake_uav did not write ({_listing(entries)}); give a "
-                "new or empty folder (only a folder holding exactly an earlier output, per "
-                f"its {MANIFEST}, is replaced)")
+                "new or empty folder (only a folder holding nothing but an earlier output, "
+                f"per its {MANIFEST}, is replaced)")
     check_writable(path, what)  # the output is written beside it, then renamed
     return path
 

@@ -19,7 +19,7 @@ passed through. Numeric table columns are right-aligned.
 The folder appears atomically and follows the overwrite rule of
 :mod:`drake_uav.reporting.output`: everything is written into a hidden sibling
 ``.<name>.partial-<random>`` and swapped into place only when complete; ``out_dir`` may be
-missing, empty or an earlier report (exactly the files of its manifest), never a folder holding
+missing, empty or an earlier report (only files its manifest lists), never a folder holding
 anything else. An exception while writing (a figure that fails to draw, a full disk) removes the
 partial folder and leaves any older report untouched. A process killed mid-write can leave a
 ``.partial-`` folder behind, never a folder named ``out_dir``.
@@ -403,8 +403,8 @@ class Report:
         """Writes the report folder atomically (module docstring); returns its absolute path.
 
         Args:
-            out_dir: the report folder: missing, empty or an earlier report (its manifest
-                lists exactly the files in it); replaced only once the new report is complete.
+            out_dir: the report folder: missing, empty or an earlier report (it holds only
+                files its manifest lists); replaced only once the new report is complete.
             summary: JSON-able mapping (numpy values allowed, see :func:`json_ready`) written
                 to summary.json together with ``"complete": true``.
 

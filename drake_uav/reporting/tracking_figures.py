@@ -73,8 +73,8 @@ def solve_time_figure(run: TrackingRun) -> Figure:
 def write_tracking_plots(run: TrackingRun, out: str | Path) -> list[Path]:
     """The four figures as PNGs in the folder ``out``; returns their paths.
 
-    ``out`` may be missing, empty or an earlier plot folder (its manifest lists exactly the
-    files in it); it appears complete or not at all.
+    ``out`` may be missing, empty or an earlier plot folder (it holds only files its
+    manifest lists); it appears complete or not at all.
 
     Raises
     ------
