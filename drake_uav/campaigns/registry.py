@@ -63,8 +63,9 @@ def scenario(name: str | Scenario) -> Scenario:
             target = importlib.import_module(module)
             for part in attr.split("."):
                 target = getattr(target, part)
-        except (ImportError, AttributeError, ValueError) as err:
-            raise ValueError(f"scenario {name!r}: cannot import it ({err})") from None
+        except Exception as err:  # a missing module or name, or a module that fails to load
+            raise ValueError(f"scenario {name!r}: cannot import it ({type(err).__name__}: "
+                             f"{err})") from None
         return _checked_function(target, repr(name))
     check_scenario(name)
     if name not in _SCENARIOS:
