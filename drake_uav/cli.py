@@ -1,4 +1,11 @@
-"""Command line: ``drake-uav <command> ...``. A thin layer over library functions."""
+"""Command line: ``drake-uav <command> ...``. A thin layer over library functions.
+
+Every option and every output path is checked before any work and before pydrake loads
+(:mod:`drake_uav.arguments`, :mod:`drake_uav.reporting.output`): bad input stops with one line
+``error: ...`` and exit code 2; a failure while working exits 1; Ctrl-C exits 130 with the one
+line ``interrupted``, leaving no half-written output. Outputs follow the overwrite rule of
+:mod:`drake_uav.reporting.output` (docs/cli.md).
+"""
 
 from __future__ import annotations
 
@@ -17,10 +24,18 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from drake_uav.arguments import OneLineParser, real, seed  # noqa: E402
+from drake_uav.reporting.output import (  # noqa: E402
+    check_output_file,
+    check_output_folder,
+    is_replay_page,
+)
+
 __all__ = ["main"]
 
 
 def _cmd_trim(args: argparse.Namespace) -> int:
+    _check_aircraft(args.aircraft)
     from drake_uav.optimization.linearization import mode_analysis
     from drake_uav.optimization.trim import TrimError, trim
     from drake_uav.vehicles.loading import load_fixed_wing
@@ -68,13 +83,29 @@ class _Progress:
         self._start = None
 
 
+def _vane_fields(text: str) -> list[str]:
+    """``"MSG.AoA,MSG.SSA"`` -> the two field names."""
+    fields = [f.strip() for f in text.split(",")]
+    if len(fields) != 2 or not all("." in f for f in fields):
+        raise ValueError(f"--vanes: expected MESSAGE.FIELD,MESSAGE.FIELD, got {text!r}")
+    return fields
+
+
+def _extra_fields(text: str) -> list[str]:
+    """``"BAT.Temp,RPM.rpm2"`` -> the field names, each MESSAGE.FIELD."""
+    fields = [f.strip() for f in text.split(",") if f.strip()]
+    bad = [f for f in fields if not all(f.partition(".")[::2])]
+    if bad or not fields:
+        raise ValueError(f"--extra-channels: expected MESSAGE.FIELD names separated by commas, "
+                         f"got {text!r}")
+    return fields
+
+
 def _vane_sources(text: str, unit: str) -> dict:
     """``"MSG.AoA,MSG.SSA"`` -> FieldSource mapping of the vane channels."""
     from drake_uav.io.streams import FieldSource
 
-    fields = [f.strip() for f in text.split(",")]
-    if len(fields) != 2 or not all("." in f for f in fields):
-        raise ValueError(f"--vanes: expected MESSAGE.FIELD,MESSAGE.FIELD, got {text!r}")
+    fields = _vane_fields(text)
     scale = np.radians(1.0) if unit == "deg" else 1.0
     return {channel: FieldSource(*field.split(".", 1), unit="rad", scale=scale)
             for channel, field in zip(("vane_alpha", "vane_beta"), fields, strict=True)}
@@ -149,14 +180,12 @@ def _sample_flight() -> Path:
 
 def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
     """Raises ValueError for a bad argument before the analysis stack is imported."""
-    _check_readable(log, "LOG")
-    if args.format is None and log.suffix.lower() not in _LOG_SUFFIXES:
-        formats = ",".join(sorted(set(_LOG_SUFFIXES.values())))
-        raise ValueError(f"{log}: unknown log format {log.suffix or '(no suffix)'!r}; name "
-                         f"the format with --format {{{formats}}}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: is an existing file; give a folder for the report")
+    _check_log(log, args.format)
+    check_output_folder(args.out, inputs=[log])
+    if args.vanes:
+        _vane_fields(args.vanes)
+    if args.extra_channels:
+        _extra_fields(args.extra_channels)
     _check_aircraft(args.aircraft)
     if args.sensor_spec:
         _check_toml(Path(args.sensor_spec), "--sensor-spec")
@@ -206,6 +235,15 @@ _LOG_SUFFIXES = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parqu
 tests/test_cli.py checks the two agree)."""
 
 
+def _check_log(log: Path, format: str | None) -> None:
+    """Raises ValueError unless ``log`` is a readable file of a known (or given) format."""
+    _check_readable(log, "LOG")
+    if format is None and log.suffix.lower() not in _LOG_SUFFIXES:
+        formats = ",".join(sorted(set(_LOG_SUFFIXES.values())))
+        raise ValueError(f"{log}: unknown log format {log.suffix or '(no suffix)'!r}; name "
+                         f"the format with --format {{{formats}}}")
+
+
 def _check_readable(path: Path, what: str) -> None:
     if not path.exists():
         raise ValueError(f"{path}: no such file (the {what} argument)")
@@ -251,12 +289,28 @@ def _parse_segment(text: str) -> tuple[float, float]:
     except ValueError:
         raise ValueError(f"--segment {text}: expected auto or START:END in seconds of log "
                          "time, e.g. 120:300") from None
+    if not (np.isfinite(start) and np.isfinite(end)):
+        raise ValueError(f"--segment {text}: START and END must be finite numbers of seconds")
     if not start < end:
         raise ValueError(f"--segment {text}: START must be before END")
     return start, end
 
 
+def _replay_page(args: argparse.Namespace) -> Path | None:
+    """The page ``replay`` writes (None: served live), checked (docs/cli.md, the overwrite
+    rule)."""
+    log = Path(args.log)
+    _check_log(log, args.format)
+    if args.live:
+        if args.html:
+            raise ValueError("--html: not written with --live (the replay is served instead)")
+        return None
+    return check_output_file(args.html or log.with_suffix(".html"), ours=is_replay_page,
+                             what="--html", inputs=[log])
+
+
 def _cmd_replay(args: argparse.Namespace) -> int:
+    page = _replay_page(args)
     from drake_uav.io.readers import read_log
     from drake_uav.reporting.replay import export_replay_html, replay
 
@@ -272,13 +326,13 @@ def _cmd_replay(args: argparse.Namespace) -> int:
                 time.sleep(1.0)
         except KeyboardInterrupt:
             return 0
-    out = export_replay_html(log, args.html or Path(args.log).with_suffix(".html"),
-                             speed=args.speed)
+    out = export_replay_html(log, page, speed=args.speed)
     print(f"replay: {out}")
     return 0
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
+    check_output_folder(args.out)
     from drake_uav.diagrams.tracking import (
         build_terminal_set,
         fly_tracking,
@@ -293,7 +347,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     params = hexacopter()
     print("... terminal sets along the bundled 6-waypoint trajectory", flush=True)
     terminal = build_terminal_set(params, tracking_reference(params))
-    duration = args.duration or terminal.end_time + 2.0
+    duration = terminal.end_time + 2.0 if args.duration is None else args.duration
     print(f"... flying {duration:g} s with the {args.mode} NMPC", flush=True)
     run = fly_tracking(params, terminal, duration, settings=NmpcSettings(mode=args.mode),
                        offset=(args.offset, 0.0, 0.0),
@@ -326,9 +380,12 @@ def _trim_parser(sub) -> None:
                                       "classical modes of its linearisation.")
     trim.add_argument("--aircraft", default="aerosonde",
                       help="catalog name (aerosonde, unatrap, ...) or a params .toml file")
-    trim.add_argument("--airspeed", type=float, default=25.0, help="airspeed [m/s]")
-    trim.add_argument("--gamma", type=float, default=0.0, help="flight path angle [deg]")
-    trim.add_argument("--turn-rate", type=float, default=0.0, help="turn rate [rad/s]")
+    trim.add_argument("--airspeed", type=real(above=0.0, unit="m/s"), default=25.0,
+                      help="airspeed [m/s]")
+    trim.add_argument("--gamma", type=real(above=-90.0, below=90.0, unit="deg"), default=0.0,
+                      help="flight path angle [deg]")
+    trim.add_argument("--turn-rate", type=real(unit="rad/s"), default=0.0,
+                      help="turn rate [rad/s]")
     trim.set_defaults(handler=_cmd_trim)
 
 
@@ -342,7 +399,9 @@ def _identify_parser(sub) -> None:
     _add_log_arguments(ident, optional=True)
     ident.add_argument("--aircraft", default="aerosonde",
                        help="catalog name or a params .toml file (default: aerosonde)")
-    ident.add_argument("--out", default="drake_uav_report", help="report folder")
+    ident.add_argument("--out", default="drake_uav_report",
+                       help="report folder: new, empty, or an earlier report (replaced); a "
+                            "folder holding other files is refused (docs/cli.md)")
     ident.add_argument("--vanes", metavar="MSG.AOA,MSG.SSA",
                        help="log fields of the alpha and beta vanes (.bin message or .ulg "
                             "topic and field), e.g. VANE.AoA,VANE.SSA")
@@ -352,7 +411,7 @@ def _identify_parser(sub) -> None:
                        help="more logged fields (.bin message or .ulg topic and field) tested "
                             "as candidate explanations, beside the battery voltage and current "
                             "and the ESC speed, e.g. BAT.Temp,RPM.rpm2")
-    ident.add_argument("--seed", type=int, default=0,
+    ident.add_argument("--seed", type=seed, default=0,
                        help="seed of the Monte-Carlo uncertainty of the measured coefficients")
     ident.add_argument("--air-data", choices=("auto", "vanes", "estimate", "ahrs"),
                        default="auto",
@@ -363,7 +422,7 @@ def _identify_parser(sub) -> None:
                        help="thrust identified with the drag from the data (from the RPM when "
                             "logged; the catalog model when the throttle hardly varies, with a "
                             "warning), or the aircraft's propulsion model")
-    ident.add_argument("--max-gap", type=float, metavar="SECONDS",
+    ident.add_argument("--max-gap", type=real(above=0.0, unit="s"), metavar="SECONDS",
                        help="longest gap inside a stream before the log is cut into segments "
                             "(default 0.5 s)")
     ident.add_argument("--segment", default="auto", metavar="auto|START:END",
@@ -393,16 +452,22 @@ def _track_parser(sub) -> None:
                     "solve-time statistics and write plots.")
     track.add_argument("--mode", choices=("rti", "nlp"), default="rti",
                        help="real-time iteration (one SQP step) or the full NLP")
-    track.add_argument("--duration", type=float, help="simulated time [s] (default: "
-                                                      "trajectory + 2 s)")
-    track.add_argument("--offset", type=float, default=0.5, help="initial north offset [m]")
-    track.add_argument("--roll-offset", type=float, default=10.0, help="initial roll [deg]")
-    track.add_argument("--gust", type=float, default=0.0, help="gust force std [N]")
+    track.add_argument("--duration", type=real(above=2.0, unit="s",
+                                               why="the errors are measured after 2 s"),
+                       help="simulated time [s] (default: trajectory + 2 s)")
+    track.add_argument("--offset", type=real(at_least=-100.0, at_most=100.0, unit="m"),
+                       default=0.5, help="initial north offset [m]")
+    track.add_argument("--roll-offset", type=real(above=-90.0, below=90.0, unit="deg"),
+                       default=10.0, help="initial roll [deg]")
+    track.add_argument("--gust", type=real(at_least=0.0, unit="N"), default=0.0,
+                       help="gust force std [N]")
     track.add_argument("--noise", action="store_true",
                        help="the controller reads a noisy state (2 cm, 0.01 rad, 5 cm/s, "
                             "0.02 rad/s std)")
-    track.add_argument("--seed", type=int, default=0, help="seed of the gusts and the noise")
-    track.add_argument("--out", default="drake_uav_track", help="plot folder")
+    track.add_argument("--seed", type=seed, default=0, help="seed of the gusts and the noise")
+    track.add_argument("--out", default="drake_uav_track",
+                       help="plot folder: new, empty, or earlier plots (replaced); a folder "
+                            "holding other files is refused (docs/cli.md)")
     track.set_defaults(handler=_cmd_track)
 
 
@@ -414,16 +479,23 @@ def _replay_parser(sub) -> None:
                     "reference, unsafe disc, failed motors in red. Writes one self-contained "
                     "HTML page (no server, no network), or serves it live with --live.")
     _add_log_arguments(play, optional=False)
-    play.add_argument("--html", help="output page (default: the log's name with .html)")
+    play.add_argument("--html", help="output page (default: the log's name with .html); an "
+                                     "existing file is replaced only if it is a replay page, "
+                                     "never the log")
     play.add_argument("--live", action="store_true", help="serve it in Meshcat instead")
-    play.add_argument("--speed", type=float, default=1.0, help="replay speed (default 1)")
+    play.add_argument("--speed", type=real(above=0.0), default=1.0,
+                      help="replay speed (default 1)")
     play.set_defaults(handler=_cmd_replay)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="drake-uav",
         description="Small unmanned aircraft on Drake: trim, simulate, estimate and identify.",
+        epilog="Exit codes: 0 done, 1 failed while working (or a campaign regression), 2 bad "
+               "input (one line error: ...), 130 interrupted (Ctrl-C). Outputs are written "
+               "only into a new or empty folder or over an earlier output of drake-uav, never "
+               "over other files (docs/cli.md).",
     )
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     _trim_parser(sub)
@@ -443,18 +515,29 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``drake-uav`` console script; returns the exit code."""
+    """Entry point of the ``drake-uav`` console script; returns the exit code: 0 done,
+    1 failed while working, 2 bad input (one line ``error: ...``), 130 interrupted."""
     warnings.showwarning = _show_warning
-    parser = _parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 2
     try:
+        parser = _parser()
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 2
         return args.handler(args)
     except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"error: {_one_line(err)}", file=sys.stderr)
         return 2
+    except OSError as err:  # the disk, not the input: a full disk, a folder removed meanwhile
+        print(f"error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split()) or type(err).__name__
 
 
 if __name__ == "__main__":

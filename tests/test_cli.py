@@ -111,7 +111,7 @@ def test_the_console_script_exits_with_the_error_code(tmp_path):
     (["{log}", "--aircraft", "{bad_toml}"], "not valid TOML"),
     (["{log}", "--sensor-spec", "{absent}"], "the --sensor-spec argument"),
     (["{log}", "--segment", "10-20"], "expected auto or START:END"),
-    (["{log}", "--max-gap", "0"], "--max-gap: must be positive"),
+    (["{log}", "--max-gap", "0"], "argument --max-gap: expected a finite number > 0 s"),
     (["{odd}"], "name the format with --format"),
 ])
 def test_bad_arguments_fail_fast_without_a_traceback(args, message, tmp_path):

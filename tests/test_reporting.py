@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 
 from drake_uav.identification.residuals import diagnose
 from drake_uav.reporting import Report, figures, format_value, json_ready
+from drake_uav.reporting.output import MANIFEST
 
 FS = 50.0  # Hz
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -122,8 +123,12 @@ def test_report_with_every_section_kind(tmp_path, flight):
     names = sorted(p.name for p in out.iterdir())
     pngs = [n for n in names if n.endswith(".png")]
     assert len(pngs) == 5 and pngs[0] == "fig01_residual.png"
-    assert {"report.md", "report.html", "summary.json"} <= set(names)
+    assert {"report.md", "report.html", "summary.json", MANIFEST} <= set(names)
     assert all((out / n).read_bytes().startswith(PNG_MAGIC) for n in pngs)
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["written_by"] == "drake_uav" and manifest["kind"] == "report"
+    assert manifest["files"] == [n for n in names if n != MANIFEST]
+    names.remove(MANIFEST)
 
     md = (out / "report.md").read_text()
     assert md.startswith("# Identification of the sample flight")
@@ -191,7 +196,8 @@ def test_interrupted_write_keeps_the_older_complete_report(tmp_path, flight):
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
     # A successful rewrite replaces the whole folder (the old figure file is gone).
     Report("third").add_text("newer").write(out, {"version": 3})
-    assert sorted(p.name for p in out.iterdir()) == ["report.html", "report.md", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "report.html", "report.md",
+                                                     "summary.json"]
     assert json.loads((out / "summary.json").read_text())["version"] == 3
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
 
@@ -200,7 +206,7 @@ def test_refuses_to_replace_a_folder_that_is_not_a_report(tmp_path):
     out = tmp_path / "data"
     out.mkdir()
     (out / "notes.txt").write_text("keep me")
-    with pytest.raises(FileExistsError, match="not a report"):
+    with pytest.raises(FileExistsError, match="holds files drake_uav did not write"):
         Report("r").write(out, {})
     assert (out / "notes.txt").read_text() == "keep me"
     with pytest.raises(ValueError, match="out_dir"):

@@ -24,6 +24,8 @@ rows already in ``<out>`` and its parts and runs only the missing keys.
 
 The file's schema metadata holds the campaign definition (``drake_uav.campaign``)
 so that a resume with another definition is refused and comparisons know the grid.
+An existing ``<out>`` that is not campaign results (another Parquet file, any other file)
+is never overwritten: :func:`check_results_target` refuses it before any run.
 """
 
 from __future__ import annotations
@@ -39,12 +41,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from drake_uav.reporting.output import OutputRefusedError, check_writable
+
 __all__ = [
     "FIXED_COLUMNS",
     "NONDETERMINISTIC",
     "PARAM",
     "METRIC",
     "ResultsStore",
+    "check_results_target",
     "read_results",
     "results_equal",
     "campaign_definition",
@@ -129,12 +134,52 @@ def metric_columns(table: pa.Table) -> list[str]:
     return [c for c in table.column_names if c.startswith(METRIC)]
 
 
+def check_results_target(path: str | os.PathLike, what: str = "--out") -> Path:
+    """Checks that campaign results may be written to ``path``: a new file, or the results
+    of a campaign (resumed; its definition is checked when the rows are read).
+
+    Raises
+    ------
+    OutputRefusedError
+        ``path`` is a folder, a file that is not campaign results (it is left as it was), or
+        cannot be written; or its ``.parts`` folder holds other files.
+    """
+    path = Path(os.path.abspath(path))
+    shown = f"{what} {os.fspath(path)}"
+    if path.is_dir():
+        raise OutputRefusedError(f"{shown}: is a folder; give a .parquet file name")
+    if path.exists():
+        try:
+            schema = pq.read_schema(path)
+        except (OSError, pa.ArrowException) as err:
+            raise OutputRefusedError(f"{shown}: exists and is not a Parquet file ({err}); it is "
+                                     "not replaced, give another file name") from None
+        missing = [c for c in FIXED_COLUMNS if c not in schema.names]
+        if missing or _META_KEY not in (schema.metadata or {}):
+            raise OutputRefusedError(f"{shown}: exists and is not campaign results (no "
+                                     f"{', '.join(missing) or 'campaign definition'}); it is not "
+                                     "replaced, give another file name")
+    parts = path.with_name(path.name + ".parts")
+    if parts.exists() and (not parts.is_dir() or any(
+            not (p.name.startswith("part-") and p.name.endswith(".parquet"))
+            for p in parts.iterdir())):
+        raise OutputRefusedError(f"{shown}: {parts} holds files that are not parts of a "
+                                 "campaign; move them away")
+    check_writable(path, what)
+    return path
+
+
 def read_results(path: str | os.PathLike) -> pa.Table:
     """A finished campaign's results (Parquet), checked for the fixed columns."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no campaign results (no such file)")
-    table = pq.read_table(path)
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowException) as err:
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ValueError(f"{path}: not campaign results (not a readable Parquet file: "
+                         f"{reason})") from None
     missing = [c for c in FIXED_COLUMNS if c not in table.column_names]
     if missing:
         raise ValueError(f"{path}: not a campaign result (missing columns {missing})")
@@ -190,7 +235,8 @@ class ResultsStore:
                              f"file or delete it")
 
     def load(self) -> list[dict[str, Any]]:
-        """Rows already on disk (merged file and parts)."""
+        """Rows already on disk (merged file and parts); :func:`check_results_target` first."""
+        check_results_target(self.path, "campaign results")
         files = [self.path] if self.path.is_file() else []
         if self.parts.is_dir():
             files += sorted(self.parts.glob("part-*.parquet"))

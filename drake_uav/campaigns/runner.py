@@ -23,6 +23,7 @@ the merged file is sorted by (point, seed). Only ``wall_time_s`` differs.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import sys
 import time
@@ -35,6 +36,7 @@ import pyarrow as pa
 import drake_uav
 from drake_uav.campaigns.definition import Campaign, RunSpec
 from drake_uav.campaigns.progress import ProgressBar
+from drake_uav.campaigns.registry import check_scenario
 from drake_uav.campaigns.registry import scenario as resolve_scenario
 from drake_uav.campaigns.results import METRIC, PARAM, ResultsStore
 
@@ -87,9 +89,14 @@ def execute_run(scenario, run: RunSpec, version: str) -> dict[str, Any]:
     return row
 
 
-def _check_scenario(scenario) -> None:
-    """Raises ValueError if ``scenario`` is not a known scenario (run where the runs run)."""
-    resolve_scenario(scenario)
+def _scenario_problem(scenario) -> str | None:
+    """Why ``scenario`` cannot be loaded where the runs run, or None. Returned, not raised, so
+    that the worker logs nothing: the caller reports it in one line."""
+    try:
+        resolve_scenario(scenario)
+    except ValueError as err:
+        return str(err)
+    return None
 
 
 def _error_row(run: RunSpec, version: str, err: BaseException) -> dict[str, Any]:
@@ -138,8 +145,11 @@ def _client(workers: int | None, scheduler: str | None):
         return Client(scheduler), None
     n = os.cpu_count() or 1 if workers is None else workers
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
+        # Dask's own log lines below ERROR (a run cancelled by Ctrl-C, a worker stopped
+        # on shutdown) are not the user's business: the command prints one line.
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, scheduler_kwargs={"dashboard": False})
+                               dashboard_address=None, scheduler_kwargs={"dashboard": False},
+                               silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
@@ -148,13 +158,14 @@ def _run_dask(pending, scenario, version, store, bar, rows, flush_every, workers
 
     client, cluster = _client(workers, scheduler)
     try:
-        # One worker checks the scenario (loading its modules, as the runs do on every
-        # worker): this process needs none of them, and an unknown name raises here
-        # before any row is written.
-        check = client.submit(_check_scenario, scenario, pure=False)
+        # One worker loads the scenario (its modules, as the runs do on every worker; this
+        # process needs none of them): one that does not load there raises here, before
+        # any row is written.
+        problem = client.submit(_scenario_problem, scenario, pure=False).result()
+        if problem is not None:
+            raise ValueError(f"{problem} (on the Dask workers)")
         futures = {client.submit(execute_run, scenario, run, version, pure=False): run
                    for run in pending}
-        check.result()
         for i, future in enumerate(as_completed(futures), 1):
             try:
                 row = future.result()
@@ -185,10 +196,14 @@ def run_campaign(campaign: Campaign, out: str | os.PathLike, *, workers: int | N
             the campaign is interrupted).
 
     Raises:
-        ValueError: ``out`` holds rows of another campaign definition.
+        ValueError: the scenario is unknown or not a scenario function (checked before any
+            run; a built-in name without loading it); ``out`` holds rows of another campaign
+            definition, or is a file that is not campaign results
+            (:class:`~drake_uav.reporting.output.OutputRefusedError`, nothing is written).
     """
     if flush_every < 1:
         raise ValueError(f"flush_every must be >= 1, got {flush_every}")
+    check_scenario(campaign.scenario)
     store = ResultsStore(out, campaign.definition())
     rows = store.load()
     done = {(r["point"], r["seed"]) for r in rows}

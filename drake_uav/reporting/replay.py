@@ -53,6 +53,12 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
+from drake_uav.reporting.output import (
+    REPLAY_MARKER,
+    check_output_file,
+    is_replay_page,
+    replace_file,
+)
 
 __all__ = ["ReplayTrack", "ReplayScene", "replay_track", "replay", "export_replay_html"]
 
@@ -279,10 +285,20 @@ def export_replay_html(log: FlightLog | ReplayTrack, path: str | os.PathLike,
                        **options) -> Path:
     """Writes the replay of ``log`` as one self-contained HTML page (no server, no network).
 
-    ``options`` go to :func:`replay`. Returns the file's path.
+    ``options`` go to :func:`replay`. Returns the file's path. An existing ``path`` is
+    replaced only if it is an earlier replay page
+    (:func:`~drake_uav.reporting.output.is_replay_page`); the page is
+    written under a temporary name and renamed, so it appears complete or not at all.
+
+    Raises
+    ------
+    OutputRefusedError
+        ``path`` is a folder or a file that is not a replay page (it is left as it was).
     """
+    check_output_file(path, ours=is_replay_page, what="replay page")
     scene = replay(log, **options)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(scene.meshcat.StaticHtml(), encoding="utf-8")
-    return path
+    page = scene.meshcat.StaticHtml()
+    doctype, newline, rest = page.partition("\n")
+    text = f"{doctype}{newline}{REPLAY_MARKER}\n{rest}"
+    return replace_file(lambda tmp: tmp.write_text(text, encoding="utf-8"), path,
+                        ours=is_replay_page, what="replay page")

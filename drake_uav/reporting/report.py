@@ -9,17 +9,20 @@ summaries); :meth:`Report.write` renders them into a folder::
                          (figures embedded as base64 PNG, each linked to its file), simple CSS
         fig01_<name>.png one PNG per figure, in order
         summary.json     the caller's summary + "complete": true, "report_title", "report_files"
+        drake_uav_manifest.json  the list of the folder's files, written last (the marker of
+                         a folder drake_uav wrote, :mod:`drake_uav.reporting.output`)
 
 report.md is the one source of the text: report.html is its rendering with the "tables",
 "fenced_code" and "sane_lists" extensions. Raw HTML in markdown text is shown as text, never
 passed through. Numeric table columns are right-aligned.
 
-The folder appears atomically: everything is written into a hidden sibling
-``.<name>.partial-<random>`` and renamed to ``out_dir`` only when complete; an existing report
-folder is moved aside and deleted only after the new one is in place. An exception while writing
-(a figure that fails to draw, a full disk) removes the partial folder and leaves any older
-report untouched. A process killed mid-write can leave a ``.partial-`` folder behind, never a
-folder named ``out_dir``.
+The folder appears atomically and follows the overwrite rule of
+:mod:`drake_uav.reporting.output`: everything is written into a hidden sibling
+``.<name>.partial-<random>`` and swapped into place only when complete; ``out_dir`` may be
+missing, empty or an earlier report (only files its manifest lists), never a folder holding
+anything else. An exception while writing (a figure that fails to draw, a full disk) removes the
+partial folder and leaves any older report untouched. A process killed mid-write can leave a
+``.partial-`` folder behind, never a folder named ``out_dir``.
 """
 
 from __future__ import annotations
@@ -32,8 +35,6 @@ import math
 import os
 import re
 import shutil
-import tempfile
-import uuid
 import xml.etree.ElementTree as etree
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -45,6 +46,13 @@ import numpy as np
 from markdown.treeprocessors import Treeprocessor
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from drake_uav.reporting.output import (
+    check_output_folder,
+    new_partial_folder,
+    replace_folder,
+    write_manifest,
+)
 
 __all__ = ["Report", "format_value", "json_ready"]
 
@@ -395,14 +403,15 @@ class Report:
         """Writes the report folder atomically (module docstring); returns its absolute path.
 
         Args:
-            out_dir: the report folder. If it exists it must be empty or an earlier report
-                (contain ``summary.json``); it is replaced only once the new report is complete.
+            out_dir: the report folder: missing, empty or an earlier report (it holds only
+                files its manifest lists); replaced only once the new report is complete.
             summary: JSON-able mapping (numpy values allowed, see :func:`json_ready`) written
                 to summary.json together with ``"complete": true``.
 
         Raises:
             ValueError: summary uses a reserved key. TypeError: a summary value has no JSON form.
-            FileExistsError: ``out_dir`` is a file or a non-empty folder that is not a report.
+            OutputRefusedError (a FileExistsError and a ValueError): ``out_dir`` is a file, the
+                current folder, unwritable, or a folder holding anything but an earlier report.
             Any exception raised while drawing a figure (nothing is left at ``out_dir``).
         """
         out_dir = Path(out_dir).absolute()
@@ -413,22 +422,19 @@ class Report:
             raise ValueError(f"summary must not use the reserved keys {clash}")
         data = json_ready(dict(summary))
         json.dumps(data, allow_nan=False)  # fail before touching the disk
-        _check_replaceable(out_dir)
-        parent = out_dir.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        partial = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=parent))
+        check_output_folder(out_dir, what="report folder")
+        partial = new_partial_folder(out_dir)
         try:
-            partial.chmod(0o755)  # mkdtemp makes it private; a report is meant to be shared
             pngs = self._render_figures(partial)
             _write_text(partial / "report.md", self.to_markdown())
             _write_text(partial / "report.html",
                         self.to_html(pngs if self.embed_images else None))
             files = sorted([*pngs, "report.md", "report.html", "summary.json"])
             data.update(complete=True, report_title=self.title, report_files=files)
-            # summary.json last: a folder without it is never a finished report.
             _write_text(partial / "summary.json",
                         json.dumps(data, indent=2, allow_nan=False) + "\n")
-            _replace_dir(partial, out_dir)
+            write_manifest(partial, "report")  # last: the marker of a finished report
+            replace_folder(partial, out_dir, what="report folder")
         except BaseException:
             shutil.rmtree(partial, ignore_errors=True)
             raise
@@ -440,30 +446,3 @@ def _write_text(path: Path, text: str) -> None:
         f.write(text)
         f.flush()
         os.fsync(f.fileno())
-
-
-def _check_replaceable(out_dir: Path) -> None:
-    if not (out_dir.exists() or out_dir.is_symlink()):
-        return
-    if not out_dir.is_dir():
-        raise FileExistsError(f"{out_dir} exists and is not a directory")
-    if any(out_dir.iterdir()) and not (out_dir / "summary.json").is_file():
-        raise FileExistsError(
-            f"{out_dir} is a non-empty directory without summary.json (not a report); "
-            "refusing to replace it"
-        )
-
-
-def _replace_dir(new: Path, target: Path) -> None:
-    """Renames ``new`` to ``target``; an existing ``target`` is removed only afterwards."""
-    if not target.exists():
-        os.rename(new, target)
-        return
-    old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
-    os.rename(target, old)
-    try:
-        os.rename(new, target)
-    except BaseException:
-        os.rename(old, target)
-        raise
-    shutil.rmtree(old, ignore_errors=True)

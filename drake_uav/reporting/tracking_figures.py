@@ -1,17 +1,25 @@
 """Figures of a tracking run: 3-D path, position error, motor thrusts, NMPC solve times.
 
 Matplotlib ``Figure`` objects (no pyplot, no display), written as PNG files by
-:func:`write_tracking_plots`.
+:func:`write_tracking_plots` into a plot folder that follows the overwrite rule of
+:mod:`drake_uav.reporting.output` (missing, empty or earlier plots only; swapped in complete).
 """
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from drake_uav.diagrams.tracking import TrackingRun
+from drake_uav.reporting.output import (
+    check_output_folder,
+    new_partial_folder,
+    replace_folder,
+    write_manifest,
+)
 
 __all__ = ["path_figure", "position_error_figure", "thrust_figure", "solve_time_figure",
            "write_tracking_plots"]
@@ -63,15 +71,31 @@ def solve_time_figure(run: TrackingRun) -> Figure:
 
 
 def write_tracking_plots(run: TrackingRun, out: str | Path) -> list[Path]:
-    """The four figures as PNGs in the folder ``out`` (created); returns their paths."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name, make in (("path_3d.png", path_figure), ("position_error.png",
-                                                      position_error_figure),
-                       ("thrusts.png", thrust_figure), ("solve_times.png", solve_time_figure)):
-        fig = make(run)
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
-        files.append(out / name)
-    return files
+    """The four figures as PNGs in the folder ``out``; returns their paths.
+
+    ``out`` may be missing, empty or an earlier plot folder (it holds only files its
+    manifest lists); it appears complete or not at all.
+
+    Raises
+    ------
+    OutputRefusedError
+        ``out`` is a file or a folder holding anything else (nothing is written).
+    """
+    out = check_output_folder(out, what="plot folder")
+    partial = new_partial_folder(out)
+    names = []
+    try:
+        for name, make in (("path_3d.png", path_figure),
+                           ("position_error.png", position_error_figure),
+                           ("thrusts.png", thrust_figure), ("solve_times.png",
+                                                            solve_time_figure)):
+            fig = make(run)
+            fig.tight_layout()
+            fig.savefig(partial / name, dpi=110)
+            names.append(name)
+        write_manifest(partial, "tracking plots")
+        replace_folder(partial, out, what="plot folder")
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    return [out / name for name in names]

@@ -69,7 +69,21 @@ def load_fixed_wing(name_or_path: str | Path) -> FixedWingParams:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{path}: not valid TOML: {err}") from None
-    return _from_mapping(data, catalog, source=str(path))
+    try:
+        return _from_mapping(data, catalog, source=str(path))
+    except ValueError as err:  # an invalid value: name the file as well as the field
+        message = str(err)
+        raise ValueError(message if message.startswith(str(path)) else
+                         f"{path}: {message}") from None
+
+
+def _numbers_only(source: str, where: str, entries: dict) -> None:
+    """Raises ValueError naming the entry whose value is not a number (or list of numbers)."""
+    for key, value in entries.items():
+        items = value if isinstance(value, list) else [value]
+        if not items or any(isinstance(v, bool) or not isinstance(v, int | float)
+                            for v in items):
+            raise ValueError(f"{source}: {where}{key} = {value!r} is not a number")
 
 
 def _from_mapping(data: dict, catalog: dict[str, FixedWingParams], source: str):
@@ -82,6 +96,15 @@ def _from_mapping(data: dict, catalog: dict[str, FixedWingParams], source: str):
     unknown = sorted(set(data) - fields)
     if unknown:
         raise ValueError(f"{source}: unknown field(s) {unknown}; known: {sorted(fields)}")
+    if "name" in data and not isinstance(data["name"], str):
+        raise ValueError(f"{source}: name = {data['name']!r} is not a text")
+    _numbers_only(source, "", {k: v for k, v in data.items()
+                               if k not in ("name", "derivatives", "propulsion", "limits")})
+    for table in ("derivatives", "propulsion", "limits"):
+        if table in data:
+            if not isinstance(data[table], dict):
+                raise ValueError(f"{source}: {table} must be a [{table}] table")
+            _numbers_only(source, f"[{table}] ", data[table])
     parts = {
         "propulsion": base.propulsion if base else Propulsion(),
         "limits": base.limits if base else ControlLimits(),
