@@ -232,7 +232,7 @@ def _check_ground_speed(log: FlightLog, params: FixedWingParams, rows: np.ndarra
             f"{_prefix(source)}pitot_airspeed disagrees with the GPS ground speed: median "
             f"{np.median(airspeed):.3g} m/s against {np.median(ground[fixes]):.3g} m/s, a "
             f"wind of {difference:.3g} m/s, faster than the aircraft can fly ({top:.0f} "
-            "m/s); check the airspeed's unit and channel, or the pitot")
+            "m/s); check the unit and channel of the airspeed and of the GPS velocity")
 
 
 def _ground_speeds(log: FlightLog, rows: np.ndarray) -> np.ndarray | None:
@@ -291,9 +291,10 @@ def check_calibration(effects: Iterable, significance: float,
             continue
         degrees = effect.unit == "rad"
         factor, unit = (math.degrees(1.0), " deg") if degrees else (1.0, "")
-        cause = next((name for ratio, name in _SCALE_SLIPS
-                      if not degrees and abs(math.log(effect.estimate / ratio)) < 0.15),
-                     "a wrong unit, a wrong channel or a failed sensor, not a calibration")
+        cause = ("a wrong zero or a wrong channel, not a calibration" if effect.nominal == 0.0
+                 else next((name for ratio, name in _SCALE_SLIPS
+                            if abs(math.log(effect.estimate / ratio)) < 0.15),
+                           "a wrong unit, a wrong channel or a failed sensor, not a calibration"))
         raise ImplausibleChannelError(
             f"{_prefix(source)}{', '.join(effect.channels[:1])}: {effect.name} "
             f"{effect.estimate * factor:.4g} +- {effect.sigma * factor:.2g}{unit}, far outside "
