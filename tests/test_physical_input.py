@@ -84,20 +84,28 @@ def test_a_vane_logged_in_degrees_as_radians_stops_naming_the_cause(sample, tmp_
 
 def test_an_absurd_airspeed_stops_naming_the_channel_and_the_gps_speed(sample, tmp_path,
                                                                        capsys):
-    assert max_airspeed(aerosonde()) == 340.0  # its dive is faster than sound: sound caps
+    # The Aerosonde's power-on vertical dive with half its least drag coefficient: its
+    # propeller has stopped pulling there, the drag equals the weight.
+    params = aerosonde()
+    top = max_airspeed(params)
+    assert params.propulsion.thrust_torque(top, 1.0, params.rho)[0] < 0.0
+    least_drag = params.derivatives["CD_0"] - params.derivatives["CD_alpha"] ** 2 / (
+        4.0 * params.derivatives["CD_alpha2"])
+    assert 0.25 * params.rho * top**2 * params.S * least_drag == pytest.approx(
+        params.mass * params.gravity, rel=1e-3)
     path = _saved(sample, tmp_path, "pitot", pitot_airspeed=np.full(len(sample), 1e6))
     _stops_with(path, tmp_path, capsys,
                 f"error: {path}: pitot_airspeed is not physical (a wrong unit, a wrong "
                 "channel or a failed sensor): 1e+06 to 1e+06 m/s in flight, 15001 of 15001 "
-                "samples above 340 m/s (the speed of sound); the GPS ground speed is 25.4 "
-                "m/s; fix the unit or the channel of the log")
+                "samples outside 0 to 131.8 m/s (the aircraft's power-on vertical dive); the "
+                "GPS ground speed is 25.4 m/s; fix the unit or the channel of the log")
     # The redundant channel: a GPS velocity in cm/s implies a wind no aircraft flies in.
     path = _saved(sample, tmp_path, "gps", **{n: sample[n] * 100.0
                                               for n in ("gps_vn", "gps_ve", "gps_vd")})
     _stops_with(path, tmp_path, capsys,
                 f"error: {path}: pitot_airspeed disagrees with the GPS ground speed: median "
                 "25 m/s against 2.54e+03 m/s, a wind of 2.51e+03 m/s, faster than the "
-                "aircraft can fly (340 m/s); check the unit and channel of the airspeed and "
+                "aircraft can fly (132 m/s); check the unit and channel of the airspeed and "
                 "of the GPS velocity")
 
 
@@ -108,8 +116,9 @@ def test_an_airspeed_spike_is_drawn_over_with_a_warning_and_the_finding_kept(
     path = _saved(sample, tmp_path, "spike", pitot_airspeed=airspeed)
     out = tmp_path / "report"
     code, lines, _ = _identify(path, out, capsys)
-    warning = ("pitot_airspeed: 1 sample(s) above 340 m/s (the speed of sound) removed as "
-               "glitches at 75.00 s; drawn as a straight line between their neighbours")
+    warning = ("pitot_airspeed: 1 sample(s) outside 0 to 131.8 m/s (the aircraft's power-on "
+               "vertical dive) removed as glitches at 75.00 s; drawn as a straight line between "
+               "their neighbours")
     assert code == 0 and f"warning: {warning}" in lines, lines
     summary = json.loads((out / "summary.json").read_text())
     assert summary["data"]["warnings"] == [warning]

@@ -16,9 +16,10 @@ channels                           physical range       why
                                                         a small airframe's strength
 ``cmd_elevator cmd_aileron         +-pi/2 rad           no surface deflects 90 deg
 cmd_rudder``
-``pitot_airspeed``                 <= :func:`max_airspeed`  the aircraft's catalog: its
-``pitot_qbar``                     <= its dynamic pressure  power-on vertical dive, at most
-                                                        the speed of sound
+``pitot_airspeed``                 0 to                 the aircraft's catalog: its
+                                   :func:`max_airspeed` power-on vertical dive, at most
+``pitot_qbar``                     0 to its dynamic     the speed of sound
+                                   pressure
 =================================  ===================  =====================================
 
 :func:`check_channels` reads a log over its airborne rows. Out-of-range samples that are
@@ -39,7 +40,7 @@ import math
 from collections.abc import Iterable
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
@@ -99,27 +100,29 @@ _UNIT_SLIPS = {"rad": (math.degrees(1.0), "degrees"), "rad/s": (math.degrees(1.0
 
 
 def max_airspeed(params: FixedWingParams) -> float:
-    """The highest airspeed [m/s] ``params`` can fly: the terminal speed of a vertical dive
-    at full throttle, ``sqrt(2 (m g + T_static) / (rho S C_D,min / 2))``, at most
-    :data:`SPEED_OF_SOUND`.
+    """The highest airspeed [m/s] ``params`` can fly: its terminal speed in a vertical dive
+    at full throttle, where the drag ``rho V^2 S C_D,min / 4`` equals the weight plus the
+    thrust (none once the propeller stops pulling), at most :data:`SPEED_OF_SOUND`.
 
     ``C_D,min`` is the catalog's least drag coefficient over the angle of attack (the other
-    signals zero), halved because a flight may find the drag lower than the catalog's (a
-    catalog without a positive drag floor gives the speed of sound); ``T_static`` is the
-    static thrust at full throttle, the most a propeller gives.
+    signals zero), halved because a flight may find the drag lower than the catalog's; a
+    catalog without a positive drag floor gives the speed of sound.
     """
     alpha = np.linspace(-math.pi / 2, math.pi / 2, 721)
     zeros = np.zeros_like(alpha)
     drag = CoefficientModel(params.derivatives).coefficient(
         "CD", AeroCondition(zeros + 1.0, alpha, zeros, zeros, zeros, zeros), params.b, params.c)
     floor = 0.5 * float(np.min(np.broadcast_to(drag, alpha.shape)))
-    thrust = max(float(params.propulsion.thrust_torque(0.0, params.limits.throttle_max,
-                                                       params.rho)[0]), 0.0)
-    if floor <= 0.0:
+
+    def excess_drag(speed: float) -> float:
+        thrust = float(params.propulsion.thrust_torque(speed, params.limits.throttle_max,
+                                                       params.rho)[0])
+        return (float(dynamic_pressure(speed, params.rho)) * params.S * floor
+                - params.mass * params.gravity - max(thrust, 0.0))
+
+    if floor <= 0.0 or excess_drag(SPEED_OF_SOUND) <= 0.0:
         return SPEED_OF_SOUND
-    dive = math.sqrt(2.0 * (params.mass * params.gravity + thrust) / (params.rho * params.S
-                                                                     * floor))
-    return min(dive, SPEED_OF_SOUND)
+    return float(optimize.brentq(excess_drag, 0.0, SPEED_OF_SOUND, xtol=1e-6))
 
 
 def channel_ranges(params: FixedWingParams) -> dict[str, ChannelRange]:
@@ -129,9 +132,9 @@ def channel_ranges(params: FixedWingParams) -> dict[str, ChannelRange]:
     why = ("the speed of sound" if top == SPEED_OF_SOUND
            else "the aircraft's power-on vertical dive")
     return {**PHYSICAL_RANGES,
-            "pitot_airspeed": ChannelRange(-math.inf, top, "m/s", why),
-            "pitot_qbar": ChannelRange(-math.inf, float(dynamic_pressure(top, params.rho)),
-                                       "Pa", why)}
+            "pitot_airspeed": ChannelRange(0.0, top, "m/s", why),
+            "pitot_qbar": ChannelRange(0.0, float(dynamic_pressure(top, params.rho)), "Pa",
+                                       why)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,10 +162,10 @@ def _cause(values: np.ndarray, bounds: ChannelRange) -> str:
 
 
 def _outside(bounds: ChannelRange) -> str:
-    """"outside +-1.571 rad" or "above 340 m/s"."""
+    """"outside +-1.571 rad" or "outside 0 to 131.8 m/s"."""
     if bounds.low == -bounds.high:
         return f"outside +-{bounds.high:.4g} {bounds.unit}"
-    return f"above {bounds.high:.4g} {bounds.unit}"
+    return f"outside {bounds.low:.4g} to {bounds.high:.4g} {bounds.unit}"
 
 
 def _prefix(source: str | None) -> str:
