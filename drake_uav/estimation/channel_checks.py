@@ -1,5 +1,5 @@
 """Physically impossible input: each channel against its physical range and its redundant
-channels, before any fit (docs/flight_data.md, "Physically impossible input").
+channels, before any fit (docs/compatibility.md, "Physically impossible input").
 
 =================================  ===================  =====================================
 channels                           physical range       why
