@@ -18,7 +18,11 @@ from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.diagrams.identification_flight import default_excitation
 from drake_uav.estimation import estimate_air_data
-from drake_uav.estimation.channel_checks import ImplausibleChannelError, max_airspeed
+from drake_uav.estimation.channel_checks import (
+    ImplausibleChannelError,
+    check_channels,
+    max_airspeed,
+)
 from drake_uav.estimation.compatibility import check_compatibility
 from drake_uav.identification.main_job import identify
 from drake_uav.io.flight_log import FlightLog
@@ -125,6 +129,14 @@ def test_an_airspeed_spike_is_drawn_over_with_a_warning_and_the_finding_kept(
     assert summary["data"]["warnings"] == [warning]
     assert summary["findings"] == ["thrust_propwash"]  # the clean sample's finding
     assert f"- **Warning:** {warning}" in (out / "report.md").read_text()
+    # A spike inside the range: a jump no aircraft makes in a sample interval.
+    airspeed[len(airspeed) // 2] = 125.0
+    checked = check_channels(sample.with_measured({"pitot_airspeed": airspeed}), aerosonde())
+    assert checked.notes == ("pitot_airspeed: 1 isolated spike(s), a jump faster than the "
+                             "aircraft accelerates (17 g), removed at 75.00 s; drawn as a "
+                             "straight line between their neighbours",)
+    assert np.abs(checked.log["pitot_airspeed"] - sample["pitot_airspeed"]).max() < 0.5
+    assert check_channels(sample, aerosonde()).notes == ()  # the clean flight: none
 
 
 def test_a_wind_the_flight_does_not_observe_is_withheld_and_said(sample):

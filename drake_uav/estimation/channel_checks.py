@@ -24,7 +24,9 @@ cmd_rudder``
 
 :func:`check_channels` reads a log over its airborne rows. Out-of-range samples that are
 *glitches* (each run shorter than :data:`GLITCH_DURATION`, together at most
-:data:`GLITCH_SHARE` of the rows) are drawn as a straight line between their neighbours,
+:data:`GLITCH_SHARE` of the rows), and airspeed samples that jump off the line between
+their neighbours faster than the aircraft accelerates (:data:`MAX_AIRSPEED_RATE`), are
+drawn as a straight line between their neighbours,
 with a note naming the channel and the times; anything more stops with
 :class:`ImplausibleChannelError`, one line naming the file, the channel and the likely
 cause ("vane_alpha looks like degrees"). The pitot airspeed is also checked against the
@@ -42,13 +44,15 @@ from collections.abc import Iterable
 import numpy as np
 from scipy import optimize, stats
 
+from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import AeroCondition, CoefficientModel
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["ImplausibleChannelError", "ChannelRange", "PHYSICAL_RANGES", "SPEED_OF_SOUND",
-           "GLITCH_DURATION", "GLITCH_SHARE", "GROSS_CALIBRATION", "CheckedLog",
+           "GLITCH_DURATION", "GLITCH_SHARE", "MAX_AIRSPEED_RATE", "SPIKE_SIGMAS",
+           "GROSS_CALIBRATION", "CheckedLog",
            "max_airspeed", "channel_ranges", "check_channels", "check_calibration"]
 
 
@@ -94,6 +98,14 @@ GLITCH_DURATION = 0.5
 main job accepts in a stream (``samples_from_log(max_gap=0.5)``)."""
 GLITCH_SHARE = 0.01
 """Share of a channel's rows out of range beyond which the channel is wrong, not glitchy."""
+MAX_AIRSPEED_RATE = 17.0 * _G
+"""[m/s^2]: the fastest the airspeed changes, the accelerometers' largest full scale (16 g)
+plus gravity; a sample further from the line between its neighbours than this over the
+interval, plus :data:`SPIKE_SIGMAS` times the sensor noise, is a spike."""
+SPIKE_SIGMAS = 5.0
+"""A spike stands this many standard deviations of the sensor noise (the robust spread of
+the samples' distances from the line between their neighbours) beyond what the aircraft
+can do: about one false spike in two million samples of Gaussian noise."""
 
 _UNIT_SLIPS = {"rad": (math.degrees(1.0), "degrees"), "rad/s": (math.degrees(1.0), "deg/s")}
 """Unit -> (factor, name) of the unit a channel in that unit is often logged in by mistake."""
@@ -215,8 +227,47 @@ def check_channels(log: FlightLog, params: FixedWingParams, rows: np.ndarray | N
                      f"{' ...' if len(runs) > 5 else ''}; drawn as a straight line between "
                      "their neighbours")
     checked = log.with_measured(repaired) if repaired else log
+    if "pitot_airspeed" in checked:
+        spikes = rows & _isolated_spikes(checked.time, checked["pitot_airspeed"])
+        if spikes.any():
+            values = np.array(checked["pitot_airspeed"], float)
+            values[spikes] = np.interp(checked.time[spikes], checked.time[~spikes],
+                                       values[~spikes])
+            checked = checked.with_measured({"pitot_airspeed": values})
+            at = checked.time[spikes]
+            notes.append(f"pitot_airspeed: {spikes.sum()} isolated spike(s), a jump faster "
+                         f"than the aircraft accelerates ({MAX_AIRSPEED_RATE / _G:.0f} g), "
+                         "removed at " + ", ".join(f"{t:.2f} s" for t in at[:5])
+                         + (" ..." if len(at) > 5 else "") + "; drawn as a straight line "
+                         "between their neighbours")
     _check_ground_speed(checked, params, rows, source)
     return CheckedLog(checked, tuple(notes))
+
+
+def _isolated_spikes(time: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Rows (bool) of the airspeed samples that stand alone off the line between their
+    neighbours by more than the aircraft can accelerate over the interval
+    (:data:`MAX_AIRSPEED_RATE`) plus :data:`SPIKE_SIGMAS` times the sensor noise; a held
+    channel is judged on the samples it delivered."""
+    values = np.asarray(values, float)
+    fresh = np.flatnonzero(fresh_samples(values))
+    if fresh.size > HELD_FRACTION * values.size:  # not held: every sample is its own
+        fresh = np.arange(values.size)
+    out = np.zeros(values.size, bool)
+    if fresh.size < 5:
+        return out
+    t, v = np.asarray(time, float)[fresh], values[fresh]
+    before, after = t[1:-1] - t[:-2], t[2:] - t[1:-1]
+    off = v[1:-1] - (v[:-2] + (v[2:] - v[:-2]) * before / (before + after))
+    spread = 1.4826 * float(np.median(np.abs(off - np.median(off))))
+    beyond = np.abs(off) > MAX_AIRSPEED_RATE * np.minimum(before, after) + SPIKE_SIGMAS * spread
+    # An isolated spike also pulls its neighbours off their lines, by half as much.
+    peak = np.abs(off) >= np.maximum(np.abs(np.roll(off, 1)), np.abs(np.roll(off, -1)))
+    spikes = fresh[1:-1][beyond & peak]
+    held_until = np.append(fresh[1:], values.size)
+    for k in spikes:  # a held spike lasts until the next sample
+        out[k:held_until[np.searchsorted(fresh, k)]] = True
+    return out
 
 
 def _check_ground_speed(log: FlightLog, params: FixedWingParams, rows: np.ndarray,
