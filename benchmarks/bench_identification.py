@@ -31,13 +31,18 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.diagrams.identification_flight import build_identification_flight
-from drake_uav.identification.recursive import (
+from drake_uav.identification.statistics.recursive import (
     RecursiveOLS,
     RecursiveTLS,
     VariableForgetting,
     reconvergence_time,
 )
-from drake_uav.identification.regression import InsufficientExcitationWarning, ols, pca_tls, tls
+from drake_uav.identification.statistics.regression import (
+    InsufficientExcitationWarning,
+    ols,
+    pca_tls,
+    tls,
+)
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.systems.identifiers import (
     AeroRegressors,

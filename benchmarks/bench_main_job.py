@@ -14,7 +14,7 @@ times each stage in wall time and in CPU time of its process (``time.process_tim
 * report: figures, markdown, HTML and summary.json (``write_report``).
 
 The stages are timed by the job's own progress messages, so the job is the unmodified
-:func:`~drake_uav.identification.main_job.identify`. The best (lowest) of ``--repeats`` runs
+:func:`~drake_uav.identification.pipeline.identify`. The best (lowest) of ``--repeats`` runs
 is kept per stage and for the whole job. The load average of the machine is printed next to
 the figures: on a loaded machine wall time grows with the load, CPU time much less.
 
@@ -66,7 +66,7 @@ class _Clock:
 def child(log: str, out_dir: str) -> dict:
     """One run of the job in this (fresh) process; returns the stage times and the run."""
     clock = _Clock()
-    from drake_uav.identification.main_job import identify
+    from drake_uav.identification.pipeline import identify
     from drake_uav.io.readers import read_log
     from drake_uav.reporting.identification_report import write_report
     from drake_uav.vehicles.loading import load_fixed_wing
@@ -118,9 +118,9 @@ def _peer_designs(run) -> tuple[list, int]:
     joint (vector-effect) candidates were scored besides, which have no such design."""
     import numpy as np
 
-    from drake_uav.identification.coefficient_design import baseline_names
-    from drake_uav.identification.discovery_result import EvidenceRule
-    from drake_uav.identification.effects import effect_library, product_candidates
+    from drake_uav.identification.discovery.coefficient_design import baseline_names
+    from drake_uav.identification.discovery.effects import effect_library, product_candidates
+    from drake_uav.identification.discovery.result import EvidenceRule
     from drake_uav.model.coefficients import regressor_matrix
 
     rule, samples, params = EvidenceRule(), run.samples, run.params

@@ -114,7 +114,7 @@ def _vane_sources(text: str, unit: str) -> dict:
 def _cmd_identify(args: argparse.Namespace) -> int:
     path = _sample_flight() if args.log is None else Path(args.log)
     _check_identify_arguments(args, path)
-    from drake_uav.identification.main_job import identify
+    from drake_uav.identification.pipeline import identify
     from drake_uav.io.readers import read_log
     from drake_uav.reporting.identification_report import result_warnings, write_report
     from drake_uav.vehicles.loading import load_fixed_wing
@@ -160,9 +160,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     for warning in result_warnings(run):
         print(f"warning: {warning}")
     print(run.discovery.message)
-    from drake_uav.identification.noise_floor import held_out_noise_floor
-
-    for k, f in held_out_noise_floor(run.samples, run.discovery, run.params).items():
+    for k, f in run.noise_floors.items():
         print(f"  {k}: equation-error RMS {f.before:.4g} -> {f.after:.4g} (held-out; "
               f"noise floor {f.floor:.4g})")
     names = ("Va [m/s]", "alpha [deg]", "beta [deg]", "p [deg/s]", "q [deg/s]", "r [deg/s]")

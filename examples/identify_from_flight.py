@@ -13,7 +13,7 @@ import sys
 import numpy as np
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.pipeline import identify
 from drake_uav.reporting.identification_report import write_report
 from drake_uav.vehicles import aerosonde
 

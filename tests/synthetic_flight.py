@@ -7,7 +7,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_uav.identification.isolation import isolate_coefficients
+from drake_uav.identification.samples.isolation import isolate_coefficients
 from drake_uav.optimization.trim import trim
 from drake_uav.systems.disturbances import AerodynamicIncrement
 from drake_uav.systems.fixed_wing import FixedWingPlant

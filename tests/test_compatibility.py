@@ -16,7 +16,7 @@ from drake_uav.diagrams.identification_flight import default_excitation
 from drake_uav.estimation.compatibility import check_compatibility
 from drake_uav.estimation.compatibility_fits import linear_fit, shift_fit
 from drake_uav.estimation.signals import Cumulative
-from drake_uav.identification.main_job import measured_command_delay
+from drake_uav.identification.pipeline import measured_command_delay
 from drake_uav.io.flight_log import FlightLogError
 from drake_uav.systems.excitation import Doublet
 from drake_uav.systems.safety_pilot import SafetyPilotGains

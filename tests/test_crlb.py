@@ -5,12 +5,12 @@ import warnings
 import numpy as np
 import pytest
 
-from drake_uav.identification.crlb import (
+from drake_uav.identification.statistics.crlb import (
     crlb_errors_in_variables,
     crlb_ols,
     sample_errors_in_variables,
 )
-from drake_uav.identification.regression import ols, tls
+from drake_uav.identification.statistics.regression import ols, tls
 
 THETA = np.array([0.02, -0.38, -3.6, -0.5])  # C_m0, C_malpha, C_mqn, C_mde
 RUNS = 200

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.decimation import bin_means, decimation_factor
-from drake_uav.identification.flight_data import (
+from drake_uav.identification.samples.decimation import bin_means, decimation_factor
+from drake_uav.identification.samples.flight_data import (
     CONTROLS,
     _on_grid,
     held_commands,

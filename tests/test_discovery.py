@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from synthetic_flight import measured_samples, synthetic_flight, synthetic_samples
 
-from drake_uav.identification.coefficient_design import fit_derivatives
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
-from drake_uav.identification.reconstruction import reconstruct
+from drake_uav.identification.assessment.reconstruction import reconstruct
+from drake_uav.identification.discovery.coefficient_design import fit_derivatives
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,7 @@ def test_fit_sigma_is_the_spread_of_the_estimates_over_noise_draws():
 def test_reconstruction_is_better_with_the_true_model_than_with_a_wrong_one(clean):
     params, samples, truth = clean
     test = samples.subset(slice(len(samples) // 2, len(samples)))
-    from drake_uav.identification.coefficient_design import baseline_names
+    from drake_uav.identification.discovery.coefficient_design import baseline_names
     from drake_uav.model.coefficients import regressor_matrix
 
     def models(scale_lift_slope):
@@ -107,7 +107,7 @@ def test_the_servo_delay_column_lags_the_throttle_not_the_airspeed():
     with the airspeed: the delay column's thrust part is zero."""
     import dataclasses
 
-    from drake_uav.identification.effects import effect_library
+    from drake_uav.identification.discovery.effects import effect_library
 
     params, samples, _ = synthetic_samples(seed=3, duration=20.0, noise=False)
     throttle = np.full_like(samples.throttle, 0.6)
@@ -127,7 +127,7 @@ def test_a_measured_servo_delay_shifts_the_commands_instead_of_differentiating_t
     the late throttle really adds (its parameter 1), to 5 %; the first-order column,
     the throttle's rate times the delay, misses a multisine that moves within 60 ms by
     over 20 %."""
-    from drake_uav.identification.effects import effect_library
+    from drake_uav.identification.discovery.effects import effect_library
     from drake_uav.model.coefficients import body_to_lift_drag
 
     params, samples, _ = synthetic_samples(seed=3, duration=20.0, noise=False)

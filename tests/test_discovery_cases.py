@@ -18,7 +18,7 @@ import pytest
 
 import drake_uav.campaigns.discovery_cases as discovery_cases
 from drake_uav.campaigns.discovery_cases import INJECTED, discovery
-from drake_uav.identification.discovery_result import Evidence, FoundEffect
+from drake_uav.identification.discovery.result import Evidence, FoundEffect
 from drake_uav.model.coefficients import COEFFICIENTS
 
 SEEDS = (0, 1, 2)

@@ -18,15 +18,15 @@ from log_writers import DataFlashWriter, px4_imu_writer
 
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
-from drake_uav.identification.flight_data import (
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE
+from drake_uav.identification.pipeline import identify, select_samples
+from drake_uav.identification.samples.flight_data import (
     MIN_EXTRA_CHANGES,
     samples_from_log,
     usable_extras,
 )
-from drake_uav.identification.main_job import identify, select_samples
-from drake_uav.identification.regressor_noise import smoothing_gains, source_variances
+from drake_uav.identification.samples.regressor_noise import smoothing_gains, source_variances
 from drake_uav.io import FlightLog, FlightLogError, extra_channels, read_log
 from drake_uav.vehicles import aerosonde
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.flight_data import raw_noise_variance, samples_from_log
-from drake_uav.identification.segments import concatenate_samples
-from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
+from drake_uav.identification.samples.aero_samples import GPS_POSITION, GPS_VELOCITY
+from drake_uav.identification.samples.flight_data import raw_noise_variance, samples_from_log
+from drake_uav.identification.samples.segments import concatenate_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.vehicles import aerosonde
 
@@ -76,7 +76,7 @@ def test_declared_specs_are_used_only_when_given(flight):
 
 def test_a_channel_logged_slower_than_the_log_keeps_its_noise():
     """A 10 Hz pitot interpolated onto a 100 Hz log: its noise is read at 10 Hz."""
-    from drake_uav.identification.flight_data import native_noise_variance
+    from drake_uav.identification.samples.flight_data import native_noise_variance
 
     rng = np.random.default_rng(11)
     t = np.arange(0.0, 120.0, 0.01)

@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from drake_uav.identification.flight_phases import PhaseSettings, mode_timeline, usable_spans
+from drake_uav.identification.samples.flight_phases import (
+    PhaseSettings,
+    mode_timeline,
+    usable_spans,
+)
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 
 

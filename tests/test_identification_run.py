@@ -6,12 +6,14 @@ import json
 import pytest
 from synthetic_flight import synthetic_samples
 
-from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS, identify_samples
+from drake_uav.identification.pipeline import RECONSTRUCTED_OUTPUTS, identify_samples
+from drake_uav.reporting.identification_report import write_report
+from drake_uav.reporting.report import json_ready
 
 RUN_KEYS = {"source", "aircraft", "data", "message", "findings", "samples", "holdout_start_s",
             "effects", "equation_error_rms_holdout", "reconstruction_mae_holdout",
             "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
-            "parameters", "dropped_terms"}
+            "parameters", "dropped_terms", "warnings", "near_ties", "rounds"}
 EFFECT_KEYS = {"name", "kind", "explanation", "coefficients", "evidence", "parameters"}
 
 
@@ -48,8 +50,32 @@ def test_summary_has_each_run_level_key_once_and_effects_only_their_own(run):
     for k, terms in dropped.items():
         for t in terms:
             assert summary["parameters"][k][t.term] == {
-                "estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True}
+                "estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True,
+                "catalog": run.params.derivatives.get(t.term)}
             assert t.term not in run.discovery.final[k].names
     text = json.dumps(summary, default=lambda value: value.item())  # numpy scalars
     assert text.count('"reconstruction_divergences"') == 1
     assert text.count('"measured_coefficient_sigma_monte_carlo"') == 1
+
+
+def test_summary_json_is_exactly_the_run_summary(run, tmp_path):
+    """The report adds only its folder's keys: every figure of summary.json is the run's."""
+    out = write_report(run, tmp_path / "report")
+    written = json.loads((out / "summary.json").read_text())
+    assert written.pop("complete") is True
+    assert written.pop("report_title").startswith("Identification report")
+    assert set(written.pop("report_files")) >= {"report.md", "report.html"}
+    assert written == json.loads(json.dumps(json_ready(run.summary())))
+
+
+def test_the_run_holds_what_the_report_prints(run):
+    """Noise floors, derivative warnings and near ties are the run's, one per coefficient
+    fitted, the figures of its summary."""
+    summary = run.summary()
+    assert set(run.noise_floors) == set(run.discovery.final)
+    for k, floor in run.noise_floors.items():
+        entry = summary["equation_error_rms_holdout"][k]
+        assert entry["before"] == floor.before and entry["after"] == floor.after
+    assert summary["warnings"] == [dataclasses.asdict(w) for w in run.derivative_warnings]
+    assert summary["near_ties"] == [t.summary() for t in run.near_ties]
+    assert run.noise_floors is run.noise_floors  # computed once

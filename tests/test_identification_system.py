@@ -7,7 +7,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_uav.identification.recursive import VariableForgetting
+from drake_uav.identification.statistics.recursive import VariableForgetting
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.optimization.trim import trim
 from drake_uav.systems.fixed_wing import FixedWingPlant

@@ -21,7 +21,7 @@ from drake_uav.campaigns.imu_offset import imu_away_from_cg
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.estimation.imu_position import accelerometers_at_cg, logged_imu_position
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.readers import read_log
 from drake_uav.model.isolation import lever_arm_specific_force

@@ -10,10 +10,10 @@ from synthetic_flight import synthetic_samples
 
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
-from drake_uav.identification.adequacy import assess
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE, EvidenceRule, FoundEffect
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.discovery.adequacy import assess
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE, EvidenceRule, FoundEffect
+from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.vehicles.fixed_wing import aerosonde

@@ -8,9 +8,9 @@ from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.diagrams.identification_flight import fly
-from drake_uav.identification.coefficient_design import baseline_names
-from drake_uav.identification.flight_data import held_commands, samples_from_log
-from drake_uav.identification.isolation import (
+from drake_uav.identification.discovery.coefficient_design import baseline_names
+from drake_uav.identification.samples.flight_data import held_commands, samples_from_log
+from drake_uav.identification.samples.isolation import (
     interval_averages,
     isolate_coefficients,
     monte_carlo_sigma,

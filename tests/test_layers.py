@@ -43,3 +43,17 @@ def test_no_package_shares_a_module_name():
     modules = {p.stem: p for p in tree.rglob("*.py") if p.stem != "__init__"}
     shared = {name: str(modules[name].relative_to(ROOT)) for name in packages & set(modules)}
     assert not shared, f"modules named like a package: {shared}"
+
+
+def test_a_reverse_import_inside_identification_breaks_its_layers(tmp_path):
+    shutil.copytree(ROOT / "drake_uav", tmp_path / "drake_uav",
+                    ignore=shutil.ignore_patterns("__pycache__", "data"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path)
+    statistics = tmp_path / "drake_uav" / "identification" / "statistics" / "crlb.py"
+    with open(statistics, "a") as f:
+        f.write("\nimport drake_uav.identification.samples.aero_samples  # noqa: E402,F401\n")
+    done = _lint(tmp_path)
+    assert done.returncode != 0
+    assert ("drake_uav.identification.statistics is not allowed to import "
+            "drake_uav.identification.samples") in " ".join(done.stdout.split())
+

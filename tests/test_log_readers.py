@@ -16,7 +16,7 @@ from log_writers import (
     ulog_from_log,
 )
 
-from drake_uav.identification.flight_data import REQUIRED_CHANNELS
+from drake_uav.identification.samples.flight_data import REQUIRED_CHANNELS
 from drake_uav.io.ardupilot import read_ardupilot
 from drake_uav.io.csv_log import read_csv
 from drake_uav.io.flight_log import FlightLog, FlightLogError

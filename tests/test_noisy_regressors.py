@@ -9,11 +9,11 @@ import pytest
 from synthetic_flight import NOISE, measured_samples, synthetic_flight
 
 from drake_uav.diagrams import fly
-from drake_uav.identification import coefficient_design
-from drake_uav.identification.coefficient_design import fit_derivatives
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.flight_data import samples_from_log
-from drake_uav.identification.regressor_noise import (
+from drake_uav.identification.discovery import coefficient_design
+from drake_uav.identification.discovery.coefficient_design import fit_derivatives
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.samples.flight_data import samples_from_log
+from drake_uav.identification.samples.regressor_noise import (
     DERIVATIVES,
     perturbed,
     smoothing_gains,

@@ -10,9 +10,9 @@ import pytest
 from synthetic_flight import synthetic_samples
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.effects import DRIFT_TIME_SCALE, effect_library
-from drake_uav.identification.main_job import identify
-from drake_uav.identification.segments import concatenate_samples
+from drake_uav.identification.discovery.effects import DRIFT_TIME_SCALE, effect_library
+from drake_uav.identification.pipeline import identify
+from drake_uav.identification.samples.segments import concatenate_samples
 from drake_uav.model.coefficients import body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import aerosonde
 

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.blocked_folds import fold_edges
-from drake_uav.identification.coefficient_design import baseline_names, fit_derivatives
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.errors_in_variables import PropagatedNoise
-from drake_uav.identification.main_job import select_samples
-from drake_uav.identification.parsimony import prune
+from drake_uav.identification.discovery.coefficient_design import baseline_names, fit_derivatives
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.parsimony import prune
+from drake_uav.identification.pipeline import select_samples
+from drake_uav.identification.statistics.blocked_folds import fold_edges
+from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles import aerosonde

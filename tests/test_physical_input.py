@@ -24,7 +24,7 @@ from drake_uav.estimation.channel_checks import (
     max_airspeed,
 )
 from drake_uav.estimation.compatibility import check_compatibility
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.io.readers import read_log
 from drake_uav.systems.excitation import Doublet

@@ -22,8 +22,8 @@ from drake_uav.identification import (
     identify_thrust,
     isolate_coefficients,
 )
-from drake_uav.identification.flight_data import held_commands
 from drake_uav.identification.propulsion import catalog_propeller, thrust_correction_columns
+from drake_uav.identification.samples.flight_data import held_commands
 from drake_uav.model.fixed_wing import FixedWingModel
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.propeller import (

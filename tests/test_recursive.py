@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from drake_uav.identification.recursive import (
+from drake_uav.identification.statistics.recursive import (
     RecursiveOLS,
     RecursiveTLS,
     VariableForgetting,
@@ -11,7 +11,7 @@ from drake_uav.identification.recursive import (
     reconvergence_time,
     vff_forgetting,
 )
-from drake_uav.identification.regression import ols, pca_tls, tls
+from drake_uav.identification.statistics.regression import ols, pca_tls, tls
 
 RATE = 50.0  # Hz
 THETA = np.array([0.02, -0.38, -3.6, -0.5])  # C_m0, C_malpha, C_mqn, C_mde

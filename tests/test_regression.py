@@ -18,7 +18,7 @@ import pytest
 from scipy import stats
 from scipy.linalg import expm
 
-from drake_uav.identification.regression import (
+from drake_uav.identification.statistics.regression import (
     InsufficientExcitationWarning,
     ols,
     pca_tls,

@@ -12,20 +12,21 @@ from scipy.signal import savgol_coeffs
 from synthetic_flight import NOISE, synthetic_flight
 
 import drake_uav
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import DiscoveryResult, Evidence, FoundEffect
-from drake_uav.identification.identifiability import (
+from drake_uav.identification.assessment.identifiability import (
     correlated_regressors,
     unexcited_derivatives,
 )
-from drake_uav.identification.isolation import isolate_coefficients
-from drake_uav.identification.main_job import identify
-from drake_uav.identification.noise_floor import held_out_noise_floor
-from drake_uav.identification.plausibility import implausible_derivatives
-from drake_uav.identification.residuals import diagnose
+from drake_uav.identification.assessment.near_ties import near_ties
+from drake_uav.identification.assessment.noise_floor import held_out_noise_floor
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.plausibility import implausible_derivatives
+from drake_uav.identification.discovery.result import DiscoveryResult, Evidence, FoundEffect
+from drake_uav.identification.pipeline import identify
+from drake_uav.identification.samples.isolation import isolate_coefficients
+from drake_uav.identification.statistics.residuals import diagnose
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.reporting import explanations, figures
-from drake_uav.reporting.identification_report import derivative_warnings, write_report
+from drake_uav.reporting.identification_report import write_report
 from drake_uav.vehicles.fixed_wing import aerosonde
 from drake_uav.vehicles.loading import load_fixed_wing
 
@@ -132,10 +133,10 @@ def test_implausible_derivatives_are_named_and_the_catalog_passes():
 
 def test_the_report_warns_about_a_wrong_sign_catalog_value_not_about_the_right_one(
         run, tmp_path):
-    plain = [w.message for w in derivative_warnings(run)]
+    plain = [w.message for w in run.derivative_warnings]
     assert not any(m.startswith("catalog:") for m in plain)
     unstable = dataclasses.replace(run, params=run.params.with_derivatives(Cm_alpha=0.4))
-    messages = [w.message for w in derivative_warnings(unstable)]
+    messages = [w.message for w in unstable.derivative_warnings]
     assert [m for m in messages if m.startswith("catalog:")] == [
         m for m in messages if m.startswith("catalog: Cm_alpha = 0.4 is above")]
     assert any("statically unstable" in m for m in messages)
@@ -179,7 +180,7 @@ def test_near_tied_alternatives_are_named_and_distant_ones_are_not():
     second = (_evidence("rate_coupling", 0.01, passed=False),)
     found = FoundEffect("thrust_propwash", "", "aerodynamic", ("CD",), (winner,), {})
     result = DiscoveryResult({}, {}, (found,), (first, second), 100.0)
-    (tie,) = explanations.near_ties(result)
+    (tie,) = near_ties(result)
     assert tie.round == 1 and tie.winner == winner
     assert [e.effect for e in tie.alternatives] == ["constant_body_force", "ned_force"]
     sentence = tie.sentence()
@@ -223,7 +224,7 @@ def test_the_report_shows_floors_catalog_rounds_ties_and_glossary(run, report):
     assert [len(r) for r in summary["rounds"]] == [len(r) for r in rounds]
     for i in range(len(rounds)):
         assert f"### Round {i + 1}:" in md
-    for tie in explanations.near_ties(run.discovery):
+    for tie in run.near_ties:
         assert tie.sentence() in md
         assert all(f"`{e.effect}`" in md for e in tie.alternatives)
     for term in ("PSE", "BCLS", "held-out data", "noise floor", "equation error"):

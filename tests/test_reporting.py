@@ -7,7 +7,7 @@ import pytest
 from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 
-from drake_uav.identification.residuals import diagnose
+from drake_uav.identification.statistics.residuals import diagnose
 from drake_uav.reporting import Report, figures, format_value, json_ready
 from drake_uav.reporting.output import MANIFEST
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from drake_uav.identification.residuals import (
+from drake_uav.identification.statistics.residuals import (
     MIN_SAMPLES,
     autocorrelation,
     correlation_lag,

@@ -13,7 +13,7 @@ import pytest
 from log_writers import dataflash_from_log, ulog_from_log
 
 import drake_uav
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.io.readers import read_log
 from drake_uav.io.streams import FieldSource

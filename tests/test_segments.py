@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from synthetic_flight import synthetic_samples
 
-from drake_uav.identification.segments import concatenate_samples
+from drake_uav.identification.samples.segments import concatenate_samples
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_a_span_without_a_gps_fix_leaves_the_gps_out_of_every_span_with_a_note()
     """Two airborne spans, the GPS fixed only in the second: the joined samples hold no GPS
     (the effects that need it are not tested) and the selection says why."""
     from drake_uav.diagrams import fly
-    from drake_uav.identification.main_job import select_samples
+    from drake_uav.identification.pipeline import select_samples
     from drake_uav.vehicles import load_fixed_wing
 
     params = load_fixed_wing("aerosonde")

@@ -25,17 +25,16 @@ import pytest
 from drake_uav.campaigns.discovery_cases import SUITES, discovery, pull_towards_point
 from drake_uav.diagrams import fly
 from drake_uav.diagrams.identification_flight import default_excitation
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
-from drake_uav.identification.fitted_point import NEAREST, candidate_points
-from drake_uav.identification.main_job import identify, select_samples
-from drake_uav.identification.vector_effects import (
+from drake_uav.identification.discovery.evidence import JointBlock, joint_solve
+from drake_uav.identification.discovery.fitted_point import NEAREST, candidate_points
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE
+from drake_uav.identification.discovery.vector_effects import (
     VectorEffect,
-    _Block,
-    _joint_solve,
     vector_effect,
     vector_effect_library,
 )
+from drake_uav.identification.pipeline import identify, select_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.systems.excitation import Multisine
 from drake_uav.vehicles.fixed_wing import aerosonde
@@ -206,8 +205,8 @@ def test_the_joint_solve_is_the_stacked_least_squares():
     blocks = []
     for X, V, z, i, w in zip(Xs, Vs, zs, index, weights, strict=True):
         D = np.column_stack([X, V])
-        blocks.append(_Block(D.T @ D, D.T @ z, X.shape[1], i, w))
-    phi, thetas, _ = _joint_solve(blocks, q)
+        blocks.append(JointBlock(D.T @ D, D.T @ z, X.shape[1], i, w))
+    phi, thetas, _ = joint_solve(blocks, q)
     # The stacked design: own columns block-diagonal, the shared ones mapped by index.
     rows = []
     for b, (X, V, i) in enumerate(zip(Xs, Vs, index, strict=True)):
@@ -260,7 +259,7 @@ def _samples_from_nothing():
 def test_without_vanes_the_located_point_is_not_tested():
     """The estimated wind's error, fixed in the NED frame, passes for a pull towards a far
     point (two false findings on 40 clean vaneless flights): it is left out then."""
-    from drake_uav.identification.main_job import testable_vector_effects
+    from drake_uav.identification.pipeline import testable_vector_effects
 
     def names(mode):
         return {e.name for e in testable_vector_effects(mode)}

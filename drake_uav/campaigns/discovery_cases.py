@@ -2,7 +2,7 @@
 
 One identification flight (:func:`drake_uav.diagrams.fly`, the aerosonde, 120 s) with
 one effect the catalog model lacks put into the physics or the sensors, then the main
-job (:func:`drake_uav.identification.main_job.identify`) with the catalog model, reading
+job (:func:`drake_uav.identification.pipeline.identify`) with the catalog model, reading
 only what a real log holds. An effect's size is the share it adds to the variation of
 the coefficient it acts on: ``size = std(term) / std(coefficient)`` over the flight, the
 coefficient being the catalog model's along the true trajectory (the truth channels) and
@@ -30,15 +30,15 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
-from drake_uav.identification.discovery_result import EvidenceRule
-from drake_uav.identification.fitted_point import unit_vectors_towards
-from drake_uav.identification.main_job import identify
-from drake_uav.identification.noise_floor import held_out_noise_floor
+from drake_uav.identification.assessment.noise_floor import held_out_noise_floor
+from drake_uav.identification.discovery.fitted_point import unit_vectors_towards
+from drake_uav.identification.discovery.result import EvidenceRule
+from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
-from drake_uav.reporting.explanations import near_ties
+from drake_uav.identification.assessment.near_ties import near_ties
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
@@ -371,7 +371,7 @@ def discovery(seed: int, params: dict) -> dict:
     ("multisine"; "multisine_throttle" also moves the throttle,
     :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
     calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
-    :attr:`~drake_uav.identification.discovery_result.EvidenceRule.min_folds`: how many of the
+    :attr:`~drake_uav.identification.discovery.result.EvidenceRule.min_folds`: how many of the
     five folds an effect must improve; for studies of the rule).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
@@ -379,7 +379,7 @@ def discovery(seed: int, params: dict) -> dict:
     held-out RMS of its coefficient ``rms_before`` / ``rms_after``, its noise floor
     ``floor`` and ``excess_explained`` (NaN when the error was at the floor); ``tied``:
     the effect was not found but the report names it as a near-tied alternative of a
-    finding (:func:`~drake_uav.reporting.explanations.near_ties`: the flight cannot tell
+    finding (:func:`~drake_uav.identification.assessment.near_ties.near_ties`: the flight cannot tell
     them apart); for a force towards a point, ``point_error`` and ``point_sigma``
     (:func:`_point_error`).
     """

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_uav.campaigns.discovery_cases import INJECTED, aero_condition, qbar_s
-from drake_uav.identification.coefficient_design import baseline_names
+from drake_uav.identification.discovery.coefficient_design import baseline_names
 from drake_uav.identification.propulsion import thrust_drag_columns
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import regressor_matrix

@@ -1,7 +1,7 @@
 """Which sensor limits each measured coefficient: the error budget of a simulated flight.
 
 The job measures each aerodynamic coefficient from the accelerometers, gyros, attitude,
-pitot and vanes (:func:`~drake_uav.identification.main_job.select_samples`). For a flight of
+pitot and vanes (:func:`~drake_uav.identification.pipeline.select_samples`). For a flight of
 :func:`~drake_uav.diagrams.fly`, which logs each sensor beside its truth,
 :func:`noise_budget` isolates the coefficients once from the true signals and once for
 each sensor group with that group's logged channels and every other channel true; the RMS
@@ -24,7 +24,7 @@ import numpy as np
 
 from drake_uav.campaigns.discovery_cases import measured_only
 from drake_uav.estimation.signals import AIR_DATA, ATTITUDE, IMU, LOG_CHANNELS
-from drake_uav.identification.main_job import select_samples
+from drake_uav.identification.pipeline import select_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS

@@ -21,7 +21,7 @@ import numpy as np
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.campaigns.scenarios import effect_flight
 from drake_uav.estimation.air_data_estimate import estimate_air_data
-from drake_uav.identification.main_job import IdentificationRun, identify
+from drake_uav.identification.pipeline import IdentificationRun, identify
 from drake_uav.io import read_log
 from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_px4 import write_px4_log

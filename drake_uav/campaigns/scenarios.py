@@ -6,7 +6,7 @@ the same way when they land.
 
 ``main_job``: an identification flight (:func:`drake_uav.diagrams.fly`) with an
 effect the aircraft's catalog model lacks put into the physics, then the main job
-(:func:`drake_uav.identification.main_job.identify`) on the log.
+(:func:`drake_uav.identification.pipeline.identify`) on the log.
 
 ``air_data_ekf``: an identification flight in turbulence and a steady wind, then the
 model-free (Vaiopoulos 2017, sec. 5.4.3) or model-based (sec. 5.4.5, without vanes)
@@ -35,7 +35,7 @@ from drake_uav.diagrams import (
 )
 from drake_uav.estimation import AirDataModel, ModelBasedAirDataModel
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.pipeline import identify
 from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.optimization.nmpc import NmpcSettings
 from drake_uav.vehicles import hexacopter, quadrotor_x

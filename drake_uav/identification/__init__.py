@@ -5,36 +5,33 @@ The main job, from a flight log to the effect the model lacks::
     from drake_uav.identification import identify
     run = identify(log, aerosonde())        # IdentificationRun: run.summary(), run.discovery
 
-and its parts, each usable alone:
+Its parts, each a sub-package that imports only the ones below it (an import-linter
+contract in ``pyproject.toml`` enforces the order):
 
-* :mod:`.flight_data` and :mod:`.isolation`: a log -> measured coefficients
-  (:func:`samples_from_log`, :func:`isolate_coefficients`, :class:`AeroSamples`).
-* :mod:`.regression`: batch :func:`ols`, :func:`tls` (GTLS with error stds),
-  :func:`pca_tls`, :func:`bcls`, one :class:`RegressionResult`.
-* :mod:`.errors_in_variables`: the core those estimators share (noise moments,
-  bias compensation, sandwich covariance).
-* :mod:`.recursive`: :class:`RecursiveOLS`, :class:`RecursiveTLS`, :class:`VariableForgetting`.
-* :mod:`.residuals`: :func:`diagnose` a residual (whiteness, spectrum, drift, candidates).
-* :mod:`.effects` and :mod:`.discovery`: named effects, :func:`discover`,
-  :func:`fit_derivatives`.
-* :mod:`.reconstruction`: output-error :func:`reconstruct`.
+* :mod:`.pipeline`: :func:`identify` and :class:`IdentificationRun`, the stages in order
+  (samples, thrust, discovery, assessment).
+* :mod:`.assessment`: output-error :func:`reconstruct`, the noise floor of the held-out
+  error, the identifiability of the derivatives.
+* :mod:`.discovery`: the candidate effects (:class:`Effect`, :func:`effect_library`), the
+  baseline design (:func:`fit_derivatives`), the evidence rule and :func:`discover`.
 * :mod:`.propulsion`: :func:`identify_thrust`, thrust from the motor speed or the throttle,
   identified with C_X (:class:`ThrustModel`).
-* :mod:`.crlb`: Cramer-Rao bounds.
+* :mod:`.samples`: a log -> measured coefficients (:func:`samples_from_log`,
+  :func:`isolate_coefficients`, :class:`AeroSamples`); no fits.
+* :mod:`.statistics`: batch :func:`ols`, :func:`tls`, :func:`pca_tls`, :func:`bcls`,
+  :class:`RecursiveOLS`, :class:`RecursiveTLS`, Cramer-Rao bounds, residual diagnosis
+  (:func:`diagnose`); nothing aircraft-specific.
 """
 
-from drake_uav.identification.coefficient_design import (
+from drake_uav.identification.assessment.reconstruction import Reconstruction, reconstruct
+from drake_uav.identification.discovery.coefficient_design import (
     IdentifiedDerivatives,
     baseline_names,
     fit_derivatives,
 )
-from drake_uav.identification.crlb import (
-    crlb_errors_in_variables,
-    crlb_ols,
-    sample_errors_in_variables,
-)
-from drake_uav.identification.discovery import discover
-from drake_uav.identification.discovery_result import (
+from drake_uav.identification.discovery.effects import Effect, effect_library
+from drake_uav.identification.discovery.loop import discover
+from drake_uav.identification.discovery.result import (
     NO_EFFECT_MESSAGE,
     CoefficientFit,
     DiscoveryResult,
@@ -43,16 +40,7 @@ from drake_uav.identification.discovery_result import (
     FoundEffect,
     HeldOutCheck,
 )
-from drake_uav.identification.effects import Effect, effect_library
-from drake_uav.identification.errors_in_variables import PropagatedNoise
-from drake_uav.identification.flight_data import REQUIRED_CHANNELS, samples_from_log
-from drake_uav.identification.isolation import (
-    AeroSamples,
-    isolate_coefficients,
-    monte_carlo_sigma,
-    monte_carlo_sigmas,
-)
-from drake_uav.identification.main_job import (
+from drake_uav.identification.pipeline import (
     IdentificationRun,
     coefficient_uncertainty,
     identify,
@@ -65,15 +53,27 @@ from drake_uav.identification.propulsion import (
     ThrustPrediction,
     identify_thrust,
 )
-from drake_uav.identification.reconstruction import Reconstruction, reconstruct
-from drake_uav.identification.recursive import (
+from drake_uav.identification.samples.aero_samples import AeroSamples
+from drake_uav.identification.samples.flight_data import REQUIRED_CHANNELS, samples_from_log
+from drake_uav.identification.samples.isolation import (
+    isolate_coefficients,
+    monte_carlo_sigma,
+    monte_carlo_sigmas,
+)
+from drake_uav.identification.statistics.crlb import (
+    crlb_errors_in_variables,
+    crlb_ols,
+    sample_errors_in_variables,
+)
+from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
+from drake_uav.identification.statistics.recursive import (
     RecursiveOLS,
     RecursiveTLS,
     VariableForgetting,
     forgetting_time,
     reconvergence_time,
 )
-from drake_uav.identification.regression import (
+from drake_uav.identification.statistics.regression import (
     IdentificationWarning,
     InsufficientExcitationWarning,
     RegressionResult,
@@ -82,7 +82,7 @@ from drake_uav.identification.regression import (
     pca_tls,
     tls,
 )
-from drake_uav.identification.residuals import (
+from drake_uav.identification.statistics.residuals import (
     ResidualDiagnosis,
     diagnose,
     effective_sample_size,

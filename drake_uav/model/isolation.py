@@ -9,7 +9,7 @@ Newton-Euler solved for the coefficients (Vaiopoulos 2017, eq. 5.41)::
 :func:`force_coefficients` and :func:`moment_coefficients` are written once for every
 scalar kind (float, ``AutoDiffXd``, ``symbolic.Expression``) and, elementwise, for
 arrays of samples (vectors along the last axis). The batch isolation of a flight
-(``drake_uav.identification.isolation``) and the Monte-Carlo uncertainty of the
+(``drake_uav.identification.samples.isolation``) and the Monte-Carlo uncertainty of the
 measured coefficients both call them.
 
 :func:`lever_arm_specific_force` is what an accelerometer away from the centre of gravity

@@ -1,7 +1,7 @@
 """Identification reports (markdown, HTML, figures, JSON summary), written atomically.
 
 ``Report`` builds a report folder from sections; ``write_report`` writes the main job's report
-of an :class:`~drake_uav.identification.main_job.IdentificationRun`; ``figures`` holds
+of an :class:`~drake_uav.identification.pipeline.IdentificationRun`; ``figures`` holds
 the plots; ``write_tracking_plots`` the figures of a tracking run; ``export_replay_html``
 and ``replay`` show a flight log in 3-D (Meshcat).
 """

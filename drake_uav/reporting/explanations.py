@@ -1,71 +1,23 @@
 """The texts that let the main job's report explain itself.
 
-Near-tied alternatives (:func:`near_ties`), what a residual that is not white means for the
-result (:func:`residual_meaning`) and the glossary of the terms the report uses
-(:data:`GLOSSARY`).
+What a residual that is not white means for the result (:func:`residual_meaning`) and the
+glossary of the terms the report uses (:data:`GLOSSARY`); the near-tied alternatives the
+report names are computed with the run
+(:mod:`~drake_uav.identification.assessment.near_ties`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 
-from drake_uav.identification.discovery_result import DiscoveryResult, Evidence
-from drake_uav.identification.residuals import ResidualDiagnosis
+from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN
+from drake_uav.identification.statistics.residuals import ResidualDiagnosis
 
-__all__ = ["NEAR_TIE_MARGIN", "NearTie", "near_ties", "accepted_evidence", "residual_meaning",
-           "RESIDUAL_MEANING", "SMOOTHING_CORRELATION_FACTOR", "GLOSSARY"]
-
-NEAR_TIE_MARGIN = 0.1
-"""Another candidate whose held-out gain on the same coefficient reaches (1 - margin) of the
-accepted one's explains the data almost equally well: 10 % of the winner's gain (a winner
-at 22.6 % and a rival at 22.1 % are tied; one at 15 % is not)."""
+__all__ = ["residual_meaning", "RESIDUAL_MEANING", "SMOOTHING_CORRELATION_FACTOR", "GLOSSARY"]
 
 SMOOTHING_CORRELATION_FACTOR = 1.5
 """A residual correlation time up to this many times the smoothing's own correlation time
 of white noise counts as the smoothed sensor noise, not as structure left in the data."""
-
-
-@dataclasses.dataclass(frozen=True)
-class NearTie:
-    """An accepted candidate and the others that explain its coefficient almost as well."""
-
-    round: int
-    """Search round, from 1."""
-    winner: Evidence
-    alternatives: tuple[Evidence, ...]
-
-    def sentence(self) -> str:
-        """One line naming the tie."""
-        rivals = [f"`{e.effect}` ({e.pse_reduction:.2%}"
-                  + ("" if e.passed else ", failed the tests") + ")" for e in self.alternatives]
-        names = rivals[0] if len(rivals) == 1 else ", ".join(rivals[:-1]) + " and " + rivals[-1]
-        verb = "explains" if len(rivals) == 1 else "explain"
-        return (f"Round {self.round}: {names} {verb} {self.winner.coefficient} almost as well "
-                f"as the accepted `{self.winner.effect}` (held-out gain "
-                f"{self.winner.pse_reduction:.2%}): this flight cannot tell them apart.")
-
-
-def accepted_evidence(discovery: DiscoveryResult) -> set[Evidence]:
-    """The evidence of every effect the loop accepted, on every coefficient it entered."""
-    return {e for f in discovery.found for e in f.evidence}
-
-
-def near_ties(discovery: DiscoveryResult, margin: float = NEAR_TIE_MARGIN) -> list[NearTie]:
-    """Every accepted candidate whose held-out gain another effect on the same coefficient
-    and round comes within ``margin`` of (:data:`NEAR_TIE_MARGIN`), passed or not."""
-    accepted = accepted_evidence(discovery)
-    out = []
-    for index, evidence in enumerate(discovery.rounds):
-        for winner in evidence:
-            if winner not in accepted:
-                continue
-            rivals = tuple(e for e in evidence if e.coefficient == winner.coefficient
-                           and e.effect != winner.effect
-                           and e.pse_reduction >= (1.0 - margin) * winner.pse_reduction)
-            if rivals:
-                out.append(NearTie(index + 1, winner, rivals))
-    return out
 
 
 RESIDUAL_MEANING = (

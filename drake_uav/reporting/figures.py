@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.textpath import text_to_path
 
-from drake_uav.identification.residuals import ResidualDiagnosis
+from drake_uav.identification.statistics.residuals import ResidualDiagnosis
 
 __all__ = [
     "autocorrelation_plot",

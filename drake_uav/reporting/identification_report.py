@@ -1,42 +1,34 @@
 """The main job's report: effects found, errors before and after, figures, parameters.
 
-:func:`write_report` turns an :class:`~drake_uav.identification.main_job.IdentificationRun`
+:func:`write_report` turns an :class:`~drake_uav.identification.pipeline.IdentificationRun`
 into a report folder (``report.md``, ``report.html``, figures, ``summary.json``),
 written atomically. The report explains itself: every held-out error stands next to its
-noise floor (:mod:`~drake_uav.identification.noise_floor`), implausible, correlated and
-unexcited derivatives are warned about (:mod:`~drake_uav.identification.plausibility`,
-:mod:`~drake_uav.identification.identifiability`), the catalog values stand beside the
+noise floor (:mod:`~drake_uav.identification.assessment.noise_floor`), implausible, correlated and
+unexcited derivatives are warned about (:mod:`~drake_uav.identification.discovery.plausibility`,
+:mod:`~drake_uav.identification.assessment.identifiability`), the catalog values stand beside the
 identified ones, near-tied alternatives are named, every round of the search is listed and
 a glossary closes it (:mod:`~drake_uav.reporting.explanations`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from pathlib import Path
 
 import numpy as np
 
-from drake_uav.identification.discovery_result import Evidence
-from drake_uav.identification.identifiability import (
-    correlated_regressors,
-    unexcited_derivatives,
-)
-from drake_uav.identification.main_job import RECONSTRUCTED_OUTPUTS as _OUTPUTS
-from drake_uav.identification.main_job import IdentificationRun
-from drake_uav.identification.noise_floor import (
-    NoiseFloor,
-    held_out_noise_floor,
-    smoothing_gains,
-)
-from drake_uav.identification.plausibility import DerivativeWarning, implausible_derivatives
+from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN, accepted_evidence
+from drake_uav.identification.assessment.noise_floor import NoiseFloor, smoothing_gains
+from drake_uav.identification.discovery.plausibility import DerivativeWarning
+from drake_uav.identification.discovery.result import Evidence
+from drake_uav.identification.pipeline import RECONSTRUCTED_OUTPUTS as _OUTPUTS
+from drake_uav.identification.pipeline import IdentificationRun
 from drake_uav.identification.propulsion import THROTTLE_TERM_UNITS, THRUST_COLUMN
 from drake_uav.model.coefficients import SIGNALS
 from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
 
-__all__ = ["write_report", "derivative_warnings", "result_warnings", "ROUND_ROWS"]
+__all__ = ["write_report", "result_warnings", "ROUND_ROWS"]
 
 _OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
                  "r": "deg/s"}
@@ -50,42 +42,41 @@ estimated from the data is good to about that)."""
 
 
 def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
-    """Writes the report folder for ``run``; returns its path."""
+    """Writes the report folder for ``run``; returns its path.
+
+    The report formats what the run holds; ``summary.json`` is :meth:`IdentificationRun.
+    summary` (with the folder's own keys).
+
+    Parameters
+    ----------
+    run : IdentificationRun
+        The main job's result.
+    out_dir : str or Path
+        The report folder (replaced atomically).
+
+    Returns
+    -------
+    Path
+        The folder written.
+    """
     report = Report(f"Identification report: {run.params.name}")
     d = run.discovery
-    floors = held_out_noise_floor(run.samples, d, run.params)
-    warnings = derivative_warnings(run)
     report.add_text(
         f"Source: `{run.source}`, {len(run.samples)} samples, held-out data from "
         f"t = {d.holdout_start:.1f} s.\n\n**Result: {d.message}.**")
     _add_data(report, run)
     _add_compatibility(report, run)
     _add_effects(report, run)
-    _add_errors(report, run, floors)
-    _add_warnings(report, warnings)
-    _add_figures(report, run, floors)
+    _add_errors(report, run, run.noise_floors)
+    _add_warnings(report, run.derivative_warnings)
+    _add_figures(report, run, run.noise_floors)
     _add_residual_meaning(report, run)
     report.add_key_values(run.coefficient_sigma, caption="Monte-Carlo standard deviation of "
                           "the measured force coefficients (Vaiopoulos 2017, sec. 5.6) [-]")
     _add_parameters(report, run)
     _add_rounds(report, run)
     _add_glossary(report)
-    return report.write(out_dir, _summary(run, floors, warnings))
-
-
-def derivative_warnings(run: IdentificationRun) -> list[DerivativeWarning]:
-    """Implausible catalog values, then implausible, correlated and unexcited identified
-    derivatives of every final fit (the effects' own columns are not range-checked)."""
-    catalog = implausible_derivatives(run.params.derivatives)
-    out = [dataclasses.replace(w, message=f"catalog: {w.message}") for w in catalog]
-    for fit in run.discovery.final.values():
-        r = fit.result
-        out += implausible_derivatives(dict(zip(fit.names, r.estimate.tolist(), strict=True)),
-                                       dict(zip(fit.names, r.sigma.tolist(), strict=True)))
-        if fit.training_design is not None:
-            out += correlated_regressors(fit.names, fit.training_design)
-            out += unexcited_derivatives(fit.names, fit.training_design, r.estimate, r.sigma)
-    return out
+    return report.write(out_dir, run.summary())
 
 
 def result_warnings(run: IdentificationRun) -> list[str]:
@@ -93,38 +84,13 @@ def result_warnings(run: IdentificationRun) -> list[str]:
     console: what was done to the data (glitches drawn over, an estimate not used:
     :attr:`IdentificationRun.warnings`), each implausible derivative, and how many
     derivatives the flight moved together or did not excite."""
-    found = derivative_warnings(run)
+    found = run.derivative_warnings
     lines = list(run.warnings) + [w.message for w in found if w.kind == "implausible"]
     others = {kind: sum(w.kind == kind for w in found) for kind in ("correlated", "unexcited")}
     if any(others.values()):
         lines.append(", ".join(f"{n} {kind}" for kind, n in others.items() if n)
                      + " derivative warning(s): see the report's Warnings on the derivatives")
     return lines
-
-
-def _summary(run: IdentificationRun, floors: dict[str, NoiseFloor],
-             warnings: list[DerivativeWarning]) -> dict:
-    """``run.summary()`` with the noise floors, catalog values, warnings, near ties and
-    every round's evidence."""
-    summary = run.summary()
-    for k, entry in summary["equation_error_rms_holdout"].items():
-        entry.update(floors[k].summary())
-    for parameters in summary["parameters"].values():
-        for name, entry in parameters.items():
-            entry["catalog"] = run.params.derivatives.get(name)
-    accepted = explanations.accepted_evidence(run.discovery)
-    summary["warnings"] = [dataclasses.asdict(w) for w in warnings]
-    summary["near_ties"] = [
-        {"round": t.round, "coefficient": t.winner.coefficient, "accepted": t.winner.effect,
-         "pse_reduction": t.winner.pse_reduction,
-         "alternatives": [{"effect": e.effect, "pse_reduction": e.pse_reduction,
-                           "passed": bool(e.passed)} for e in t.alternatives]}
-        for t in explanations.near_ties(run.discovery)]
-    summary["rounds"] = [[{**dataclasses.asdict(e), "accepted": e in accepted} for e in r]
-                         for r in run.discovery.rounds]
-    if run.compatibility is not None:
-        summary["compatibility"] = run.compatibility.summary()
-    return summary
 
 
 def _add_data(report: Report, run: IdentificationRun) -> None:
@@ -163,11 +129,11 @@ def _add_effects(report: Report, run: IdentificationRun) -> None:
              "p-value": min(e.p_value for e in f.evidence), "explanation": f.explanation}
             for f in run.discovery.found],
             formats={"held-out PSE reduction": ".1%", "p-value": ".2g"})
-    ties = explanations.near_ties(run.discovery)
+    ties = run.near_ties
     if ties:
         report.add_text(
             "**Near-tied alternatives** (held-out gain within "
-            f"{explanations.NEAR_TIE_MARGIN:.0%} of the accepted effect's):\n\n"
+            f"{NEAR_TIE_MARGIN:.0%} of the accepted effect's):\n\n"
             + "\n".join(f"- {t.sentence()}" for t in ties))
 
 
@@ -218,7 +184,7 @@ def _add_errors(report: Report, run: IdentificationRun, floors: dict[str, NoiseF
 
 _WARNING_TITLES = {
     "implausible": "Implausible signs or magnitudes (ranges of "
-                   "`drake_uav.identification.plausibility`, Beard & McLain 2012, ch. 4)",
+                   "`drake_uav.identification.discovery.plausibility`, Beard & McLain 2012, ch. 4)",
     "correlated": "Regressors the flight moved together",
     "unexcited": "Derivatives the flight does not pin down",
 }
@@ -331,7 +297,7 @@ def _evidence_row(e: Evidence, accepted: bool) -> dict:
 def _add_rounds(report: Report, run: IdentificationRun) -> None:
     """A table per round of the search: every candidate that passed, the strongest others."""
     report.add_heading("Every round of the search")
-    accepted = explanations.accepted_evidence(run.discovery)
+    accepted = accepted_evidence(run.discovery)
     for index, evidence in enumerate(run.discovery.rounds):
         passed = [e for e in evidence if e.passed]
         shown = passed + [e for e in evidence if not e.passed][:max(ROUND_ROWS - len(passed),

@@ -39,7 +39,7 @@ import pytest
 from scipy import stats
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.main_job import identify_derivatives
+from drake_uav.identification.pipeline import identify_derivatives
 from drake_uav.vehicles import aerosonde
 
 PARAMS = aerosonde()

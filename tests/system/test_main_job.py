@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from drake_uav.diagrams import fly
-from drake_uav.identification.discovery_result import NO_EFFECT_MESSAGE
-from drake_uav.identification.main_job import identify
+from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE
+from drake_uav.identification.pipeline import identify
 from drake_uav.vehicles import aerosonde
 from drake_uav.vehicles.sensors import (
     ChannelErrors,

@@ -1,7 +1,7 @@
 """Is a fitted coefficient model complete? Its equation error against the sensor noise.
 
 A model that lacks nothing leaves an equation error the sensor noise explains: its mean
-square is the noise floor (:mod:`~drake_uav.identification.noise_floor`), on the samples
+square is the noise floor (:mod:`~drake_uav.identification.assessment.noise_floor`), on the samples
 the fit saw and on those it did not. When no candidate effect passes but the error is
 well above the floor, or higher on the held-out tail than on the training part, the model
 is incomplete: something the candidates do not describe moves the coefficient (a
@@ -17,7 +17,7 @@ complete model ``m - f`` is zero up to
 
 * the sampling error of ``m``: ``sqrt(var(r^2) / N_eff)``, ``N_eff`` the effective sample
   size of ``r^2`` (the residual of smoothed data is correlated over the smoothing window,
-  :func:`~drake_uav.identification.residuals.effective_sample_size`);
+  :func:`~drake_uav.identification.statistics.residuals.effective_sample_size`);
 * the error of ``f`` itself: the noise variances are read from the data, each to a few per
   cent (:attr:`AdequacyRule.floor_uncertainty` of ``f``).
 
@@ -37,7 +37,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.residuals import effective_sample_size
+from drake_uav.identification.statistics.residuals import effective_sample_size
 
 __all__ = ["AdequacyRule", "Adequacy", "assess", "coefficient_symbol"]
 

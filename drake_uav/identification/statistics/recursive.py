@@ -8,7 +8,7 @@ sec. 4.2.3-4.4).
   augmented matrix is tracked through its singular values and right singular vectors, updated
   by one small SVD per sample (Vaiopoulos 2017, eq. 4.81-4.87); the estimate and its covariance
   are those of the batch (PCA-)TLS, from the shared core
-  :mod:`~drake_uav.identification.errors_in_variables`.
+  :mod:`~drake_uav.identification.statistics.errors_in_variables`.
 
 Conventions:
 
@@ -43,14 +43,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from drake_uav.identification.errors_in_variables import (
+from drake_uav.identification.statistics.errors_in_variables import (
     excitation_threshold,
     normalization_matrix,
     tls_covariance,
     tls_solution,
     weight_matrix,
 )
-from drake_uav.identification.regression import LOADING_TOL, unidentifiable_loading
+from drake_uav.identification.statistics.regression import LOADING_TOL, unidentifiable_loading
 
 _EPS = float(np.finfo(float).eps)
 

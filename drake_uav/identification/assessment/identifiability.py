@@ -12,14 +12,20 @@ others) and the relative standard error of the estimate.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from drake_uav.identification.plausibility import DerivativeWarning
+from drake_uav.identification.discovery.plausibility import (
+    DerivativeWarning,
+    implausible_derivatives,
+)
+from drake_uav.identification.discovery.result import CoefficientFit
 
 __all__ = ["CORRELATION_LIMIT", "VIF_LIMIT", "RELATIVE_SIGMA_LIMIT", "CONSTANT_TOLERANCE",
-           "correlated_regressors", "unexcited_derivatives", "variance_inflation"]
+           "correlated_regressors", "unexcited_derivatives", "variance_inflation",
+           "derivative_warnings"]
 
 CORRELATION_LIMIT = 0.95
 """Pairwise |correlation| above which two regressors are named as moving together."""
@@ -110,3 +116,33 @@ def unexcited_derivatives(names: Sequence[str], X: np.ndarray, estimate: np.ndar
 
 def _ratio(sigma: float, estimate: float) -> float:
     return sigma / abs(estimate) if estimate != 0 else float("inf")
+
+
+def derivative_warnings(catalog: Mapping[str, float], final: Mapping[str, CoefficientFit]
+                        ) -> list[DerivativeWarning]:
+    """Implausible catalog values, then implausible, correlated and unexcited identified
+    derivatives of every final fit (the effects' own columns are not range-checked).
+
+    Parameters
+    ----------
+    catalog : Mapping
+        The aircraft's derivatives, by name (``CL_alpha`` ...).
+    final : Mapping
+        Coefficient -> its final fit
+        (:attr:`~drake_uav.identification.discovery.result.DiscoveryResult.final`).
+
+    Returns
+    -------
+    list of DerivativeWarning
+        A catalog value's message starts with ``catalog:``.
+    """
+    out = [dataclasses.replace(w, message=f"catalog: {w.message}")
+           for w in implausible_derivatives(catalog)]
+    for fit in final.values():
+        r = fit.result
+        out += implausible_derivatives(dict(zip(fit.names, r.estimate.tolist(), strict=True)),
+                                       dict(zip(fit.names, r.sigma.tolist(), strict=True)))
+        if fit.training_design is not None:
+            out += correlated_regressors(fit.names, fit.training_design)
+            out += unexcited_derivatives(fit.names, fit.training_design, r.estimate, r.sigma)
+    return out

@@ -22,7 +22,7 @@ observations (an aerodynamic coefficient), ``theta`` the ``n`` parameters.
   the coefficient isolation), with the long-run sandwich covariance of correlated residuals.
 
 The errors-in-variables pieces (noise moments, bias compensation, sandwich covariance, the
-SVD solution of TLS) are in :mod:`drake_uav.identification.errors_in_variables`.
+SVD solution of TLS) are in :mod:`drake_uav.identification.statistics.errors_in_variables`.
 
 All return one :class:`RegressionResult`. Data that do not support every parameter (rank
 deficiency, ill conditioning, insufficient excitation) never crash and never give a silent huge
@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from drake_uav.identification.errors_in_variables import (
+from drake_uav.identification.statistics.errors_in_variables import (
     PropagatedNoise,
     compensated_normal_equations,
     excitation_threshold,
@@ -471,7 +471,7 @@ def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
     Args:
         X: (N, n) measured regressors. z: (N,) measured observations.
         noise: the regressor and observation noise propagated from its sources
-            (:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`), with
+            (:class:`~.errors_in_variables.PropagatedNoise`), with
             known variances.
         names: parameter names.
         confidence: level of the significance test.
@@ -480,7 +480,7 @@ def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
 
     Returns:
         RegressionResult: the root of the compensated normal equations
-        (:func:`~drake_uav.identification.errors_in_variables.compensated_normal_equations`)
+        (:func:`~drake_uav.identification.statistics.errors_in_variables.compensated_normal_equations`)
         with covariance ``A^-1 S A^-1``. The residual of smoothed flight data is correlated
         over several samples (the smoothing window, turbulence), so ``S`` is the long-run
         covariance, not the white-residual one, which would understate sigma.

@@ -5,11 +5,11 @@ The loop (:func:`discover`):
 1. fit the baseline structure (the aircraft's derivative names) to each
    measured coefficient on the training part of the flight, less the terms that
    improve neither its held-out prediction nor its extrapolation to the flight's
-   edges (:mod:`~drake_uav.identification.parsimony`; each is 0 in the model,
+   edges (:mod:`~drake_uav.identification.discovery.parsimony`; each is 0 in the model,
    :attr:`DiscoveryResult.dropped`);
 2. diagnose each residual (whiteness, spectrum, drift, correlation with the
-   candidate columns: :mod:`drake_uav.identification.residuals`);
-3. score every named effect of :mod:`drake_uav.identification.effects` on every
+   candidate columns: :mod:`drake_uav.identification.statistics.residuals`);
+3. score every named effect of :mod:`drake_uav.identification.discovery.effects` on every
    coefficient it can enter, by evidence on data the fit did not see:
    blocked K-fold cross-validation (held-out prediction error, PSE), a partial
    F-test whose degrees of freedom use the residual's effective sample size
@@ -28,7 +28,7 @@ The loop (:func:`discover`):
    equation-error RMS before and after on the held-out tail of the flight;
 6. hold each final fit's error against its noise floor: where the sensor noise
    does not explain it, the model is incomplete there, and the result says where
-   (:mod:`~drake_uav.identification.adequacy`, :attr:`DiscoveryResult.incomplete`).
+   (:mod:`~drake_uav.identification.discovery.adequacy`, :attr:`DiscoveryResult.incomplete`).
 
 Coefficients that do not vary in the samples (a purely longitudinal flight's
 lateral ones) are skipped with a note (:attr:`DiscoveryResult.skipped`).
@@ -39,11 +39,11 @@ accelerations) are noisy and enter the measured coefficients and the regressors;
 ordinary least squares then attenuates the derivatives (Vaiopoulos 2017, Table 5) and
 leaves a systematic residual that any column correlated with them would "explain".
 The noise variances estimated by the isolation, carried through its filters
-(:mod:`~drake_uav.identification.regressor_noise`), are propagated
+(:mod:`~drake_uav.identification.samples.regressor_noise`), are propagated
 to every column and to the observation by finite-difference Jacobians
-(:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`), and the
+(:class:`~drake_uav.identification.statistics.errors_in_variables.PropagatedNoise`), and the
 normal equations are corrected by the expected noise moments: bias-compensated
-least squares (:func:`~drake_uav.identification.regression.bcls`), the moment form
+least squares (:func:`~drake_uav.identification.statistics.regression.bcls`), the moment form
 of GTLS (Vaiopoulos 2017, eq. 4.54-4.63) for noise that differs from sample to sample.
 
 The rule is strict on purpose: it must not invent effects. With no effect in
@@ -59,24 +59,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from drake_uav.identification.adequacy import Adequacy, AdequacyRule, assess
-from drake_uav.identification.blocked_folds import fold_edges, held_out_errors, squared_errors
-from drake_uav.identification.coefficient_design import (
+from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, assess
+from drake_uav.identification.discovery.coefficient_design import (
     ColumnFunction,
     Design,
     Perturbations,
     baseline_design,
     columns_and_jacobians,
 )
-from drake_uav.identification.discovery_result import (
-    CoefficientFit,
-    DiscoveryResult,
-    Evidence,
-    EvidenceRule,
-    FoundEffect,
-    HeldOutCheck,
-)
-from drake_uav.identification.effects import (
+from drake_uav.identification.discovery.effects import (
     PRODUCT_KEYS,
     Effect,
     base_signals,
@@ -84,105 +75,60 @@ from drake_uav.identification.effects import (
     logged_effects,
     product_candidates,
 )
-from drake_uav.identification.errors_in_variables import (
-    BlockMoments,
-    PropagatedNoise,
-    is_well_posed,
-    noise_error_energy,
-    solve_normal_equations,
+from drake_uav.identification.discovery.evidence import (
+    Candidate,
+    CandidateColumns,
+    RoundBase,
+    redundant,
+    round_base,
+    score_together,
 )
-from drake_uav.identification.isolation import LOGGED, AeroSamples
-from drake_uav.identification.noise_floor import noise_variance_per_sample
-from drake_uav.identification.parsimony import Pruning, prune
-from drake_uav.identification.plausibility import implausible_derivatives
-from drake_uav.identification.propulsion import THRUST_COLUMN
-from drake_uav.identification.regression import f_survival, r_factor
-from drake_uav.identification.residuals import diagnose, effective_sample_size
-from drake_uav.identification.vector_effects import (
+from drake_uav.identification.discovery.parsimony import Pruning, prune
+from drake_uav.identification.discovery.plausibility import implausible_derivatives
+from drake_uav.identification.discovery.result import (
+    CoefficientFit,
+    DiscoveryResult,
+    Evidence,
+    EvidenceRule,
+    FoundEffect,
+    HeldOutCheck,
+)
+from drake_uav.identification.discovery.vector_effects import (
     JointSearch,
     VectorEffect,
     vector_effect_library,
 )
+from drake_uav.identification.propulsion import THRUST_COLUMN
+from drake_uav.identification.samples.aero_samples import LOGGED, AeroSamples
+from drake_uav.identification.samples.regressor_noise import noise_variance_per_sample
+from drake_uav.identification.statistics.blocked_folds import (
+    fold_edges,
+)
+from drake_uav.identification.statistics.errors_in_variables import (
+    PropagatedNoise,
+    noise_error_energy,
+    solve_normal_equations,
+)
+from drake_uav.identification.statistics.residuals import diagnose
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["discover", "check_coefficients"]
+__all__ = ["discover", "check_coefficients", "product_candidate", "DATA_DRIVEN"]
 
 DATA_DRIVEN = "data_driven:"
 """Name prefix of the data-driven product effects."""
 
 
-def _column_space(X: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of the range of X, to the rank ``numpy.linalg.lstsq`` gives X.
-
-    From the SVD of the small R factor of X (:func:`r_factor`): ``X V S^-1``.
-    """
-    _, s, vt = np.linalg.svd(r_factor(X))
-    if s.size == 0 or s[0] == 0.0:
-        return np.zeros((X.shape[0], 0))
-    keep = s > np.finfo(float).eps * max(X.shape) * s[0]
-    return X @ (vt[keep].T / s[keep])
-
-
-def _redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
-    """(m,) True where a column of ``columns`` (N, m) is (nearly) in the span of the
-    orthonormal ``basis``, or zero."""
-    norm = np.linalg.norm(columns, axis=0)
-    r = columns - basis @ (basis.T @ columns)
-    with np.errstate(invalid="ignore"):
-        return ~np.isfinite(norm) | (norm == 0.0) | (np.linalg.norm(r, axis=0) < 1e-3 * norm)
-
-
-@dataclasses.dataclass
-class _RoundBase:
-    """The current design of one coefficient and its statistics, shared by the candidates."""
-
-    design: Design
-    n_eff: float
-    fold_errors: np.ndarray
-    """(2, K) observed and noise-corrected held-out errors."""
-    sse: tuple[float, float]
-    """Observed and noise-corrected training error."""
-    blocks: BlockMoments
-    """The design's moments per fold, which every candidate extends."""
-    basis: np.ndarray
-    """Orthonormal basis of the design's columns (redundancy test of candidate columns)."""
-
-
-def _round_base(design: Design, edges: Sequence[int]) -> _RoundBase:
-    blocks = design.block_moments(edges)
-    A, b, C_xx, c_xz = blocks.total()
-    theta = solve_normal_equations(A, b)
-    prediction = design.X @ theta
-    return _RoundBase(design, float(effective_sample_size(design.z - prediction)),
-                      held_out_errors(blocks, design.z, lambda t: design.X @ t.T),
-                      squared_errors(design.z, prediction, theta, C_xx, c_xz), blocks,
-                      _column_space(design.X))
-
-
-@dataclasses.dataclass(frozen=True)
-class _Columns:
-    """Candidate columns on the training samples and their air-data sensitivities."""
-
-    columns: Mapping[str, np.ndarray]
-    jacobians: Mapping[str, Mapping[str, np.ndarray]]
-    """Noise source -> column name -> d column / d source."""
-
-    def pick(self, names: Sequence[str]) -> _Columns:
-        return _Columns({k: self.columns[k] for k in names},
-                        {s: {k: j[k] for k in names} for s, j in self.jacobians.items()})
-
-
-def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _RoundBase],
+def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, RoundBase],
                  pool: _Candidates, rule: EvidenceRule, n_tests: int) -> list[Evidence]:
     """The evidence for each named effect on each coefficient of ``pairs``, in that order
     (an effect none of whose columns is new to the design is left out). The candidates of
     one coefficient with as many columns are scored together."""
-    groups: dict[tuple[str, int], list[tuple[int, str, _Columns]]] = {}
+    groups: dict[tuple[str, int], list[tuple[int, str, CandidateColumns]]] = {}
     for index, (effect, k) in enumerate(pairs):
         candidate = pool.named(effect, k, bases[k].design.noise.variance)
-        redundant = _redundant(bases[k].basis, np.column_stack(list(candidate.columns.values())))
-        columns = [c for c, r in zip(candidate.columns, redundant, strict=True) if not r]
+        spanned = redundant(bases[k].basis, np.column_stack(list(candidate.columns.values())))
+        columns = [c for c, r in zip(candidate.columns, spanned, strict=True) if not r]
         if columns:
             groups.setdefault((k, len(columns)), []).append(
                 (index, effect.name, candidate.pick(columns)))
@@ -195,7 +141,7 @@ def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _Round
         J_new = {s: np.stack([_stacked(c.jacobians.get(s), c.columns, shape)
                               for c in candidates], axis=1)
                  for s in dict.fromkeys(s for c in candidates for s in c.jacobians)}
-        evidence = _score_batch([name for _, name, _ in members],
+        evidence = score_together([name for _, name, _ in members],
                                 [tuple(c.columns) for c in candidates], k, bases[k], X_new,
                                 J_new, rule, n_tests,
                                 np.array([blind[name] for _, name, _ in members]))
@@ -207,62 +153,6 @@ def _score_named(pairs: Sequence[tuple[Effect, str]], bases: Mapping[str, _Round
 def _stacked(values: Mapping[str, np.ndarray] | None, names, shape) -> np.ndarray:
     """The columns ``names`` of ``values`` as one array of ``shape`` (None: zeros)."""
     return np.zeros(shape) if values is None else np.column_stack([values[c] for c in names])
-
-
-def _score_batch(names: Sequence[str], columns: Sequence[tuple[str, ...]], coefficient: str,
-                 base: _RoundBase, X_new: np.ndarray, J_new: Mapping[str, np.ndarray],
-                 rule: EvidenceRule, n_tests: int, blind_folds=0) -> list[Evidence | None]:
-    """The evidence for m candidates of q columns each, scored together: ``X_new`` and the
-    ``J_new`` sensitivities (N, m, q); None where the extended design is not well posed.
-    ``blind_folds`` (m,): folds a candidate need not improve (:attr:`Effect.blind_folds`)."""
-    design = base.design
-    p, q = design.X.shape[1], X_new.shape[2]
-    blocks = base.blocks.extended(design.X, design.z, design.noise, X_new, J_new)
-    A, b, C_xx, c_xz = blocks.total()
-    posed = is_well_posed(A)
-    theta_folds = solve_normal_equations(*blocks.held_in())
-    errors = _batch_fold_errors(blocks, design.X, X_new, design.z, theta_folds)
-    # Improvement in the noise-corrected error, relative to the observed error.
-    gain = base.fold_errors[1] - errors[1]
-    reduction = np.mean(gain / base.fold_errors[0], axis=-1)
-    improved = np.sum(gain > 0, axis=-1)
-    theta = solve_normal_equations(A, b)
-    r = design.z[:, None] - design.X @ theta[:, :p].T - (X_new * theta[:, p:]).sum(axis=-1)
-    observed1 = np.einsum("nm,nm->m", r, r)
-    corrected1 = observed1 - noise_error_energy(theta, C_xx, c_xz)
-    drop = np.maximum(base.sse[1] - corrected1, 0.0)
-    folds = (reduction >= rule.min_pse_reduction) & (improved >= rule.min_folds - blind_folds)
-    # Where the folds passed, the residual's correlation is read with the candidate: a large
-    # slow effect left in the base residual would pass for correlated noise.
-    n_eff = np.full(len(names), base.n_eff)
-    for i in np.flatnonzero(folds):
-        n_eff[i] = effective_sample_size(r[:, i])
-    dof = np.maximum(n_eff - p - q, 1.0)
-    f_stat = drop / q / (observed1 / dof)
-    p_value = np.asarray(f_survival(f_stat, q, dof), dtype=float)
-    delta_bic = n_eff * np.log(np.maximum(base.sse[0] - drop, 1e-300) / base.sse[0]) \
-        + q * np.log(n_eff)
-    passed = (p_value < rule.p_value / max(n_tests, 1)) & folds & (delta_bic < 0)
-    return [Evidence(names[i], coefficient, columns[i], float(reduction[i]), int(improved[i]),
-                     float(f_stat[i]), float(p_value[i]), float(delta_bic[i]), bool(passed[i]))
-            if posed[i] else None for i in range(len(names))]
-
-
-def _batch_fold_errors(blocks: BlockMoments, X: np.ndarray, X_new: np.ndarray, z: np.ndarray,
-                       theta: np.ndarray) -> np.ndarray:
-    """(2, m, K): observed and noise-corrected held-out squared error of each blocked fold
-    (:func:`~drake_uav.identification.blocked_folds.squared_errors`) for m extensions
-    ``X_new`` (N, m, q) of ``X`` (N, p), whose fits on the other folds are ``theta``
-    (m, K, p + q)."""
-    p = X.shape[1]
-    out = np.empty((2, *theta.shape[:2]))
-    for k, (a, b) in enumerate(zip(blocks.edges[:-1], blocks.edges[1:], strict=True)):
-        fit = theta[:, k]
-        r = z[a:b, None] - X[a:b] @ fit[:, :p].T - (X_new[a:b] * fit[:, p:]).sum(axis=-1)
-        out[0, :, k] = np.einsum("nm,nm->m", r, r)
-        out[1, :, k] = out[0, :, k] - noise_error_energy(fit, blocks.noise_xx[:, k],
-                                                         blocks.noise_xz[:, k])
-    return out
 
 
 def _fit(coefficient: str, train: Design, test: Design, rate: float) -> CoefficientFit:
@@ -322,16 +212,16 @@ class _Candidates:
     def __init__(self, train: AeroSamples, params: FixedWingParams):
         self.variants = Perturbations(train)
         self.params = params
-        self._cache: dict[tuple[str, str], _Columns] = {}
+        self._cache: dict[tuple[str, str], CandidateColumns] = {}
         self._matrices: dict[tuple[str, str], tuple[np.ndarray, dict[str, np.ndarray]]] = {}
 
-    def _get(self, key: tuple[str, str], function: ColumnFunction, variance) -> _Columns:
+    def _get(self, key: tuple[str, str], function: ColumnFunction, variance) -> CandidateColumns:
         if key not in self._cache:
-            self._cache[key] = _Columns(*columns_and_jacobians(function, self.variants,
+            self._cache[key] = CandidateColumns(*columns_and_jacobians(function, self.variants,
                                                                 variance))
         return self._cache[key]
 
-    def named(self, effect: Effect, coefficient: str, variance) -> _Columns:
+    def named(self, effect: Effect, coefficient: str, variance) -> CandidateColumns:
         """The columns of ``effect`` for ``coefficient``."""
         return self._get((effect.name, coefficient),
                          _effect_function(effect, self.params, coefficient), variance)
@@ -359,10 +249,10 @@ class _Candidates:
                 for s, j in base.jacobians.items()})
         return self._matrices[key]
 
-    def products(self, coefficient: str, variance) -> _Columns:
+    def products(self, coefficient: str, variance) -> CandidateColumns:
         """The columns of :meth:`product_matrix` by name."""
         columns, jacobians = self.product_matrix(coefficient, variance)
-        return _Columns({n: columns[:, i] for i, n in enumerate(_PRODUCT_NAMES)},
+        return CandidateColumns({n: columns[:, i] for i, n in enumerate(_PRODUCT_NAMES)},
                         {s: {n: j[:, i] for i, n in enumerate(_PRODUCT_NAMES)}
                          for s, j in jacobians.items()})
 
@@ -378,7 +268,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     the order of :data:`~drake_uav.model.coefficients.COEFFICIENTS`, except those that
     do not vary (:attr:`DiscoveryResult.skipped`); ``progress(message)`` is called at
     each round; ``vector_effects`` (default
-    :func:`~drake_uav.identification.vector_effects.vector_effect_library`) are the forces
+    :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`) are the forces
     tested jointly on the coefficients they move. Raises ``ValueError`` for an unknown
     coefficient, samples too few for
     the evidence tests, or when no coefficient varies.
@@ -421,7 +311,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     for round_index in range(rule.max_rounds):
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
-        bases = {k: _round_base(search.designs[k], edges) for k in fitted}
+        bases = {k: round_base(search.designs[k], edges) for k in fitted}
         evidence, new = _round(search, bases, used, fallback, vectors)
         evidence.sort(key=lambda e: (not e.passed, -e.pse_reduction))
         rounds.append(tuple(evidence))
@@ -455,7 +345,7 @@ def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, Design],
               test: tuple[AeroSamples, Design], params: FixedWingParams, scale: float,
               rule: AdequacyRule) -> Adequacy:
     """The final fit's error against its noise floor on the training part and the
-    held-out tail (:func:`~drake_uav.identification.adequacy.assess`)."""
+    held-out tail (:func:`~drake_uav.identification.discovery.adequacy.assess`)."""
     k, theta = fit.coefficient, fit.result.estimate
     parts = []
     for (samples, design), residual in ((train, fit.result.residual),
@@ -474,7 +364,7 @@ def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, Design],
                   scale, rule)
 
 
-def _round(search: _Search, bases: Mapping[str, _RoundBase], used: set[str],
+def _round(search: _Search, bases: Mapping[str, RoundBase], used: set[str],
            fallback: bool, vectors: JointSearch) -> tuple[list[Evidence], FoundEffect | None]:
     """One round of the loop: the evidence of every candidate scored and the effect
     accepted (None: nothing passed and was kept).
@@ -677,7 +567,8 @@ def _with_effect(train: Design, test: Design, evidence: Evidence, effect: Effect
     else:
         function = _product_function(pool.params, k, evidence.columns)
         columns = pool.products(k, train.noise.variance)
-    held_out = _Columns(*columns_and_jacobians(function, test_variants, test.noise.variance))
+    held_out = CandidateColumns(*columns_and_jacobians(function, test_variants,
+                                                       test.noise.variance))
     columns, held_out = columns.pick(evidence.columns), held_out.pick(evidence.columns)
     return (train.extended(columns.columns, columns.jacobians, prefix=prefix),
             test.extended(held_out.columns, held_out.jacobians, prefix=prefix))
@@ -687,7 +578,7 @@ def _score_data_driven(bases, pool: _Candidates, rule, products, logged,
                        n_tests: int | None = None) -> list[Evidence]:
     """The data-driven candidates: the ``products`` and those of the log's extra channels
     (``logged``: (effect, coefficient) pairs of
-    :func:`~drake_uav.identification.effects.logged_effects`), at one family-wise level
+    :func:`~drake_uav.identification.discovery.effects.logged_effects`), at one family-wise level
     over ``n_tests``, or (None) each family at its own: the logged channels are a few
     hypotheses the log names, the products hundreds."""
     n_products = len(products) * len(bases) if n_tests is None else n_tests
@@ -702,10 +593,10 @@ def _score_products(bases, pool: _Candidates, rule, names, n_tests) -> list[Evid
     for k, base in bases.items():
         columns, jacobians = pool.product_matrix(k, base.design.noise.variance)
         index = [_PRODUCT_INDEX[n] for n in names]
-        index = [i for i, r in zip(index, _redundant(base.basis, columns[:, index]),
+        index = [i for i, r in zip(index, redundant(base.basis, columns[:, index]),
                                    strict=True) if not r]
         if index:
-            out += _score_batch([f"{DATA_DRIVEN}{_PRODUCT_NAMES[i]}" for i in index],
+            out += score_together([f"{DATA_DRIVEN}{_PRODUCT_NAMES[i]}" for i in index],
                                 [(_PRODUCT_NAMES[i],) for i in index], k, base,
                                 columns[:, index, None],
                                 {s: j[:, index, None] for s, j in jacobians.items()}, rule,
@@ -713,12 +604,46 @@ def _score_products(bases, pool: _Candidates, rule, names, n_tests) -> list[Evid
     return [e for e in out if e is not None]
 
 
+def _product_explanation(name: str) -> str:
+    signals = name.split(":", 1)[1].replace("*", " x ")
+    return (f"no named effect explains the residual; a data-driven term in the "
+            f"product of the logged signals {signals} does")
+
+
+def product_candidate(signals: tuple[str, str], params: FixedWingParams) -> Candidate:
+    """The data-driven product of two base signals
+    (:data:`~drake_uav.identification.discovery.effects.PRODUCT_KEYS`) as a candidate of
+    the evidence rule, on every coefficient.
+
+    Parameters
+    ----------
+    signals : tuple of str
+        A key of :data:`~drake_uav.identification.discovery.effects.PRODUCT_KEYS`.
+    params : FixedWingParams
+        The aircraft (the signals' normalisation).
+
+    Returns
+    -------
+    Candidate
+        Named ``data_driven:<a>*<b>``, its one column named ``<a>*<b>``.
+
+    Raises
+    ------
+    ValueError
+        When ``signals`` is not a product the loop tests.
+    """
+    if tuple(signals) not in PRODUCT_KEYS:
+        raise ValueError(f"product_candidate: {signals!r} is not one of the products of "
+                         "effects.PRODUCT_KEYS")
+    column = _product_name(tuple(signals))
+    name = f"{DATA_DRIVEN}{column}"
+    return Candidate(name, _product_explanation(name), COEFFICIENTS,
+                     lambda samples, k: _product_function(params, k, [column])(samples))
+
+
 def _found(name: str, effect: Effect | None, accepted: list[Evidence]) -> FoundEffect:
     if effect is None:
-        signals = name.split(":", 1)[1].replace("*", " x ")
-        explanation = (f"no named effect explains the residual; a data-driven term in the "
-                       f"product of the logged signals {signals} does")
-        kind = "aerodynamic"
+        explanation, kind = _product_explanation(name), "aerodynamic"
     else:
         explanation, kind = effect.explanation, effect.kind
     return FoundEffect(name, explanation, kind, tuple(e.coefficient for e in accepted),

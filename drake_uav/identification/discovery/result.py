@@ -3,8 +3,8 @@
 :class:`EvidenceRule`, the thresholds a candidate must pass; :class:`Evidence`, what one
 candidate showed on the folds; :class:`HeldOutCheck`, the decision on the held-out tail;
 :class:`FoundEffect`, :class:`CoefficientFit` and :class:`DiscoveryResult`, what
-:func:`~drake_uav.identification.discovery.discover` found. The loop and the rules'
-reasons are in :mod:`~drake_uav.identification.discovery`.
+:func:`~drake_uav.identification.discovery.loop.discover` found. The loop and the rules'
+reasons are in :mod:`~drake_uav.identification.discovery.loop`.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.adequacy import Adequacy, AdequacyRule, coefficient_symbol
-from drake_uav.identification.errors_in_variables import PropagatedNoise
-from drake_uav.identification.parsimony import DroppedTerm
-from drake_uav.identification.regression import RegressionResult
-from drake_uav.identification.residuals import ResidualDiagnosis
+from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, coefficient_symbol
+from drake_uav.identification.discovery.parsimony import DroppedTerm
+from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
+from drake_uav.identification.statistics.regression import RegressionResult
+from drake_uav.identification.statistics.residuals import ResidualDiagnosis
 
 __all__ = ["NO_EFFECT_MESSAGE", "EvidenceRule", "Evidence", "FoundEffect", "HeldOutCheck",
            "CoefficientFit", "DiscoveryResult"]
@@ -34,9 +34,9 @@ class EvidenceRule:
     candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
     smallest held-out prediction-error reduction worth a new term (fraction of
     the baseline PSE), and what a catalog term of the baseline must gain on the folds or
-    on the flight's edges to be kept (:mod:`~drake_uav.identification.parsimony`);
+    on the flight's edges to be kept (:mod:`~drake_uav.identification.discovery.parsimony`);
     ``min_folds`` how many of the ``folds`` (at least 3) must improve (less the
-    effect's :attr:`~drake_uav.identification.effects.Effect.blind_folds`).
+    effect's :attr:`~drake_uav.identification.discovery.effects.Effect.blind_folds`).
 
     A candidate that passes is then checked, per coefficient, on the held-out tail
     (``holdout_fraction`` of the flight, which no test above saw;
@@ -58,7 +58,7 @@ class EvidenceRule:
     held-out gain is larger by ``min_pse_reduction``.
 
     ``parsimonious``: the baseline drops the catalog terms that the flight does not
-    support (:mod:`~drake_uav.identification.parsimony`); False fits the catalog's
+    support (:mod:`~drake_uav.identification.discovery.parsimony`); False fits the catalog's
     structure as it is.
     """
 
@@ -75,7 +75,7 @@ class EvidenceRule:
     parsimonious: bool = True
     adequacy: AdequacyRule = AdequacyRule()
     """When the final fit's error is too far above the noise floor to call the model
-    complete (:mod:`~drake_uav.identification.adequacy`)."""
+    complete (:mod:`~drake_uav.identification.discovery.adequacy`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,15 +98,24 @@ class Evidence:
 
 @dataclasses.dataclass(frozen=True)
 class FoundEffect:
-    """An effect the loop added, with its evidence and identified parameters."""
+    """A finding: an effect the loop added, with its evidence and identified parameters,
+    or a calibration error the data-compatibility check corrected (:data:`Finding`)."""
 
     name: str
     explanation: str
     kind: str
+    """``"aerodynamic"`` (changes the dynamics), ``"sensor"`` (corrupts the data) or
+    ``"calibration"`` (a sensor error the compatibility check estimated and removed)."""
     coefficients: tuple[str, ...]
+    """The coefficients it acts on (none for a calibration error)."""
     evidence: tuple[Evidence, ...]
     parameters: Mapping[str, tuple[float, float]]
-    """``"<coefficient>:<column>" -> (estimate, sigma)``."""
+    """``"<coefficient>:<column>" -> (estimate, sigma)``; a calibration error's
+    ``"<name> [<unit>]" -> (estimate, sigma)``."""
+
+
+Finding = FoundEffect
+"""What the main job reports it found, whichever stage found it."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -143,13 +152,13 @@ class HeldOutCheck:
     own_noise: float = 0.0
     """Mean square that the noise sources only the effect's columns depend on add to the
     held-out error of the fit with it [-]
-    (:func:`~drake_uav.identification.errors_in_variables.noise_error_energy`)."""
+    (:func:`~drake_uav.identification.statistics.errors_in_variables.noise_error_energy`)."""
     prediction_gain: float = float("inf")
     """Held-out mean-square reduction of the least-squares prediction with the effect,
     fraction of the one without [-]."""
     implausible: str = ""
     """Why a term of the effect fitted on the training part is not the physics it names
-    (a value outside :data:`~drake_uav.identification.plausibility.PLAUSIBLE_RANGES`:
+    (a value outside :data:`~drake_uav.identification.discovery.plausibility.PLAUSIBLE_RANGES`:
     a downwash lag's alpha-dot derivative of the wrong sign); "" when none is."""
 
     @property
@@ -219,13 +228,13 @@ class DiscoveryResult:
     """Fitted coefficient -> its final fit's error against the noise floor."""
     dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
     """Fitted coefficient -> the catalog's terms its baseline dropped, which the flight does
-    not support (:mod:`~drake_uav.identification.parsimony`); each is 0 in the identified
+    not support (:mod:`~drake_uav.identification.discovery.parsimony`); each is 0 in the identified
     model."""
 
     @property
     def incomplete(self) -> dict[str, Adequacy]:
         """The coefficients whose final error the sensor noise does not explain: the model
-        is incomplete there (:class:`~drake_uav.identification.adequacy.Adequacy`)."""
+        is incomplete there (:class:`~drake_uav.identification.discovery.adequacy.Adequacy`)."""
         return {k: a for k, a in self.adequacy.items() if a.incomplete}
 
     @property

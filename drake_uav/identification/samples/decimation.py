@@ -8,7 +8,7 @@ run of ``m`` consecutive samples instead (a box filter of one grid step, then ev
 ~5 Hz loses at most 1.2 % (100 Hz onto 50 Hz), and every channel sees one and the same filter,
 so a coefficient and its regressors keep their relation on the means (up to the second
 order of the variation inside a step). The commands get the same average in
-:func:`~drake_uav.identification.flight_data.samples_from_log`: the command in effect
+:func:`~drake_uav.identification.samples.flight_data.samples_from_log`: the command in effect
 at each raw instant for the forces, and its average over the step each raw instant
 starts for the moments (the rate increments between two means integrate over those).
 

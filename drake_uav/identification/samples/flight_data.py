@@ -20,8 +20,8 @@ GPS (optional)      ``gps_vn gps_ve gps_vd``                     m/s
 
 The GPS velocity and position, when the log holds them, are carried into
 ``AeroSamples.signals`` under their channel names
-(:data:`~drake_uav.identification.vector_effects.GPS_VELOCITY`,
-:data:`~drake_uav.identification.vector_effects.GPS_POSITION`), the directions of the
+(:data:`~drake_uav.identification.samples.aero_samples.GPS_VELOCITY`,
+:data:`~drake_uav.identification.samples.aero_samples.GPS_POSITION`), the directions of the
 vector effects that need them (against the ground velocity, towards a point): drawn as
 straight lines between the fixes (:func:`gps_signals`), each triple left out when the log
 lacks a channel of it or its fixes do not cover the airborne span. The receiver's latency
@@ -39,7 +39,7 @@ finite or changes too rarely to regress on.
 The channels are checked (no NaN, no gap longer than ``max_gap``), brought onto a
 uniform grid and passed to the coefficient isolation. A log sampled an integer number of
 times faster than the grid is averaged over runs of that many samples, its commands
-alike (:mod:`~drake_uav.identification.decimation`), so that no sample's information is
+alike (:mod:`~drake_uav.identification.samples.decimation`), so that no sample's information is
 dropped; another log is interpolated onto the grid. Commands are taken
 as held from their time stamp to the next one (zero-order hold), which places
 them differently for forces and moments (:func:`held_commands`): a sensor
@@ -60,6 +60,7 @@ and command rate there, which a real log never holds.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Mapping
 
@@ -68,17 +69,25 @@ import numpy as np
 from drake_uav.estimation.channel_checks import check_channels
 from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
-from drake_uav.identification.decimation import bin_means, binned_channels, decimation_factor
-from drake_uav.identification.isolation import LOGGED, AeroSamples, isolate_coefficients
-from drake_uav.identification.propulsion import identify_thrust
-from drake_uav.identification.segments import delayed
-from drake_uav.identification.vector_effects import GPS_POSITION, GPS_VELOCITY
+from drake_uav.identification.samples.aero_samples import (
+    GPS_POSITION,
+    GPS_VELOCITY,
+    LOGGED,
+    AeroSamples,
+)
+from drake_uav.identification.samples.decimation import (
+    bin_means,
+    binned_channels,
+    decimation_factor,
+)
+from drake_uav.identification.samples.isolation import isolate_coefficients
 from drake_uav.io.extras import extra_channels
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.streams import logged_rate
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["REQUIRED_CHANNELS", "samples_from_log", "check_gaps", "raw_noise_variance",
+__all__ = ["REQUIRED_CHANNELS", "samples_from_log", "gridded_log", "isolated_samples",
+           "GriddedLog", "check_gaps", "raw_noise_variance",
            "native_noise_variance", "white_noise_variance", "held_commands", "usable_extras",
            "MIN_EXTRA_CHANGES", "gps_signals", "GPS_MAX_GAP"]
 
@@ -194,7 +203,7 @@ def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
 def native_noise_variance(log: FlightLog, channel: str, averaged: int = 1) -> float:
     """White-noise variance of ``channel`` at the rate it was logged [unit^2]; with
     ``averaged`` > 1, of the mean of that many consecutive samples of the log
-    (:mod:`~drake_uav.identification.decimation`).
+    (:mod:`~drake_uav.identification.samples.decimation`).
 
     A channel logged slower than the log's time base was interpolated onto it,
     which averages neighbouring samples and hides their noise. It is taken back to
@@ -244,7 +253,7 @@ def _on_grid(log: FlightLog, rate_hz: float, factor: int):
     the instants, over the intervals: :func:`held_commands`).
 
     A log ``factor`` times faster is averaged over runs of ``factor`` samples
-    (:mod:`~drake_uav.identification.decimation`), and so are the commands, taken at the
+    (:mod:`~drake_uav.identification.samples.decimation`), and so are the commands, taken at the
     raw instants and over the grid step each raw instant starts; another log is
     interpolated onto the grid. Misplacing held commands by half a hold period would leave
     a spurious actuator delay (or lead) in the residual: forces and moments each get their
@@ -383,44 +392,107 @@ def check_gaps(log: FlightLog, max_gap: float) -> None:
             f"(t = {log.time[i]:.6g} s), longer than the allowed {max_gap:g} s")
 
 
+@dataclasses.dataclass(frozen=True)
+class GriddedLog:
+    """A checked flight log on the samples' uniform time grid, ready for the isolation
+    (:func:`gridded_log`); the thrust identification
+    (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`) reads it too."""
+
+    log: FlightLog
+    """The airborne channels on the grid (block means of the decimated samples)."""
+    controls: np.ndarray
+    """(N, 4) elevator, aileron, rudder [rad] and throttle [0..1] as the forces see them."""
+    moment_controls: np.ndarray
+    """(N, 4) the same controls as the moment coefficients see them."""
+    signals: dict[str, np.ndarray]
+    """Attitude [rad], height [m] and the GPS triples, by :attr:`AeroSamples.signals` name."""
+    noise_variance: dict[str, float]
+    """Raw white-noise variance of the isolation's sources and the extra channels."""
+    extras: Mapping[str, str]
+    """The extra channels carried into the samples (channel -> unit)."""
+
+
 def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
                      max_gap: float = 0.5, min_airspeed: float = 5.0,
                      flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
                      sensor_noise_std: dict[str, float] | None = None,
-                     propulsion: str = "catalog",
-                     extras: Mapping[str, str] | None = None,
-                     throttle_delay: float | None = None) -> AeroSamples:
-    """Regression samples (measured coefficients and regressors) from a flight log.
+                     extras: Mapping[str, str] | None = None) -> AeroSamples:
+    """Regression samples (measured coefficients and regressors) from a flight log, with
+    the thrust of the aircraft's propulsion model.
 
-    Samples with an airspeed below ``min_airspeed`` [m/s] (on the ground,
-    take-off roll) are cut from the ends of the log. ``flow_channels`` hold the
-    angle of attack and sideslip [rad] (vanes, or an estimate). ``sensor_noise_std``
-    (log channel -> standard deviation [channel unit]) are the sensor specs the
-    user declares; the noise of the channels they leave out is read from the data
-    (:func:`raw_noise_variance`). ``propulsion`` "catalog" takes the thrust from
-    the aircraft's propulsion model; "data" identifies it with C_X
-    (:func:`~drake_uav.identification.propulsion.identify_thrust`: from the motor
-    speed when logged, else a throttle and airspeed correction), which falls back to
-    the catalog model with a warning when the flight cannot tell thrust from drag.
-    ``throttle_delay`` [s]: a servo delay measured before (the data-compatibility check's
-    command time skew); the throttle correction is fitted on the throttle that delay
-    late, as the motor saw it, and the coefficients are still isolated with the logged
-    one, so the delay stays in them for the discovery to name (its thrust column takes
-    the difference). Without it, a throttle that moves within the delay biases the
-    correction's terms, and their error reaches C_L as a body-x force.
-    ``extras`` (channel -> unit) are the extra channels carried into the samples
-    (module docstring); None takes :func:`usable_extras` of ``log``. The GPS velocity
-    and position join the samples' signals where the log holds them (:func:`gps_signals`).
-    The channels are first checked against their physical ranges over the samples above
-    ``min_airspeed`` (:func:`~drake_uav.estimation.channel_checks.check_channels`):
-    glitches are drawn over with a warning (``warnings.warn``), an impossible channel
-    stops.
-    Raises :class:`FlightLogError` naming a missing channel, a non-finite sample, a gap
-    or a physically impossible channel
-    (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError`).
+    :func:`gridded_log` followed by :func:`isolated_samples`; the main job puts its thrust
+    identification between the two (:func:`~drake_uav.identification.pipeline.identify`).
+    The parameters are those of :func:`gridded_log`.
+
+    Returns
+    -------
+    AeroSamples
+        The measured coefficients and their regressors on the grid.
+
+    Raises
+    ------
+    FlightLogError
+        As :func:`gridded_log`, or when the isolation refuses the data.
     """
-    if propulsion not in ("catalog", "data"):
-        raise ValueError(f"propulsion: 'catalog' or 'data', got {propulsion!r}")
+    return isolated_samples(gridded_log(log, params, rate_hz, max_gap, min_airspeed,
+                                        flow_channels, sensor_noise_std, extras), params)
+
+
+def gridded_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
+                max_gap: float = 0.5, min_airspeed: float = 5.0,
+                flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
+                sensor_noise_std: dict[str, float] | None = None,
+                extras: Mapping[str, str] | None = None) -> GriddedLog:
+    """The airborne part of a flight log, checked and on a uniform grid, with the noise
+    of its channels.
+
+    The eight parameters are the independent settings of the data preparation, each
+    with its default; they are not grouped further because each caller sets a few.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log, channels in SI units (module docstring).
+    params : FixedWingParams
+        The aircraft (its physical ranges and air density).
+    rate_hz : float
+        Rate of the grid [Hz]; faster logs are block-averaged down to it.
+    max_gap : float
+        Longest allowed time between two samples [s].
+    min_airspeed : float
+        Samples below this airspeed [m/s] (on the ground, take-off roll) are cut from
+        the ends of the log.
+    flow_channels : tuple of str
+        The channels holding the angle of attack and sideslip [rad] (vanes, or an
+        estimate).
+    sensor_noise_std : dict, optional
+        Log channel -> standard deviation [channel unit] the user declares; the noise of
+        the channels left out is read from the data (:func:`raw_noise_variance`).
+    extras : Mapping, optional
+        Extra channels (channel -> unit) carried into the samples (module docstring);
+        None takes :func:`usable_extras` of ``log``.
+
+    Returns
+    -------
+    GriddedLog
+        The channels on the grid, the controls as forces and moments see them, the
+        signals and the noise variances.
+
+    Raises
+    ------
+    FlightLogError
+        Naming a missing channel, a non-finite sample, a gap, an airspeed never above
+        ``min_airspeed`` or a physically impossible channel
+        (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError`).
+
+    Notes
+    -----
+    The GPS velocity and position join the signals where the log holds them
+    (:func:`gps_signals`). The channels are first checked against their physical ranges
+    over the samples above ``min_airspeed``
+    (:func:`~drake_uav.estimation.channel_checks.check_channels`): glitches are drawn
+    over with a warning (``warnings.warn``), an impossible channel stops.
+    """
     if tuple(flow_channels) != ("vane_alpha", "vane_beta"):
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
@@ -449,30 +521,43 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     if HEIGHT in uniform:
         signals["height"] = uniform[HEIGHT]
     signals.update(gps_signals(whole, uniform.time))
-    thrust = {}
-    if propulsion == "data":
-        speed = uniform["motor_speed"] if "motor_speed" in uniform else None
-        seen = controls
-        if throttle_delay is not None and speed is None:
-            seen = controls.copy()
-            seen[:, 3] = delayed(uniform.time, controls[:, 3], throttle_delay)
-        try:
-            model = identify_thrust(params, uniform.time, uniform.stack(SPECIFIC_FORCE),
-                                    uniform.stack(RATES), uniform.stack(AIR_DATA), seen, speed,
-                                    raw_noise_variance=noise)
-        except ValueError as err:
-            raise FlightLogError(f"thrust from pitot_airspeed, imu_ax and cmd_throttle: {err}"
-                                 ) from None
-        if model.terms:  # else the catalog model predicts best, or the data cannot tell
-            value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
-            thrust = {"thrust": value, "thrust_airspeed_slope": slope,
-                      "thrust_correction_terms": model.terms if model.source == "throttle"
-                      else ()}
+    return GriddedLog(uniform, controls, moment_controls, signals, {**noise, **extra_noise},
+                      extras)
+
+
+def isolated_samples(grid: GriddedLog, params: FixedWingParams,
+                     thrust: Mapping[str, object] | None = None) -> AeroSamples:
+    """The measured coefficients of a gridded log
+    (:func:`~drake_uav.identification.samples.isolation.isolate_coefficients`).
+
+    Parameters
+    ----------
+    grid : GriddedLog
+        The log on its grid (:func:`gridded_log`).
+    params : FixedWingParams
+        The aircraft.
+    thrust : Mapping, optional
+        An identified thrust: ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] and
+        ``thrust_correction_terms``
+        (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`); None keeps
+        the catalog's propulsion model.
+
+    Returns
+    -------
+    AeroSamples
+
+    Raises
+    ------
+    FlightLogError
+        When the isolation refuses the data (its message).
+    """
+    uniform = grid.log
     try:
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
-            uniform.stack(AIR_DATA), controls, signals=signals,
-            raw_noise_variance={**noise, **extra_noise}, moment_controls=moment_controls,
-            logged={c: (uniform[c], unit) for c, unit in extras.items()}, **thrust)
+            uniform.stack(AIR_DATA), grid.controls, signals=grid.signals,
+            raw_noise_variance=grid.noise_variance, moment_controls=grid.moment_controls,
+            logged={c: (uniform[c], unit) for c, unit in grid.extras.items()},
+            **(thrust or {}))
     except ValueError as err:
         raise FlightLogError(str(err)) from None

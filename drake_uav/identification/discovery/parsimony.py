@@ -7,7 +7,7 @@ correlates with; such a term adds nothing where the fit was made and spoils the
 prediction elsewhere (extra drag terms made a purely longitudinal glide's drag
 extrapolation 4x worse than a plain polar). Backward elimination (stepwise regression,
 Klein & Morelli 2006, ch. 5) removes them, judged by the discovery loop's own evidence
-on the training part of the flight (:mod:`~drake_uav.identification.blocked_folds`):
+on the training part of the flight (:mod:`~drake_uav.identification.statistics.blocked_folds`):
 
 * **cross-validation**: the blocked K-fold held-out prediction error (PSE), each block
   predicted by the bias-compensated fit on the others;
@@ -33,8 +33,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from drake_uav.identification.blocked_folds import held_out_errors, squared_errors
-from drake_uav.identification.errors_in_variables import (
+from drake_uav.identification.statistics.blocked_folds import held_out_errors, squared_errors
+from drake_uav.identification.statistics.errors_in_variables import (
     BlockMoments,
     PropagatedNoise,
     solve_normal_equations,

@@ -1,7 +1,7 @@
 """The sensor noise in every regressor column and measured coefficient: its sources,
 their variances per sample, and the perturbations that give each column's sensitivity.
 
-The isolation (:func:`~drake_uav.identification.isolation.isolate_coefficients`) builds
+The isolation (:func:`~drake_uav.identification.samples.isolation.isolate_coefficients`) builds
 every signal of the regressions from a few noisy channels through one Savitzky-Golay
 filter of window :data:`ISOLATION_WINDOW` (smoothing weights ``h``, derivative weights
 ``d``). White noise of raw variance ``v`` leaves ``v sum h^2`` in a smoothed signal and
@@ -44,18 +44,18 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import (
-    LOGGED,
-    MOMENTS,
-    AeroSamples,
-    isolate_coefficients,
-)
-from drake_uav.model.isolation import differentiate, moment_coefficients
+from drake_uav.identification.samples.aero_samples import LOGGED, MOMENTS, AeroSamples
+from drake_uav.identification.samples.isolation import isolate_coefficients
+from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
+from drake_uav.model.isolation import differentiate, force_coefficients, moment_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["ISOLATION_WINDOW", "STEPS", "LOGGED_STEP", "AIR_DATA_SOURCES", "DERIVATIVES",
            "smoothing_gains", "source_variances", "noise_sources", "source_step", "perturbed",
-           "observation_sensitivity"]
+           "observation_sensitivity", "noise_variance_per_sample"]
+
+_FORCES = ("CL", "CD", "CY")
+_ACCELEROMETERS = ("ax", "ay", "az")
 
 ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
     "derivative_window"].default
@@ -165,4 +165,54 @@ def observation_sensitivity(samples: AeroSamples, coefficient: str,
         step[axis] = 1.0
         out[f"{name}_dot"] = (value(view.rate_derivatives + step, rates)
                               - value(view.rate_derivatives, rates))
+    return out
+
+
+def noise_variance_per_sample(samples: AeroSamples, coefficient: str, params: FixedWingParams,
+                              noise: PropagatedNoise | None, theta: np.ndarray
+                              ) -> dict[str, np.ndarray]:
+    """Source -> (N,) variance of the equation error of the fit ``theta`` that the source's
+    noise gives at each sample of ``samples``: ``var_s (dz/ds - dx/ds . theta)^2`` summed as
+    :mod:`~drake_uav.identification.assessment.noise_floor` explains.
+
+    ``noise`` is the noise the fit's design carries on ``samples`` (None: the coefficient's
+    own, without regressors); the accelerometers' noise, which enters the force
+    coefficients alone, is added.
+    """
+    if noise is None:
+        noise = PropagatedNoise(len(theta), {}, observation_sensitivity(
+            samples, coefficient, params), source_variances(samples, coefficient))
+    out = {}
+    for s in dict.fromkeys((*noise.regressors, *noise.observation)):
+        if s not in noise.variance:
+            continue
+        J = noise.regressors.get(s)
+        error = noise.observation.get(s, 0.0) - (0.0 if J is None else J @ theta)
+        out[s] = noise.variance[s] * np.broadcast_to(error, samples.time.shape) ** 2
+    if coefficient in _FORCES:
+        for s, v in _accelerometer_terms(samples, coefficient, params).items():
+            out.setdefault(s, v)
+    return out
+
+
+def _accelerometer_terms(test: AeroSamples, coefficient: str, params: FixedWingParams
+                         ) -> dict[str, np.ndarray]:
+    """Accelerometer -> (N,) variance its noise gives the force coefficient
+    ``coefficient``: the coefficients are linear in the specific force (Vaiopoulos 2017,
+    eq. 5.41), so a unit step gives their exact sensitivity."""
+    index = _FORCES.index(coefficient)
+
+    def value(specific_force):
+        return force_coefficients(specific_force, test.thrust, test.dynamic_pressure,
+                                  test.condition.alpha, params.mass, params.S)[index]
+
+    out = {}
+    for axis, name in enumerate(_ACCELEROMETERS):
+        variance = test.noise_variance.get(name, 0.0)
+        if variance <= 0.0:
+            continue
+        step = np.zeros(3)
+        step[axis] = 1.0
+        out[name] = variance * (value(test.specific_force + step)
+                                - value(test.specific_force)) ** 2
     return out

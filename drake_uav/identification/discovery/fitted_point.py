@@ -4,7 +4,7 @@ of the joint fit over them and its local refinement.
 The force ``F(t) = m u(t)``, ``u`` the unit vector from the aircraft's GPS position
 ``p(t)`` towards a NED point ``P`` (a tether's or a tow's anchor nobody surveyed), is linear
 in ``m`` but not in ``P``. For a given ``P`` the joint fit over the force coefficients
-(:mod:`~drake_uav.identification.vector_effects`) removes from their weighted,
+(:mod:`~drake_uav.identification.discovery.vector_effects`) removes from their weighted,
 bias-compensated training errors
 
     ``D(P) = (sum_k w_k t_k)^2 / sum_k w_k s_k``
@@ -30,9 +30,9 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from drake_uav.identification.errors_in_variables import PropagatedNoise
-from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.segments import span_starts
+from drake_uav.identification.samples.aero_samples import AeroSamples
+from drake_uav.identification.samples.segments import span_starts
+from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
 from drake_uav.model.rotations import euler_to_rotmat
 
 __all__ = ["NEAREST", "FARTHEST", "SPACING", "MAX_CANDIDATES", "KNOT_STEP", "PointFit",
@@ -179,7 +179,7 @@ class ProfileKernels:
     column ``v = sum_i a_i u_i``: ``v' X - E[dv' dX] = sum_i u_i' x_i``,
     ``v' z - E[dv' dz] = sum_i u_i' z_i`` and ``v' v - E[dv' dv] = sum_n u_n' V_n u_n``, the
     bias-compensated moments of the design ``[X | v]`` (Fuller 1987, eq. 2.2.4, as
-    :class:`~drake_uav.identification.errors_in_variables.BlockMoments` computes them)."""
+    :class:`~..estimators.errors_in_variables.BlockMoments` computes them)."""
 
     x: np.ndarray
     """(3, N, p)."""

@@ -27,7 +27,7 @@ from collections.abc import Collection, Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.samples.aero_samples import AeroSamples
 from drake_uav.model.air_data import air_data_from_velocity, velocity_from_air_data
 from drake_uav.model.coefficients import (
     COEFFICIENTS,

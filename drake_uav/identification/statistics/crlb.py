@@ -14,7 +14,7 @@ Two problems, both ``z = X0 theta + e`` with Gaussian white errors:
   (:func:`crlb_errors_in_variables`). This is Vaiopoulos 2017, eq. 4.62. GTLS approaches it
   when the regressor noise is small against the regressor signal; its asymptotic covariance
   has an extra term of that relative order
-  (:func:`~drake_uav.identification.errors_in_variables.tls_covariance`).
+  (:func:`~drake_uav.identification.statistics.errors_in_variables.tls_covariance`).
 
 :func:`sample_errors_in_variables` draws Monte-Carlo data sets from the second model (the first
 is the special case of zero regressor noise), to compare estimators against the bounds.

@@ -21,7 +21,7 @@ times ``-l_t / c``, negative (tail lift slope ``a_t``, tail volume ``V_H``, tail
 ``l_t = 5 c``).
 
 The same table decides whether the discovery keeps an effect's term
-(:class:`~drake_uav.identification.discovery_result.HeldOutCheck`): a term named like a
+(:class:`~drake_uav.identification.discovery.result.HeldOutCheck`): a term named like a
 derivative of the table (``unsteady_alphadot`` on C_L and C_m) is not kept with a value
 outside its range, which is not the physics the effect names.
 """

@@ -36,7 +36,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.residuals import long_run_covariance
+from drake_uav.identification.statistics.residuals import long_run_covariance
 
 __all__ = [
     "BlockMoments",
@@ -68,7 +68,7 @@ def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.
 
     ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
     Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
-    batch :func:`~drake_uav.identification.regression.tls` replaces zero stds of exact columns
+    batch :func:`~.regression.tls` replaces zero stds of exact columns
     before calling this.
     """
     if error_std is not None and error_cov is not None:

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from drake_uav.identification.isolation import AeroSamples
+from drake_uav.identification.samples.aero_samples import AeroSamples
 from drake_uav.model.coefficients import AeroCondition
 from drake_uav.model.propeller import THROTTLE_TERMS
 

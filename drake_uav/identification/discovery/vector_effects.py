@@ -17,9 +17,9 @@ elimination of each coefficient's columns (the equation-error estimation of seve
 outputs sharing parameters, Klein & Morelli 2006, ch. 5 and 6; Frisch-Waugh-Lovell).
 One partial F-test with as many degrees of freedom as parameters, blocked
 cross-validation of the weighted sum of the coefficients' held-out errors and the BIC
-decide (:class:`~drake_uav.identification.discovery_result.EvidenceRule`, in the same
+decide (:class:`~drake_uav.identification.discovery.result.EvidenceRule`, in the same
 family-wise Bonferroni count as the per-coefficient candidates); the held-out rules
-(:class:`~drake_uav.identification.discovery_result.HeldOutCheck`) then decide coefficient by
+(:class:`~drake_uav.identification.discovery.result.HeldOutCheck`) then decide coefficient by
 coefficient. An accepted effect enters each coefficient it is kept on as one column, its
 jointly estimated shape; its reported parameters come from a joint refit against the
 final fits, with a sandwich covariance over all the coefficients' scores.
@@ -29,7 +29,7 @@ library as ``force_towards_point``) is nonlinear in the point: in each round the
 located by the profile of the joint fit over a grid of candidate points around the
 flight path, refined locally; the effect is tested at the best grid point with its
 p-value multiplied by the number of candidate points (Bonferroni over the grid,
-:mod:`~drake_uav.identification.fitted_point`) and carried on at the refined point, and
+:mod:`~drake_uav.identification.discovery.fitted_point`) and carried on at the refined point, and
 the point's parameters ``p_n, p_e, p_d`` [m, NED] are reported with their sigmas (the
 force linearised about it, one Gauss-Newton step). A negative magnitude is a force away
 from the point.
@@ -48,14 +48,17 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from drake_uav.identification.coefficient_design import columns_and_jacobians
-from drake_uav.identification.discovery_result import Evidence, EvidenceRule, FoundEffect
-from drake_uav.identification.errors_in_variables import (
-    is_well_posed,
-    long_run_covariance,
-    noise_error_energy,
+from drake_uav.identification.discovery.coefficient_design import columns_and_jacobians
+from drake_uav.identification.discovery.evidence import (
+    Candidate,
+    CandidateColumns,
+    JointBlock,
+    JointEvidence,
+    joint_solve,
+    nonzero_columns,
+    score_jointly,
 )
-from drake_uav.identification.fitted_point import (
+from drake_uav.identification.discovery.fitted_point import (
     PointFit,
     PointProfile,
     ProfileKernels,
@@ -64,22 +67,23 @@ from drake_uav.identification.fitted_point import (
     towards,
     towards_gradient,
 )
-from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.regression import f_survival
-from drake_uav.identification.residuals import effective_sample_size
+from drake_uav.identification.discovery.result import Evidence, EvidenceRule, FoundEffect
+from drake_uav.identification.samples.aero_samples import (
+    ATTITUDE,
+    GPS_POSITION,
+    GPS_VELOCITY,
+    AeroSamples,
+)
+from drake_uav.identification.statistics.errors_in_variables import (
+    long_run_covariance,
+)
+from drake_uav.identification.statistics.residuals import effective_sample_size
 from drake_uav.model.air_data import velocity_from_air_data
-from drake_uav.model.coefficients import body_to_lift_drag
+from drake_uav.model.coefficients import COEFFICIENTS, body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["VectorEffect", "JointEvidence", "JointSearch", "vector_effect",
-           "vector_effect_library", "DIRECTIONS", "ATTITUDE", "GPS_VELOCITY", "GPS_POSITION"]
-
-ATTITUDE = ("roll", "pitch", "yaw")
-"""``AeroSamples.signals`` of the attitude [rad] (body -> NED)."""
-GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
-"""``AeroSamples.signals`` of the GPS velocity, NED [m/s]."""
-GPS_POSITION = ("gps_pn", "gps_pe", "gps_pd")
-"""``AeroSamples.signals`` of the GPS position, NED [m]."""
+__all__ = ["VectorEffect", "JointSearch", "vector_effect",
+           "vector_effect_library", "DIRECTIONS"]
 
 _MOMENT_AXIS = {"Cl": 0, "Cm": 1, "Cn": 2}
 _FORCES = ("CL", "CD", "CY")
@@ -88,8 +92,6 @@ _ARMS = ("Fr_x", "Fr_y", "Fr_z")
 _SHIFTS = ("Fp_n", "Fp_e", "Fp_d")
 """The linearised point's parameters ``m dP`` [N m] (their column is the force's change
 with the point, per metre)."""
-_POINT_SEARCH_PARAMETERS = 3
-"""The point's coordinates: the parameters a fitted point adds to the BIC."""
 
 Direction = Callable[[AeroSamples], np.ndarray]
 """``direction(samples) -> (N, 3)`` body-axis unit vectors."""
@@ -157,7 +159,7 @@ class VectorEffect:
     """The NED point [m] of a ``"towards_point"`` direction (None: not located yet)."""
     searched: int = 0
     """Candidate points the point was chosen from (0: given; see
-    :mod:`~drake_uav.identification.fitted_point`)."""
+    :mod:`~drake_uav.identification.discovery.fitted_point`)."""
     linearised: bool = False
     """With the point's shift parameters ``Fp_n, Fp_e, Fp_d`` (its uncertainty)."""
 
@@ -165,6 +167,13 @@ class VectorEffect:
         """True when the samples carry every signal the effect needs."""
         needed = self.signals + ((self.magnitude,) if self.magnitude else ())
         return all(s in samples.signals for s in needed)
+
+    def candidate(self, params: FixedWingParams) -> Candidate:
+        """The effect as a plant-agnostic candidate of the evidence rule: its parameters
+        shared by every coefficient it moves, tested jointly."""
+        return Candidate(self.name, self.explanation, COEFFICIENTS,
+                         lambda samples, k: self.columns(samples, params, k),
+                         parameters=self.parameters, joint=True, searched=self.searched)
 
     @property
     def fitted(self) -> bool:
@@ -235,7 +244,7 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
     ``magnitude``: a logged channel the force is proportional to (None: constant);
     ``lever_arm``: fit the application point; ``point``: the NED point [m] of
     ``"towards_point"`` (None: located by the data in each round,
-    :mod:`~drake_uav.identification.fitted_point`); ``logged``, ``frame``: the three
+    :mod:`~drake_uav.identification.discovery.fitted_point`); ``logged``, ``frame``: the three
     channels and their frame (``"body"`` or ``"ned"``) of ``"logged"``.
     """
     if direction not in DIRECTIONS:
@@ -279,7 +288,7 @@ def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
     A force along a body axis at the centre of gravity is the per-coefficient
     ``constant_body_force``: here a body-axis force always has its lever arm. The forces
     against the GPS velocity and towards a point the data locate
-    (``force_towards_point``, :mod:`~drake_uav.identification.fitted_point`; left out
+    (``force_towards_point``, :mod:`~drake_uav.identification.discovery.fitted_point`; left out
     with ``located_point`` False) need the GPS in the samples' signals.
     """
     out = []
@@ -293,80 +302,6 @@ def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
 
 
 # ----------------------------------------------------------------------------- joint fit
-
-
-def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A^-1 B`` for stacks of normal matrices, equilibrated to a unit diagonal
-    (least squares when singular)."""
-    scale = np.sqrt(np.maximum(np.diagonal(A, axis1=-2, axis2=-1), 1e-300))
-    E = A / (scale[..., :, None] * scale[..., None, :])
-    try:
-        return np.linalg.solve(E, B / scale[..., :, None]) / scale[..., :, None]
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(E) @ (B / scale[..., :, None]) / scale[..., :, None]
-
-
-@dataclasses.dataclass(frozen=True)
-class _Block:
-    """One coefficient's compensated normal equations ``(A, b)`` of ``[X | V_k]``: ``p``
-    own columns, then the shared parameters ``index`` (of the effect's) entering it."""
-
-    A: np.ndarray
-    b: np.ndarray
-    p: int
-    index: np.ndarray
-    weight: float
-
-
-def _joint_solve(blocks: Sequence[_Block], q: int
-                 ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
-    """The shared parameters ``phi`` (..., q), each coefficient's own ``theta`` (..., p)
-    and the reduced normal matrix (..., q, q): the weighted stacked normal equations with
-    every coefficient's columns eliminated (Schur complements)."""
-    lead = blocks[0].A.shape[:-2]
-    S, s = np.zeros((*lead, q, q)), np.zeros((*lead, q))
-    parts = []
-    for blk in blocks:
-        p, i = blk.p, blk.index
-        Axv, bx = blk.A[..., :p, p:], blk.b[..., :p]
-        sol = _solve(blk.A[..., :p, :p], np.concatenate([Axv, bx[..., None]], axis=-1))
-        Avx = np.swapaxes(Axv, -1, -2)
-        S[..., i[:, None], i[None, :]] += blk.weight * (blk.A[..., p:, p:] - Avx @ sol[..., :-1])
-        s[..., i] += blk.weight * (blk.b[..., p:] - (Avx @ sol[..., -1:])[..., 0])
-        parts.append(sol)
-    phi = _solve(S, s[..., None])[..., 0]
-    thetas = [sol[..., -1] - (sol[..., :-1] @ phi[..., blk.index, None])[..., 0]
-              for sol, blk in zip(parts, blocks, strict=True)]
-    return phi, thetas, S
-
-
-@dataclasses.dataclass(frozen=True)
-class JointEvidence:
-    """The joint test of one vector effect over the coefficients it moves."""
-
-    effect: VectorEffect
-    coefficients: tuple[str, ...]
-    parameters: tuple[str, ...]
-    """The shared parameters tested (the degrees of freedom of the test)."""
-    estimate: np.ndarray
-    """Their joint estimate on the training part."""
-    pse_reduction: float
-    """Mean over the folds of the held-out error removed, summed over the coefficients in
-    units of each one's error (:attr:`total` is the same mean taken per coefficient)."""
-    folds_improved: int
-    reductions: Mapping[str, float]
-    """Per coefficient: mean relative reduction of its held-out error over the folds."""
-    improved: Mapping[str, int]
-    f_statistic: float
-    p_value: float
-    delta_bic: float
-    passed: bool
-
-    @property
-    def total(self) -> float:
-        """Held-out error removed, summed over the coefficients in units of each one's
-        error: the key it competes on."""
-        return float(sum(self.reductions.values()))
 
 
 class JointSearch:
@@ -389,11 +324,8 @@ class JointSearch:
                  coefficients: Sequence[str] | None = None) -> list[Evidence]:
         """One ``Evidence`` per effect and coefficient (``coefficients``: only those): the
         joint statistics with the coefficient's own held-out reduction."""
-        return [Evidence(j.effect.name, k, j.parameters, j.reductions[k],
-                                    j.improved[k], j.f_statistic, j.p_value, j.delta_bic,
-                                    j.passed)
-                for j in joint for k in j.coefficients
-                if coefficients is None or k in coefficients]
+        return [e for j in joint for e in j.evidence()
+                if coefficients is None or e.coefficient in coefficients]
 
     # -- columns
 
@@ -404,12 +336,10 @@ class JointSearch:
         if test or key not in self._train:
             variants = search.test_variants if test else search.pool.variants
             design = (search.tests if test else search.designs)[k]
-            columns, jac = columns_and_jacobians(
+            own = nonzero_columns(CandidateColumns(*columns_and_jacobians(
                 lambda smp: effect.columns(smp, search.pool.params, k), variants,
-                design.noise.variance)
-            names = [n for n, v in columns.items() if np.any(v != 0.0)]
-            out = ({n: columns[n] for n in names},
-                   {s: {n: j[n] for n in names} for s, j in jac.items()})
+                design.noise.variance)))
+            out = (own.columns, own.jacobians)
             if test:
                 return out
             self._train[key] = out
@@ -425,7 +355,7 @@ class JointSearch:
               used: set[str]) -> list[JointEvidence]:
         """The joint evidence of every vector effect not tried yet. An effect towards a
         point the data locate is tested at the best of its candidate points and carried
-        on at the refined one (:mod:`~drake_uav.identification.fitted_point`)."""
+        on at the refined one (:mod:`~drake_uav.identification.discovery.fitted_point`)."""
         out = []
         for effect in self.candidates(used):
             located = self.locate(search, effect, bases) if effect.fitted else None
@@ -448,7 +378,7 @@ class JointSearch:
         when no force coefficient is fitted): the profile of the weighted, compensated
         joint fit over the force coefficients (the first pass of :meth:`_score`) over the
         candidate points, refined
-        (:class:`~drake_uav.identification.fitted_point.PointProfile`)."""
+        (:class:`~drake_uav.identification.discovery.fitted_point.PointProfile`)."""
         train = search.pool.variants.samples
         if effect not in self._profiles:
             self._profiles[effect] = (PointProfile(positions(train), train.time), {})
@@ -487,86 +417,11 @@ class JointSearch:
                 {s: np.column_stack([j[i] for i in range(3)]) for s, j in jac.items()})
 
     def _score(self, search, effect, bases, rule, n_tests) -> JointEvidence | None:
-        moved = {}
-        for k in bases:
-            columns = self._columns(search, effect, k)[0]
-            if columns:
-                V = np.column_stack(list(columns.values()))
-                basis = bases[k].basis
-                rest = np.linalg.norm(V - basis @ (basis.T @ V), axis=0)
-                names = [n for n, r, v in zip(columns, rest, np.linalg.norm(V, axis=0),
-                                              strict=True) if r >= 1e-3 * v]
-                if names:
-                    moved[k] = names
-        parameters = tuple(n for n in effect.parameters if any(n in v for v in moved.values()))
-        if not parameters:
-            return None
-        q = len(parameters)
-        searched_parameters = _POINT_SEARCH_PARAMETERS if effect.searched else 0
-        blocks, extended = [], {}
-        for k, names in moved.items():
-            design = bases[k].design
-            columns, jac = self._columns(search, effect, k)
-            V = np.column_stack([columns[n] for n in names])
-            J = {s: np.column_stack([j[n] for n in names]) for s, j in jac.items()}
-            moments = bases[k].blocks.extended(design.X, design.z, design.noise, V, J)
-            A, b, _, _ = moments.total()
-            index = np.array([parameters.index(n) for n in names])
-            # First pass: each coefficient weighted by its residual's variance.
-            blocks.append(_Block(A, b, design.X.shape[1], index, len(V) / bases[k].sse[0]))
-            extended[k] = (V, moments)
-        phi, thetas, S = _joint_solve(blocks, q)
-        if not is_well_posed(S):
-            return None
-        # Second pass: by the long-run variance of the residual with the effect (under
-        # the null hypothesis the same as without it; with it, not inflated by the effect).
-        fits = {}
-        for i, (k, blk, theta) in enumerate(zip(moved, blocks, thetas, strict=True)):
-            V, _ = extended[k]
-            design = bases[k].design
-            r = design.z - design.X @ theta - V @ phi[blk.index]
-            n_eff = float(effective_sample_size(r))
-            blocks[i] = dataclasses.replace(blk, weight=n_eff / float(r @ r))
-            fits[k] = n_eff
-        phi, thetas, _ = _joint_solve(blocks, q)
-        phi_folds, theta_folds, _ = _joint_solve(
-            [_Block(*extended[k][1].held_in(), blk.p, blk.index, blk.weight)
-             for k, blk in zip(moved, blocks, strict=True)], q)
-        drop_w = observed_w = dof = bic = 0.0
-        reductions, improved = {}, {}
-        relative = 0.0
-        for k, blk, theta, theta_k in zip(moved, blocks, thetas, theta_folds, strict=True):
-            base, (V, moments), n_eff = bases[k], extended[k], fits[k]
-            design = base.design
-            _, _, C_xx, c_xz = moments.total()
-            r = design.z - design.X @ theta - V @ phi[blk.index]
-            observed = float(r @ r)
-            drop = base.sse[1] - (observed - noise_error_energy(
-                np.concatenate([theta, phi[blk.index]]), C_xx, c_xz))
-            drop_w += blk.weight * drop
-            observed_w += blk.weight * observed
-            dof += n_eff - blk.p
-            bic += n_eff * np.log(max(base.sse[0] - drop, 1e-300) / base.sse[0]) \
-                + (q + searched_parameters) / len(moved) * np.log(n_eff)
-            gain = np.empty(len(moments.edges) - 1)
-            for f, (a, b) in enumerate(zip(moments.edges[:-1], moments.edges[1:], strict=True)):
-                fit = np.concatenate([theta_k[f], phi_folds[f][blk.index]])
-                rf = design.z[a:b] - design.X[a:b] @ fit[:blk.p] - V[a:b] @ fit[blk.p:]
-                gain[f] = base.fold_errors[1][f] - (float(rf @ rf) - noise_error_energy(
-                    fit, moments.noise_xx[f], moments.noise_xz[f]))
-            relative = relative + gain / base.fold_errors[0]
-            reductions[k] = float(np.mean(gain / base.fold_errors[0]))
-            improved[k] = int(np.sum(gain > 0))
-        dof = max(dof - q, 1.0)
-        f_stat = max(drop_w, 0.0) / q / (observed_w / dof)
-        # A located point: Bonferroni over the candidate points (fitted_point).
-        p_value = min(float(f_survival(f_stat, q, dof)) * max(effect.searched, 1), 1.0)
-        reduction, folds_improved = float(np.mean(relative)), int(np.sum(relative > 0))
-        passed = (p_value < rule.p_value / max(n_tests, 1) and reduction >= rule.min_pse_reduction
-                  and folds_improved >= rule.min_folds and bic < 0)
-        return JointEvidence(effect, tuple(moved), parameters, phi, reduction, folds_improved,
-                             reductions, improved, float(f_stat), p_value, float(bic),
-                             bool(passed))
+        """The joint evidence of ``effect`` against the round's designs
+        (:func:`~drake_uav.identification.discovery.evidence.score_jointly`)."""
+        columns = {k: CandidateColumns(*self._columns(search, effect, k)) for k in bases}
+        return score_jointly(effect, effect.parameters, columns, bases, rule, n_tests,
+                             effect.searched)
 
     # -- acceptance
 
@@ -678,8 +533,8 @@ class JointSearch:
         for k, (design, weight) in designs.items():
             A, b = design.moments()
             index = np.array([parameters.index(n) for n in names[k]])
-            blocks.append(_Block(A, b, A.shape[0] - len(index), index, weight))
-        phi, thetas, _ = _joint_solve(blocks, q)
+            blocks.append(JointBlock(A, b, A.shape[0] - len(index), index, weight))
+        phi, thetas, _ = joint_solve(blocks, q)
         offsets = np.cumsum([0] + [blk.p for blk in blocks])
         n_params = int(offsets[-1]) + q
         jacobian = np.zeros((n_params, n_params))

@@ -1,9 +1,9 @@
 """Blocked K-fold held-out errors of bias-compensated fits.
 
-The evidence that the discovery loop (:mod:`~drake_uav.identification.discovery`) and the
-parsimony of its baseline (:mod:`~drake_uav.identification.parsimony`) read: the training
+The evidence that the discovery loop (:mod:`~drake_uav.identification.discovery.loop`) and the
+parsimony of its baseline (:mod:`~drake_uav.identification.discovery.parsimony`) read: the training
 part of the flight cut into ``K`` contiguous blocks, each predicted by the fit on the others
-(:class:`~drake_uav.identification.errors_in_variables.BlockMoments`), every error also given
+(:class:`~.errors_in_variables.BlockMoments`), every error also given
 without its regressor-noise part.
 """
 
@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from drake_uav.identification.errors_in_variables import (
+from drake_uav.identification.statistics.errors_in_variables import (
     BlockMoments,
     noise_error_energy,
     solve_normal_equations,

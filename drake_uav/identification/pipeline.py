@@ -8,6 +8,7 @@ into a report folder.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -18,26 +19,46 @@ from drake_uav.estimation.channel_checks import (
     check_channels,
 )
 from drake_uav.estimation.compatibility import CompatibilityResult, check_compatibility
+from drake_uav.estimation.compatibility_result import CalibrationEffect
 from drake_uav.estimation.imu_position import (
     ImuPosition,
     accelerometers_at_cg,
     logged_imu_position,
 )
-from drake_uav.identification.air_data_source import choose_air_data, flow_angles
-from drake_uav.identification.coefficient_design import (
+from drake_uav.identification.assessment.identifiability import derivative_warnings
+from drake_uav.identification.assessment.near_ties import NearTie, accepted_evidence, near_ties
+from drake_uav.identification.assessment.noise_floor import NoiseFloor, held_out_noise_floor
+from drake_uav.identification.assessment.reconstruction import Reconstruction, reconstruct
+from drake_uav.identification.discovery.coefficient_design import (
     IdentifiedDerivatives,
     baseline_names,
     fit_derivatives,
 )
-from drake_uav.identification.discovery import check_coefficients, discover
-from drake_uav.identification.discovery_result import DiscoveryResult, EvidenceRule, FoundEffect
-from drake_uav.identification.effects import Effect, effect_library
-from drake_uav.identification.flight_data import samples_from_log, usable_extras
-from drake_uav.identification.flight_phases import DEFAULT_PHASES, PhaseSettings, usable_spans
-from drake_uav.identification.isolation import AeroSamples, monte_carlo_sigmas
-from drake_uav.identification.reconstruction import Reconstruction, reconstruct
-from drake_uav.identification.segments import concatenate_samples
-from drake_uav.identification.vector_effects import VectorEffect, vector_effect_library
+from drake_uav.identification.discovery.effects import Effect, effect_library
+from drake_uav.identification.discovery.loop import check_coefficients, discover
+from drake_uav.identification.discovery.plausibility import DerivativeWarning
+from drake_uav.identification.discovery.result import (
+    DiscoveryResult,
+    EvidenceRule,
+    Finding,
+    FoundEffect,
+)
+from drake_uav.identification.discovery.vector_effects import VectorEffect, vector_effect_library
+from drake_uav.identification.propulsion import thrust_from_gridded_log
+from drake_uav.identification.samples.aero_samples import AeroSamples
+from drake_uav.identification.samples.air_data_source import choose_air_data, flow_angles
+from drake_uav.identification.samples.flight_data import (
+    gridded_log,
+    isolated_samples,
+    usable_extras,
+)
+from drake_uav.identification.samples.flight_phases import (
+    DEFAULT_PHASES,
+    PhaseSettings,
+    usable_spans,
+)
+from drake_uav.identification.samples.isolation import monte_carlo_sigmas
+from drake_uav.identification.samples.segments import concatenate_samples
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS
@@ -63,7 +84,7 @@ class LogSelection:
     spans: tuple[tuple[float, float], ...]
     """Airborne fixed-wing spans (start, end) [s] (:func:`usable_spans`)."""
     air_data: str
-    """"vanes", "estimate" or "ahrs" (:mod:`~drake_uav.identification.air_data_source`)."""
+    """"vanes", "estimate" or "ahrs" (:mod:`~drake_uav.identification.samples.air_data_source`)."""
     air_data_description: str
     notes: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
@@ -97,6 +118,26 @@ class IdentificationRun:
     significant calibration errors were removed before the isolation (None: samples given
     directly, or nothing to check)."""
 
+    @functools.cached_property
+    def noise_floors(self) -> dict[str, NoiseFloor]:
+        """Coefficient -> its held-out equation error before and after and the floor the
+        sensor noise alone gives it (:func:`~drake_uav.identification.assessment.
+        noise_floor.held_out_noise_floor`)."""
+        return held_out_noise_floor(self.samples, self.discovery, self.params)
+
+    @functools.cached_property
+    def derivative_warnings(self) -> tuple[DerivativeWarning, ...]:
+        """Implausible catalog values, then implausible, correlated and unexcited identified
+        derivatives (:func:`~drake_uav.identification.assessment.identifiability.
+        derivative_warnings`)."""
+        return tuple(derivative_warnings(self.params.derivatives, self.discovery.final))
+
+    @functools.cached_property
+    def near_ties(self) -> tuple[NearTie, ...]:
+        """The accepted effects another candidate explains almost as well
+        (:func:`~drake_uav.identification.assessment.near_ties.near_ties`)."""
+        return tuple(near_ties(self.discovery))
+
     @property
     def notes(self) -> tuple[str, ...]:
         """What the job did with the log that the user should know (one line each)."""
@@ -109,35 +150,50 @@ class IdentificationRun:
         return () if self.data is None else self.data.warnings
 
     @property
-    def findings(self) -> tuple[str, ...]:
-        """Everything the job found the model or the data lacked, by name: the calibration
-        errors the data-compatibility check corrected (``air_data_time_skew``, ...), then
-        the effects the discovery loop found."""
+    def found(self) -> tuple[Finding, ...]:
+        """Everything the job found the model or the data lacked: the calibration errors
+        the data-compatibility check corrected (``air_data_time_skew``, ...,
+        :func:`calibration_finding`), then the effects the discovery loop found."""
         corrected = () if self.compatibility is None else tuple(
-            e.name for e in self.compatibility.applied)
-        return corrected + tuple(f.name for f in self.discovery.found)
+            calibration_finding(e) for e in self.compatibility.applied)
+        return corrected + tuple(self.discovery.found)
+
+    @property
+    def findings(self) -> tuple[str, ...]:
+        """The names of :attr:`found`."""
+        return tuple(f.name for f in self.found)
 
     def summary(self) -> dict:
-        """JSON-ready summary: effects with evidence, errors before/after, parameters.
+        """JSON-ready summary: exactly what the report's ``summary.json`` holds (the report
+        adds only ``complete``, ``report_title`` and ``report_files``).
 
-        Run-level keys: ``source, aircraft, data (spans, air data, notes), message,
-        findings (:attr:`findings`), samples, holdout_start_s, effects,
-        equation_error_rms_holdout (with each coefficient's ``adequacy``: its error against
-        the noise floor, whether the model is incomplete there and where,
-        :class:`~drake_uav.identification.adequacy.Adequacy`), reconstruction_mae_holdout,
-        reconstruction_divergences, measured_coefficient_sigma_monte_carlo, parameters,
-        dropped_terms``; each entry of ``effects`` has ``name, kind, explanation,
-        coefficients, evidence, parameters``. ``parameters`` lists a baseline term the
-        flight does not support as 0 (``dropped``: true); ``dropped_terms`` gives, per
-        coefficient, the figures that dropped each
-        (:class:`~drake_uav.identification.parsimony.DroppedTerm`).
+        Returns
+        -------
+        dict
+            Run-level keys: ``source, aircraft, data`` (spans, air data, notes),
+            ``message, findings`` (:attr:`findings`), ``samples, holdout_start_s,
+            effects, equation_error_rms_holdout`` (each coefficient's error before and
+            after, its ``adequacy``, :class:`~drake_uav.identification.discovery.adequacy.
+            Adequacy`, and its noise floor, :attr:`noise_floors`),
+            ``reconstruction_mae_holdout, reconstruction_divergences,
+            measured_coefficient_sigma_monte_carlo, parameters`` (with each one's catalog
+            value; a baseline term the flight does not support as 0, ``dropped``: true),
+            ``dropped_terms`` (per coefficient, the figures that dropped each,
+            :class:`~drake_uav.identification.discovery.parsimony.DroppedTerm`),
+            ``warnings`` (:attr:`derivative_warnings`), ``near_ties`` (:attr:`near_ties`),
+            ``rounds`` (every candidate's evidence, ``accepted`` or not) and, when the
+            data-compatibility check ran, ``compatibility``. Each entry of ``effects`` has
+            ``name, kind, explanation, coefficients, evidence, parameters``.
         """
         d = self.discovery
         rms = {k: {"before": b, "after": a, "change": (a - b) / b if b else 0.0,
-                   **({"adequacy": d.adequacy[k].summary()} if k in d.adequacy else {})}
+                   **({"adequacy": d.adequacy[k].summary()} if k in d.adequacy else {}),
+                   **self.noise_floors[k].summary()}
                for k, (b, a) in d.rms_change().items()}
         mae_b, mae_a = self.reconstruction_before.mae, self.reconstruction_after.mae
-        return {
+        catalog = self.params.derivatives
+        accepted = accepted_evidence(d)
+        summary = {
             "source": self.source,
             "aircraft": self.params.name,
             "data": None if self.data is None else self.data.summary(),
@@ -158,15 +214,42 @@ class IdentificationRun:
             "parameters": {
                 k: {n: {"estimate": float(fit.result.estimate[i]),
                         "sigma": float(fit.result.sigma[i]),
-                        "significant": bool(fit.result.significant[i])}
+                        "significant": bool(fit.result.significant[i]),
+                        "catalog": catalog.get(n)}
                     for i, n in enumerate(fit.names)}
-                | {t.term: {"estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True}
+                | {t.term: {"estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True,
+                            "catalog": catalog.get(t.term)}
                    for t in d.dropped.get(k, ())}
                 for k, fit in d.final.items()
             },
             "dropped_terms": {k: [dataclasses.asdict(t) for t in terms]
                               for k, terms in d.dropped.items()},
+            "warnings": [dataclasses.asdict(w) for w in self.derivative_warnings],
+            "near_ties": [t.summary() for t in self.near_ties],
+            "rounds": [[{**dataclasses.asdict(e), "accepted": e in accepted} for e in r]
+                       for r in d.rounds],
         }
+        if self.compatibility is not None:
+            summary["compatibility"] = self.compatibility.summary()
+        return summary
+
+
+def calibration_finding(error: CalibrationEffect) -> Finding:
+    """A calibration error of the data-compatibility check as a finding of the job.
+
+    Parameters
+    ----------
+    error : CalibrationEffect
+        The error the check estimated (and removed).
+
+    Returns
+    -------
+    Finding
+        Kind ``"calibration"``, no coefficient, its estimate and standard error as the
+        parameter ``"<name> [<unit>]"``.
+    """
+    return Finding(error.name, error.explanation, "calibration", (), (),
+                   {f"{error.name} [{error.unit}]": (error.estimate, error.sigma)})
 
 
 def _effect_summary(found: FoundEffect) -> dict:
@@ -228,7 +311,7 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     The first steps of :func:`identify` without the search for missing effects: the
     log is isolated into coefficients (:func:`select_samples`) and each coefficient
     is fitted on the aircraft's own derivative names over the whole flight
-    (:func:`~drake_uav.identification.coefficient_design.fit_derivatives`). Raises
+    (:func:`~drake_uav.identification.discovery.coefficient_design.fit_derivatives`). Raises
     :class:`~drake_uav.io.flight_log.FlightLogError` naming the problem when the log
     cannot be used.
     """
@@ -248,9 +331,9 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     """Runs the main job on ``log`` for the aircraft ``params``.
 
     Only what a real log holds is read: the airborne fixed-wing spans
-    (:func:`~drake_uav.identification.flight_phases.usable_spans`, within
+    (:func:`~drake_uav.identification.samples.flight_phases.usable_spans`, within
     ``segment`` [s] when given) are isolated one by one and joined; ``air_data``
-    picks the flow angles (:mod:`~drake_uav.identification.air_data_source`);
+    picks the flow angles (:mod:`~drake_uav.identification.samples.air_data_source`);
     ``sensor_noise_std`` (channel -> std, SI) are declared sensor specs, else the
     noise comes from the data; ``propulsion`` "data" identifies the thrust with C_X
     where the flight allows it (else the catalog model, with a warning), "catalog"
@@ -404,7 +487,7 @@ def testable_effects(air_data: str, command_delay: float | None = None) -> list[
 def testable_vector_effects(air_data: str) -> list[VectorEffect]:
     """The vector effects the data of an ``air_data`` mode can tell from its errors: without
     vanes, not the force towards a point the data locate, which then takes up the error of
-    the estimated wind as a pull towards some far point (2 of 40 clean flights)."""
+    the estimated wind as a pull towards some far point on clean flights."""
     return vector_effect_library(located_point=air_data != "estimate")
 
 
@@ -419,8 +502,10 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                    ) -> tuple[AeroSamples, LogSelection]:
     """Regression samples of the usable spans of ``log`` and what was used (see
     :func:`identify` for the arguments; ``throttle_delay`` [s], a measured servo delay
-    the thrust fit accounts for, :func:`~drake_uav.identification.flight_data.
+    the thrust fit accounts for, :func:`~drake_uav.identification.samples.flight_data.
     samples_from_log`)."""
+    if propulsion not in ("catalog", "data"):
+        raise ValueError(f"propulsion: 'catalog' or 'data', got {propulsion!r}")
     check_fixed_wing(log, source)
     mode = choose_air_data(log, air_data, source)
     try:
@@ -436,10 +521,12 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
         try:
             angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
             warnings += [f"span {start:.1f}-{end:.1f} s: {w}" for w in angles.warnings]
-            part = samples_from_log(angles.log, params, rate_hz=rate_hz,
-                                    flow_channels=angles.channels,
-                                    sensor_noise_std=sensor_noise_std, propulsion=propulsion,
-                                    extras=extras, throttle_delay=throttle_delay)
+            grid = gridded_log(angles.log, params, rate_hz=rate_hz,
+                               flow_channels=angles.channels,
+                               sensor_noise_std=sensor_noise_std, extras=extras)
+            thrust = (thrust_from_gridded_log(grid, params, throttle_delay)
+                      if propulsion == "data" else None)
+            part = isolated_samples(grid, params, thrust)
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
         parts.append(_with_flow_error(part, angles.error_variance))
@@ -521,11 +608,11 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
     :func:`identify` with the measured coefficients already in ``samples``
-    (:func:`~drake_uav.identification.flight_data.samples_from_log` or
-    :func:`~drake_uav.identification.isolation.isolate_coefficients`); the
+    (:func:`~drake_uav.identification.samples.flight_data.samples_from_log` or
+    :func:`~drake_uav.identification.samples.isolation.isolate_coefficients`); the
     ``samples.signals`` must hold ``roll`` and ``pitch`` [rad]. ``effects``
-    defaults to the whole :func:`~drake_uav.identification.effects.effect_library`,
-    ``vector_effects`` to :func:`~drake_uav.identification.vector_effects.
+    defaults to the whole :func:`~drake_uav.identification.discovery.effects.effect_library`,
+    ``vector_effects`` to :func:`~drake_uav.identification.discovery.vector_effects.
     vector_effect_library`. The coefficients skipped and the effects not kept are in
     ``discovery.notes``.
     """

@@ -2,7 +2,7 @@
 
 Each :class:`Effect` turns flight samples (:class:`AeroSamples`) into extra
 regressor columns for the coefficients it can enter, and says in one line what
-it is physically. The discovery loop (:mod:`drake_uav.identification.discovery`)
+it is physically. The discovery loop (:mod:`drake_uav.identification.discovery.loop`)
 tries them against the residual of the baseline fit; :func:`product_candidates`
 is the data-driven fallback (products of available signals) used when no named
 effect explains the residual.
@@ -33,8 +33,9 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from drake_uav.identification.isolation import LOGGED, AeroSamples
-from drake_uav.identification.segments import delayed
+from drake_uav.identification.discovery.evidence import Candidate
+from drake_uav.identification.samples.aero_samples import LOGGED, AeroSamples
+from drake_uav.identification.samples.segments import delayed
 from drake_uav.model.coefficients import LATERAL_COEFFICIENTS as LATERAL
 from drake_uav.model.coefficients import LONGITUDINAL_COEFFICIENTS as LONGITUDINAL
 from drake_uav.model.coefficients import body_to_lift_drag, signal_values
@@ -81,6 +82,13 @@ class Effect:
     """Blocked cross-validation folds the effect cannot improve by construction, which the
     evidence rule does not ask it to: 1 for a linear drift, whose middle fold a constant
     fitted on the folds either side already predicts."""
+
+    def candidate(self, params: FixedWingParams) -> Candidate:
+        """The effect as a plant-agnostic candidate of the evidence rule, on the samples each
+        coefficient is measured with (:meth:`AeroSamples.aligned`)."""
+        return Candidate(self.name, self.explanation, self.coefficients,
+                         lambda samples, k: self.columns(samples.aligned(k), params, k),
+                         blind_folds=self.blind_folds, kind=self.kind)
 
     def available(self, samples: AeroSamples) -> bool:
         """True when the samples carry every signal the effect needs (and meet its condition)."""

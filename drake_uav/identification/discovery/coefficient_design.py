@@ -2,7 +2,7 @@
 
 The columns of a candidate come with their derivatives with respect to the noise sources
 (:func:`columns_and_jacobians`), which the errors-in-variables fits read
-(:class:`~drake_uav.identification.errors_in_variables.PropagatedNoise`); :class:`Design`
+(:class:`~drake_uav.identification.statistics.errors_in_variables.PropagatedNoise`); :class:`Design`
 is one coefficient's regression on some samples with that noise model;
 :func:`baseline_design` the catalog's structure of a coefficient; :func:`fit_derivatives`
 the whole aircraft's derivatives from one flight, with their joint covariance.
@@ -15,7 +15,17 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from drake_uav.identification.errors_in_variables import (
+from drake_uav.identification.propulsion import thrust_correction_columns
+from drake_uav.identification.samples.aero_samples import AeroSamples
+from drake_uav.identification.samples.regressor_noise import (
+    AIR_DATA_SOURCES,
+    noise_sources,
+    observation_sensitivity,
+    perturbed,
+    source_step,
+    source_variances,
+)
+from drake_uav.identification.statistics.errors_in_variables import (
     BlockMoments,
     PropagatedNoise,
     compensated_normal_equations,
@@ -24,17 +34,7 @@ from drake_uav.identification.errors_in_variables import (
     sandwich_covariance,
     solve_normal_equations,
 )
-from drake_uav.identification.isolation import AeroSamples
-from drake_uav.identification.propulsion import thrust_correction_columns
-from drake_uav.identification.regression import RegressionResult, bcls
-from drake_uav.identification.regressor_noise import (
-    AIR_DATA_SOURCES,
-    noise_sources,
-    observation_sensitivity,
-    perturbed,
-    source_step,
-    source_variances,
-)
+from drake_uav.identification.statistics.regression import RegressionResult, bcls
 from drake_uav.model.coefficients import COEFFICIENTS, regressor_matrix
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
@@ -46,7 +46,7 @@ ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
 
 class Perturbations:
     """Samples and their copies with one noise source moved by +-its step
-    (:func:`~drake_uav.identification.regressor_noise.perturbed`), and the probe: every
+    (:func:`~drake_uav.identification.samples.regressor_noise.perturbed`), and the probe: every
     source but the air data moved at once, which tells the columns that depend on none
     of them (most) from the others.
 
@@ -102,7 +102,7 @@ def columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | Pertu
 class Design:
     """One coefficient's regression on some samples, with its noise model.
 
-    The estimator is :func:`~drake_uav.identification.regression.bcls`; this class adds
+    The estimator is :func:`~..estimators.regression.bcls`; this class adds
     the bookkeeping of the loop (added columns, folds, noise-corrected errors).
     """
 
@@ -150,7 +150,7 @@ class Design:
 
     def result(self, confidence: float = 0.95,
                scores_covariance: np.ndarray | None = None) -> RegressionResult:
-        """The bias-compensated fit (:func:`~drake_uav.identification.regression.bcls`)."""
+        """The bias-compensated fit (:func:`~..estimators.regression.bcls`)."""
         return bcls(self.X, self.z, self.noise, names=self.names, confidence=confidence,
                     scores_covariance=scores_covariance)
 
