@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
+from drake_uav.identification.assessment.near_ties import near_ties
 from drake_uav.identification.assessment.noise_floor import held_out_noise_floor
 from drake_uav.identification.discovery.fitted_point import unit_vectors_towards
 from drake_uav.identification.discovery.result import EvidenceRule
@@ -38,7 +39,6 @@ from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
-from drake_uav.identification.assessment.near_ties import near_ties
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
@@ -379,8 +379,8 @@ def discovery(seed: int, params: dict) -> dict:
     held-out RMS of its coefficient ``rms_before`` / ``rms_after``, its noise floor
     ``floor`` and ``excess_explained`` (NaN when the error was at the floor); ``tied``:
     the effect was not found but the report names it as a near-tied alternative of a
-    finding (:func:`~drake_uav.identification.assessment.near_ties.near_ties`: the flight cannot tell
-    them apart); for a force towards a point, ``point_error`` and ``point_sigma``
+    finding (:func:`~drake_uav.identification.assessment.near_ties.near_ties`: the flight
+    cannot tell them apart); for a force towards a point, ``point_error`` and ``point_sigma``
     (:func:`_point_error`).
     """
     key = params.get("effect", "none")
