@@ -116,7 +116,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     _check_identify_arguments(args, path)
     from drake_uav.identification.main_job import identify
     from drake_uav.io.readers import read_log
-    from drake_uav.reporting.identification_report import write_report
+    from drake_uav.reporting.identification_report import result_warnings, write_report
     from drake_uav.vehicles.loading import load_fixed_wing
 
     # The modules live until the process ends: the cyclic garbage collector need not walk
@@ -157,6 +157,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     progress.finish()
     for note in run.notes:
         print(f"note: {note}")
+    for warning in result_warnings(run):
+        print(f"warning: {warning}")
     print(run.discovery.message)
     from drake_uav.identification.noise_floor import held_out_noise_floor
 

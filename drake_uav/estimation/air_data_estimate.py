@@ -9,6 +9,15 @@ Rauch-Tung-Striebel backward pass (:func:`~drake_uav.estimation.smoother.rts_smo
 each segment of the log on its own. It never reads truth channels or the simulator's
 noise metadata. Accuracy and cost on simulated flights: ``docs/estimation.md``
 (Air data without vanes).
+
+The wind of a segment whose heading hardly changes (heading spread below
+:data:`~drake_uav.estimation.compatibility.MIN_HEADING_SPREAD`) is not observable: on a
+straight track the wind across it trades with an error of the logged heading (a heading
+20 deg off moved the estimated wind of a straight simulated flight by 9 m/s), which a turn
+would tell apart. Such a segment's wind is withheld (NaN, ``wind_observable`` False, a
+note); its air data are kept, because the heading error moves the wind, not the
+air-relative velocity the flow angles come from (the same flight's alpha and beta stayed
+within 0.3 deg).
 """
 
 from __future__ import annotations
@@ -20,6 +29,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from drake_uav.estimation.air_data_models import MIN_START_AIRSPEED
+from drake_uav.estimation.compatibility import MIN_HEADING_SPREAD
+from drake_uav.estimation.compatibility_air_data import heading_spread
 from drake_uav.estimation.ekf import ExtendedKalmanFilter, filter_pass
 from drake_uav.estimation.gps import DEFAULT_GPS_LATENCY
 from drake_uav.estimation.noise import sensor_std
@@ -79,6 +90,11 @@ class AirDataEstimate:
     without the relation)."""
     rejected: dict[str, int]
     """Measurements rejected by the innovation gate, per sensor group."""
+    wind_observable: tuple[bool, ...] = ()
+    """Per segment: False where the heading hardly changes, so that the wind trades with a
+    heading error; ``wind_ned`` and ``wind_std`` are NaN there (module docstring)."""
+    notes: tuple[str, ...] = ()
+    """One line per segment whose wind is withheld, with its heading spread."""
 
 
 @functools.cache
@@ -170,6 +186,11 @@ class _Output:
             self.wind[rows, i] = np.interp(t, t_steps, wind[:, i])
             self.wind_std[rows, i] = np.interp(t, t_steps, wind_std[:, i])
         self.valid[rows] = True
+
+    def withhold_wind(self, rows: slice) -> None:
+        """The wind over ``rows`` as not estimated (NaN): the flight does not observe it."""
+        self.wind[rows] = np.nan
+        self.wind_std[rows] = np.nan
 
     def recentre(self, rows: slice, steps: np.ndarray, model: VanelessAirDataModel,
                  euler: np.ndarray, gps: np.ndarray, fresh: np.ndarray) -> None:
@@ -309,7 +330,7 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         std[name] /= np.sqrt(decimation)
     ekf = ExtendedKalmanFilter(model, model.default_noise(std, period=period * decimation))
     out = _Output(len(data.time), period)
-    done, coefficients = [], []
+    done, coefficients, observable, notes = [], [], [], []
     rejected = dict.fromkeys(ekf.group_names, 0)
     for t0, t1 in _segment_bounds(log, segments):
         inside = np.flatnonzero((data.time >= t0) & (data.time <= t1))
@@ -320,6 +341,15 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
         coefficients.append(_smooth_segment(ekf, data, inputs, rows, decimation, out,
                                             rejected))
         done.append((float(data.time[rows.start]), float(data.time[rows.stop - 1])))
+        spread = heading_spread(inputs[rows, 8])
+        observable.append(spread >= MIN_HEADING_SPREAD)
+        if not observable[-1]:
+            out.withhold_wind(rows)
+            notes.append(f"wind not estimated over {done[-1][0]:.1f}-{done[-1][1]:.1f} s: the "
+                         f"heading hardly changes (spread {spread:.3f} < {MIN_HEADING_SPREAD}), "
+                         "so the wind across the track cannot be told from a heading error; "
+                         "alpha and beta come from the air-relative velocity, which it does "
+                         "not move; fly turns to observe the wind")
     if not done:
         raise FlightLogError("estimate_air_data: no segment has both GPS velocity and a pitot "
                              f"airspeed of at least {MIN_START_AIRSPEED} m/s (channels "
@@ -327,4 +357,5 @@ def estimate_air_data(log: FlightLog, params: FixedWingParams, *,
     v = out.values
     return AirDataEstimate(data.time, v["airspeed"], v["alpha"], v["beta"], out.wind,
                            v["airspeed_std"], v["alpha_std"], v["beta_std"], out.wind_std,
-                           out.valid, tuple(done), tuple(coefficients), rejected)
+                           out.valid, tuple(done), tuple(coefficients), rejected,
+                           tuple(observable), tuple(notes))

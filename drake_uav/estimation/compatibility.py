@@ -43,6 +43,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from drake_uav.estimation.channel_checks import check_calibration
 from drake_uav.estimation.compatibility_air_data import (
     air_data_skew,
     heading_spread,
@@ -362,7 +363,11 @@ class _AirData:
                       nominal=nominal, observable=False, note=confounded)
         for s in range(int(self.segment.max()) + 1):
             c.notes.append(f"wind (segment {s}): north {fit.value(f'wind_n_{s}'):+.2f}, "
-                           f"east {fit.value(f'wind_e_{s}'):+.2f} m/s")
+                           f"east {fit.value(f'wind_e_{s}'):+.2f} m/s" if self.turning else
+                           f"wind (segment {s}): not observable: heading spread "
+                           f"{self.spread:.3f} < {MIN_HEADING_SPREAD}, the wind across the "
+                           "track trades with a heading error and the sideslip vane's offset; "
+                           "the fit's value is not a wind measurement")
 
 
 def _air_data_stage(c: _Check) -> None:
@@ -409,7 +414,11 @@ def check_compatibility(log: FlightLog, params, *, gps_latency: float = DEFAULT_
         max_actuator_delay: command skews in [0, this] [s] are reported, not corrected.
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` naming a missing IMU or
-    attitude channel, or a log too short to check.
+    attitude channel, or a log too short to check;
+    :class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` for an airspeed
+    scale factor, vane scale factor or vane offset far outside what a calibration can be
+    (:data:`~drake_uav.estimation.channel_checks.GROSS_CALIBRATION`: a wrong unit, channel
+    or sensor, which a correction would hide).
     """
     for name in (*_IMU, *_ATTITUDE):
         if name not in log.measured_names:
@@ -434,6 +443,7 @@ def check_compatibility(log: FlightLog, params, *, gps_latency: float = DEFAULT_
     else:
         check.notes.append("accelerometer, GPS, baro and air data not checked: no GPS "
                            "velocity channels (gps_vn, gps_ve, gps_vd)")
+    check_calibration(check.effects, significance)
     return CompatibilityResult(tuple(check.effects), tuple(check.notes))
 
 

@@ -54,6 +54,8 @@ class FlowAngles:
     error_variance: dict[str, float] | None
     """Mean error variance of ``alpha, beta`` [rad^2] of an estimate (None: a sensor,
     whose noise the isolation reads from the data)."""
+    warnings: tuple[str, ...] = ()
+    """What the estimate could not determine (a wind the segment does not observe)."""
 
     @property
     def description(self) -> str:
@@ -107,7 +109,7 @@ def flow_angles(log: FlightLog, params, mode: str,
         {"est_alpha": "rad", "est_beta": "rad"})
     variance = {"alpha": float(np.mean(estimate.alpha_std[keep] ** 2)),
                 "beta": float(np.mean(estimate.beta_std[keep] ** 2))}
-    return FlowAngles(mode, with_estimate, _CHANNELS[mode], variance)
+    return FlowAngles(mode, with_estimate, _CHANNELS[mode], variance, estimate.notes)
 
 
 def _with_dynamic_pressure(log: FlightLog, rho: float) -> FlightLog:

@@ -60,10 +60,12 @@ and command rate there, which a real log never holds.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
 
+from drake_uav.estimation.channel_checks import check_channels
 from drake_uav.estimation.sensor_noise import noise_floor_variance
 from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
 from drake_uav.identification.decimation import bin_means, binned_channels, decimation_factor
@@ -409,8 +411,13 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     ``extras`` (channel -> unit) are the extra channels carried into the samples
     (module docstring); None takes :func:`usable_extras` of ``log``. The GPS velocity
     and position join the samples' signals where the log holds them (:func:`gps_signals`).
-    Raises :class:`FlightLogError` naming a missing channel, a non-finite sample or
-    a gap.
+    The channels are first checked against their physical ranges over the samples above
+    ``min_airspeed`` (:func:`~drake_uav.estimation.channel_checks.check_channels`):
+    glitches are drawn over with a warning (``warnings.warn``), an impossible channel
+    stops.
+    Raises :class:`FlightLogError` naming a missing channel, a non-finite sample, a gap
+    or a physically impossible channel
+    (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError`).
     """
     if propulsion not in ("catalog", "data"):
         raise ValueError(f"propulsion: 'catalog' or 'data', got {propulsion!r}")
@@ -418,6 +425,10 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         log = _renamed(log, dict(zip(("vane_alpha", "vane_beta"), flow_channels, strict=True)))
     log.require(*REQUIRED_CHANNELS)
     check_gaps(log, max_gap)
+    checked = check_channels(log, params, log["pitot_airspeed"] >= min_airspeed)
+    for note in checked.notes:
+        warnings.warn(note, stacklevel=2)
+    log = checked.log
     if extras is None:
         extras = usable_extras(log, exclude=flow_channels)[0]
     log.require(*extras)
@@ -445,9 +456,13 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
         if throttle_delay is not None and speed is None:
             seen = controls.copy()
             seen[:, 3] = delayed(uniform.time, controls[:, 3], throttle_delay)
-        model = identify_thrust(params, uniform.time, uniform.stack(SPECIFIC_FORCE),
-                                uniform.stack(RATES), uniform.stack(AIR_DATA), seen, speed,
-                                raw_noise_variance=noise)
+        try:
+            model = identify_thrust(params, uniform.time, uniform.stack(SPECIFIC_FORCE),
+                                    uniform.stack(RATES), uniform.stack(AIR_DATA), seen, speed,
+                                    raw_noise_variance=noise)
+        except ValueError as err:
+            raise FlightLogError(f"thrust from pitot_airspeed, imu_ax and cmd_throttle: {err}"
+                                 ) from None
         if model.terms:  # else the catalog model predicts best, or the data cannot tell
             value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
             thrust = {"thrust": value, "thrust_airspeed_slope": slope,

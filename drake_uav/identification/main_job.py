@@ -12,6 +12,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from drake_uav.estimation.channel_checks import (
+    CheckedLog,
+    ImplausibleChannelError,
+    check_channels,
+)
 from drake_uav.estimation.compatibility import CompatibilityResult, check_compatibility
 from drake_uav.estimation.imu_position import (
     ImuPosition,
@@ -43,7 +48,7 @@ __all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
            "identify_derivatives", "select_samples", "check_fixed_wing",
            "testable_effects", "testable_vector_effects", "measured_command_delay",
            "ESTIMATE_CONFOUNDED",
-           "coefficient_uncertainty", "check_log_compatibility"]
+           "coefficient_uncertainty", "check_log_compatibility", "check_log_channels"]
 
 RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 """Reconstructed outputs, in the order of :class:`Reconstruction` columns."""
@@ -61,11 +66,16 @@ class LogSelection:
     """"vanes", "estimate" or "ahrs" (:mod:`~drake_uav.identification.air_data_source`)."""
     air_data_description: str
     notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    """What the job did to the data that changes what the result means: glitches drawn
+    over (:func:`check_log_channels`), an estimate it could not use (a wind the flight
+    does not observe)."""
 
     def summary(self) -> dict:
-        """JSON-ready: spans, air data and notes."""
+        """JSON-ready: spans, air data, notes and warnings."""
         return {"spans_s": [list(s) for s in self.spans], "air_data": self.air_data,
-                "air_data_description": self.air_data_description, "notes": list(self.notes)}
+                "air_data_description": self.air_data_description, "notes": list(self.notes),
+                "warnings": list(self.warnings)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,6 +101,12 @@ class IdentificationRun:
     def notes(self) -> tuple[str, ...]:
         """What the job did with the log that the user should know (one line each)."""
         return () if self.data is None else self.data.notes
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The data warnings that change what the result means (:attr:`LogSelection.
+        warnings`), one line each."""
+        return () if self.data is None else self.data.warnings
 
     @property
     def findings(self) -> tuple[str, ...]:
@@ -248,14 +264,22 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     both, the accelerometers are moved to the centre of gravity from the IMU position
     (:mod:`~drake_uav.estimation.imu_position`): ``imu_position`` (x, y, z) [m, body axes
     FRD] when given, else the one the log's autopilot parameters record (ArduPilot
-    ``INS_POS<n>_*``, PX4 ``EKF2_IMU_POS_*``), with a note.
+    ``INS_POS<n>_*``, PX4 ``EKF2_IMU_POS_*``), with a note. First of all, every channel
+    is checked against its physical range and the airspeed against the GPS ground speed
+    (:func:`check_log_channels`): glitches are drawn over with a warning
+    (:attr:`IdentificationRun.warnings`), a channel that is physically impossible stops
+    the job.
 
     Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
-    naming the problem when the log cannot be used, ``ValueError`` for an unknown
+    naming the problem when the log cannot be used
+    (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` for a channel
+    or a calibration that is physically impossible), ``ValueError`` for an unknown
     coefficient.
     """
     check_coefficients(coefficients)
     say = progress or (lambda message: None)
+    checked = check_log_channels(log, params, source=source, segment=segment, phases=phases)
+    log = checked.log
     position = (logged_imu_position(log) if imu_position is None
                 else ImuPosition.given(imu_position))
     moved = position is not None and any(position.position)
@@ -277,8 +301,40 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
                            vector_effects=testable_vector_effects(selection.air_data),
                            coefficients=coefficients)
     notes = ((position.note(),) if moved else ()) + selection.notes + run.discovery.notes
-    selection = dataclasses.replace(selection, notes=notes)
+    selection = dataclasses.replace(selection, notes=notes,
+                                    warnings=checked.notes + selection.warnings)
     return dataclasses.replace(run, data=selection, compatibility=compatibility)
+
+
+def check_log_channels(log: FlightLog, params: FixedWingParams, *,
+                       source: str = "flight log",
+                       segment: tuple[float, float] | None = None,
+                       phases: PhaseSettings = DEFAULT_PHASES) -> CheckedLog:
+    """Every channel of ``log`` against its physical range over the airborne spans, and the
+    airspeed against the GPS ground speed
+    (:func:`~drake_uav.estimation.channel_checks.check_channels`; see :func:`identify` for
+    the arguments): the log with its glitches drawn over, and a warning for each channel
+    that had any. The log as it is when it has no usable span (:func:`select_samples`
+    then says why).
+
+    Raises :class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` naming
+    ``source``, the channel and the likely cause for a channel that is physically
+    impossible.
+    """
+    check_fixed_wing(log, source)
+    try:
+        spans = usable_spans(log, phases, segment)
+    except FlightLogError:
+        return CheckedLog(log, ())
+    return check_channels(log, params, _inside(log, spans), source)
+
+
+def _inside(log: FlightLog, spans) -> np.ndarray:
+    """Rows of ``log`` inside the ``spans`` [s] (bool)."""
+    inside = np.zeros(len(log), bool)
+    for start, end in spans:
+        inside |= (log.time >= start) & (log.time <= end)
+    return inside
 
 
 def check_log_compatibility(log: FlightLog, params: FixedWingParams, *,
@@ -293,16 +349,16 @@ def check_log_compatibility(log: FlightLog, params: FixedWingParams, *,
 
     None when the log has no usable span or too little for the check (the IMU and the
     attitude over 8 s): :func:`select_samples` then says what is wrong, or the job goes on
-    with the log as recorded.
+    with the log as recorded. Raises :class:`~drake_uav.estimation.channel_checks.
+    ImplausibleChannelError` naming ``source`` for a calibration far outside what a
+    calibration can be.
     """
     check_fixed_wing(log, source)
     try:
         spans = usable_spans(log, phases, segment)
     except FlightLogError:
         return None
-    inside = np.zeros(len(log), bool)
-    for start, end in spans:
-        inside |= (log.time >= start) & (log.time <= end)
+    inside = _inside(log, spans)
     names = log.measured_names
     airborne = FlightLog(log.time[inside], {n: log[n][inside] for n in names}, None,
                          {n: log.unit(n) for n in names})
@@ -310,6 +366,8 @@ def check_log_compatibility(log: FlightLog, params: FixedWingParams, *,
         progress("checking data compatibility (sensor biases, scale factors, time skews)")
     try:
         return check_compatibility(airborne, params)
+    except ImplausibleChannelError as err:
+        raise ImplausibleChannelError(f"{source}: {err}") from None
     except FlightLogError:
         return None
 
@@ -372,11 +430,12 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
     if progress is not None:
         progress(f"isolating aerodynamic coefficients ({len(spans)} airborne span"
                  f"{'s' if len(spans) > 1 else ''}, {_AIR_DATA_STEP[mode]})")
-    parts = []
+    parts, warnings = [], []
     extras, extra_notes = usable_extras(log)  # one set for every span
     for start, end in spans:
         try:
             angles = flow_angles(log.slice(start, end), params, mode, sensor_noise_std)
+            warnings += [f"span {start:.1f}-{end:.1f} s: {w}" for w in angles.warnings]
             part = samples_from_log(angles.log, params, rate_hz=rate_hz,
                                     flow_channels=angles.channels,
                                     sensor_noise_std=sensor_noise_std, propulsion=propulsion,
@@ -387,7 +446,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
     parts, gps_notes = _common_signals(parts, spans)
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description)
-                             + extra_notes + gps_notes)
+                             + extra_notes + gps_notes, tuple(warnings))
     return concatenate_samples(parts), selection
 
 

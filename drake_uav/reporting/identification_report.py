@@ -36,7 +36,7 @@ from drake_uav.model.coefficients import SIGNALS
 from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
 
-__all__ = ["write_report", "derivative_warnings", "ROUND_ROWS"]
+__all__ = ["write_report", "derivative_warnings", "result_warnings", "ROUND_ROWS"]
 
 _OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
                  "r": "deg/s"}
@@ -88,6 +88,20 @@ def derivative_warnings(run: IdentificationRun) -> list[DerivativeWarning]:
     return out
 
 
+def result_warnings(run: IdentificationRun) -> list[str]:
+    """The report's warnings that change what the result means, one line each, for the
+    console: what was done to the data (glitches drawn over, an estimate not used:
+    :attr:`IdentificationRun.warnings`), each implausible derivative, and how many
+    derivatives the flight moved together or did not excite."""
+    found = derivative_warnings(run)
+    lines = list(run.warnings) + [w.message for w in found if w.kind == "implausible"]
+    others = {kind: sum(w.kind == kind for w in found) for kind in ("correlated", "unexcited")}
+    if any(others.values()):
+        lines.append(", ".join(f"{n} {kind}" for kind, n in others.items() if n)
+                     + " derivative warning(s): see the report's Warnings on the derivatives")
+    return lines
+
+
 def _summary(run: IdentificationRun, floors: dict[str, NoiseFloor],
              warnings: list[DerivativeWarning]) -> dict:
     """``run.summary()`` with the noise floors, catalog values, warnings, near ties and
@@ -118,7 +132,8 @@ def _add_data(report: Report, run: IdentificationRun) -> None:
     if run.data is None:
         return
     report.add_heading("Data used")
-    report.add_text("\n".join(f"- {note}" for note in run.notes))
+    report.add_text("\n".join([f"- **Warning:** {w}" for w in run.warnings]
+                              + [f"- {note}" for note in run.notes]))
 
 
 def _add_compatibility(report: Report, run: IdentificationRun) -> None:
