@@ -114,7 +114,7 @@ def _vane_sources(text: str, unit: str) -> dict:
 def _cmd_identify(args: argparse.Namespace) -> int:
     path = _sample_flight() if args.log is None else Path(args.log)
     _check_identify_arguments(args, path)
-    from drake_uav.identification.pipeline import identify
+    from drake_uav.identification.pipeline import IdentifyOptions, identify
     from drake_uav.io.readers import read_log
     from drake_uav.reporting.identification_report import result_warnings, write_report
     from drake_uav.vehicles.loading import load_fixed_wing
@@ -147,11 +147,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if kind == "bin" and segment is not None:
         options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
-    run = identify(log, params, progress=progress, source=str(path), seed=args.seed,
-                   air_data=args.air_data, sensor_noise_std=spec, segment=segment,
-                   propulsion=args.propulsion,
-                   coefficients=_parse_coefficients(args.coefficients),
-                   imu_position=_parse_imu_position(args.imu_position))
+    options = IdentifyOptions(source=str(path), seed=args.seed, air_data=args.air_data,
+                              sensor_noise_std=spec, segment=segment,
+                              propulsion=args.propulsion,
+                              coefficients=_parse_coefficients(args.coefficients),
+                              imu_position=_parse_imu_position(args.imu_position))
+    run = identify(log, params, options, progress=progress)
     progress("writing the report")
     out = write_report(run, args.out)
     progress.finish()

@@ -30,6 +30,7 @@ from drake_uav.identification.discovery.coefficient_design import (
     fit_derivatives,
 )
 from drake_uav.identification.discovery.effects import Effect, effect_library
+from drake_uav.identification.discovery.evidence import Candidate
 from drake_uav.identification.discovery.loop import discover
 from drake_uav.identification.discovery.result import (
     NO_EFFECT_MESSAGE,
@@ -37,11 +38,13 @@ from drake_uav.identification.discovery.result import (
     DiscoveryResult,
     Evidence,
     EvidenceRule,
+    Finding,
     FoundEffect,
     HeldOutCheck,
 )
 from drake_uav.identification.pipeline import (
     IdentificationRun,
+    IdentifyOptions,
     coefficient_uncertainty,
     identify,
     identify_derivatives,
@@ -101,6 +104,9 @@ __all__ = [
     "EvidenceRule",
     "FoundEffect",
     "IdentificationRun",
+    "IdentifyOptions",
+    "Finding",
+    "Candidate",
     "IdentificationWarning",
     "IdentifiedDerivatives",
     "InsufficientExcitationWarning",

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -46,7 +47,11 @@ from drake_uav.identification.discovery.result import (
 from drake_uav.identification.discovery.vector_effects import VectorEffect, vector_effect_library
 from drake_uav.identification.propulsion import thrust_from_gridded_log
 from drake_uav.identification.samples.aero_samples import AeroSamples
-from drake_uav.identification.samples.air_data_source import choose_air_data, flow_angles
+from drake_uav.identification.samples.air_data_source import (
+    AIR_DATA_MODES,
+    choose_air_data,
+    flow_angles,
+)
 from drake_uav.identification.samples.flight_data import (
     gridded_log,
     isolated_samples,
@@ -65,7 +70,8 @@ from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.model.isolation import force_coefficients
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
-__all__ = ["IdentificationRun", "LogSelection", "identify", "identify_samples",
+__all__ = ["IdentificationRun", "IdentifyOptions", "LogSelection", "identify",
+           "identify_samples", "calibration_finding",
            "identify_derivatives", "select_samples", "check_fixed_wing",
            "testable_effects", "testable_vector_effects", "measured_command_delay",
            "ESTIMATE_CONFOUNDED",
@@ -75,6 +81,102 @@ RECONSTRUCTED_OUTPUTS = ("airspeed", "alpha", "beta", "p", "q", "r")
 """Reconstructed outputs, in the order of :class:`Reconstruction` columns."""
 RECONSTRUCTED_UNITS = ("m/s", "rad", "rad", "rad/s", "rad/s", "rad/s")
 """Units of :data:`RECONSTRUCTED_OUTPUTS`."""
+
+
+@dataclasses.dataclass(frozen=True)
+class IdentifyOptions:
+    """The settings of the main job (:func:`identify`), checked when made.
+
+    Every field has the default the ``drake-uav identify`` command uses; make one with the
+    fields to change, or change an existing one with :meth:`replace`.
+
+    Raises
+    ------
+    ValueError
+        On construction, naming the field and what it accepts.
+
+    Examples
+    --------
+    >>> options = IdentifyOptions(air_data="vanes", coefficients=("CL", "CD"))
+    >>> options.replace(seed=3).seed
+    3
+    """
+
+    rate_hz: float = 50.0
+    """Rate of the regression samples [Hz]; faster logs are block-averaged down to it."""
+    rule: EvidenceRule | None = None
+    """The evidence rule of the discovery (None: :class:`~drake_uav.identification.
+    discovery.result.EvidenceRule` with its defaults)."""
+    reset_interval: float = 5.0
+    """[s] between the restarts of the output-error reconstruction from the measured
+    state."""
+    source: str = "flight log"
+    """The log's name in the messages and the report."""
+    seed: int = 0
+    """Seed of the Monte-Carlo uncertainty of the measured coefficients; everything else
+    is deterministic."""
+    air_data: str = "auto"
+    """Where the flow angles come from: one of :data:`~drake_uav.identification.samples.
+    air_data_source.AIR_DATA_MODES` (``auto``, ``vanes``, ``estimate``, ``ahrs``)."""
+    segment: tuple[float, float] | None = None
+    """(start, end) [s] of the log to use (None: every airborne span)."""
+    sensor_noise_std: Mapping[str, float] | None = None
+    """Declared sensor specs, log channel -> standard deviation [channel unit, SI]; the
+    noise of the channels left out is read from the data."""
+    propulsion: str = "data"
+    """``data``: the thrust identified with C_X where the flight allows it (else the
+    catalog model, with a warning); ``catalog``: the aircraft's propulsion model."""
+    phases: PhaseSettings = DEFAULT_PHASES
+    """Thresholds of the airborne detection (airspeed [m/s], height [m], duration [s])."""
+    coefficients: tuple[str, ...] = COEFFICIENTS
+    """The coefficients fitted (names of :data:`~drake_uav.model.coefficients.
+    COEFFICIENTS`)."""
+    imu_position: tuple[float, float, float] | None = None
+    """(x, y, z) [m, body axes FRD] of the IMU from the centre of gravity (None: the one
+    the log's autopilot parameters record, else the centre of gravity)."""
+
+    def __post_init__(self):
+        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0.0):
+            raise ValueError(f"rate_hz: a positive rate [Hz], got {self.rate_hz!r}")
+        if not (math.isfinite(self.reset_interval) and self.reset_interval > 0.0):
+            raise ValueError(f"reset_interval: a positive time [s], got "
+                             f"{self.reset_interval!r}")
+        if self.air_data not in AIR_DATA_MODES:
+            raise ValueError(f"air_data: unknown mode {self.air_data!r} (known: "
+                             f"{', '.join(AIR_DATA_MODES)})")
+        if self.propulsion not in ("catalog", "data"):
+            raise ValueError(f"propulsion: 'catalog' or 'data', got {self.propulsion!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
+            raise ValueError(f"seed: an integer, got {self.seed!r}")
+        check_coefficients(self.coefficients)
+        object.__setattr__(self, "coefficients", tuple(self.coefficients))
+        for channel, std in (self.sensor_noise_std or {}).items():
+            if not (math.isfinite(std) and std >= 0.0):
+                raise ValueError(f"sensor_noise_std: {channel}: a standard deviation >= 0 "
+                                 f"in the channel's unit, got {std!r}")
+        if self.imu_position is not None:
+            object.__setattr__(self, "imu_position",
+                               ImuPosition.given(self.imu_position).position)
+
+    def replace(self, **changes) -> IdentifyOptions:
+        """A copy with ``changes`` (field -> value), checked again.
+
+        Raises
+        ------
+        ValueError
+            For an unknown field or a value it does not accept.
+        """
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            raise ValueError(f"unknown option {', '.join(unknown)} (known: "
+                             f"{', '.join(f.name for f in dataclasses.fields(self))})")
+        return dataclasses.replace(self, **changes)
+
+
+def _options(options: IdentifyOptions | None, changes: dict) -> IdentifyOptions:
+    """``options`` (None: the defaults) with the keyword ``changes`` of a call."""
+    options = options or IdentifyOptions()
+    return options.replace(**changes) if changes else options
 
 
 @dataclasses.dataclass(frozen=True)
@@ -318,19 +420,13 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     return fit_derivatives(select_samples(log, params, rate_hz=rate_hz)[0], params)
 
 
-def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
-             rule: EvidenceRule | None = None, reset_interval: float = 5.0,
-             progress: Callable[[str], None] | None = None,
-             source: str = "flight log", seed: int = 0, air_data: str = "auto",
-             segment: tuple[float, float] | None = None,
-             sensor_noise_std: dict[str, float] | None = None,
-             propulsion: str = "data",
-             phases: PhaseSettings = DEFAULT_PHASES,
-             coefficients: Sequence[str] = COEFFICIENTS,
-             imu_position: Sequence[float] | None = None) -> IdentificationRun:
+def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions | None = None,
+             *, progress: Callable[[str], None] | None = None,
+             **changes) -> IdentificationRun:
     """Runs the main job on ``log`` for the aircraft ``params``.
 
-    Only what a real log holds is read: the airborne fixed-wing spans
+    The names below are the fields of ``options`` (:class:`IdentifyOptions`). Only what a
+    real log holds is read: the airborne fixed-wing spans
     (:func:`~drake_uav.identification.samples.flight_phases.usable_spans`, within
     ``segment`` [s] when given) are isolated one by one and joined; ``air_data``
     picks the flow angles (:mod:`~drake_uav.identification.samples.air_data_source`);
@@ -353,18 +449,49 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     (:attr:`IdentificationRun.warnings`), a channel that is physically impossible stops
     the job.
 
-    Raises :class:`~drake_uav.io.flight_log.FlightLogError` (a ``ValueError``)
-    naming the problem when the log cannot be used
-    (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` for a channel
-    or a calibration that is physically impossible), ``ValueError`` for an unknown
-    coefficient.
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log (:func:`~drake_uav.io.readers.read_log`).
+    params : FixedWingParams
+        The aircraft's catalog model.
+    options : IdentifyOptions, optional
+        The job's settings (None: the defaults).
+    progress : callable, optional
+        Called with one line at each stage.
+    **changes
+        Fields of :class:`IdentifyOptions` to change for this call
+        (``identify(log, params, air_data="vanes")``).
+
+    Returns
+    -------
+    IdentificationRun
+
+    Raises
+    ------
+    FlightLogError
+        (a ``ValueError``) naming the problem when the log cannot be used
+        (:class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` for a
+        channel or a calibration that is physically impossible).
+    ValueError
+        For an unknown option or a value it does not accept (an unknown coefficient).
+
+    Examples
+    --------
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.loading import load_fixed_wing
+    >>> run = identify(read_log("flight.csv"), load_fixed_wing("aerosonde"),
+    ...                IdentifyOptions(air_data="vanes"))       # doctest: +SKIP
+    >>> run.findings                                            # doctest: +SKIP
+    ('thrust_propwash',)
     """
-    check_coefficients(coefficients)
+    options = _options(options, changes)
+    source, segment, phases = options.source, options.segment, options.phases
     say = progress or (lambda message: None)
     checked = check_log_channels(log, params, source=source, segment=segment, phases=phases)
     log = checked.log
-    position = (logged_imu_position(log) if imu_position is None
-                else ImuPosition.given(imu_position))
+    position = (logged_imu_position(log) if options.imu_position is None
+                else ImuPosition.given(options.imu_position))
     moved = position is not None and any(position.position)
     if moved:
         log = accelerometers_at_cg(log, position.position)
@@ -373,16 +500,11 @@ def identify(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
     if compatibility is not None:
         log = compatibility.corrected(log)
     command_delay = measured_command_delay(compatibility)
-    samples, selection = select_samples(log, params, rate_hz=rate_hz, source=source,
-                                        air_data=air_data, segment=segment,
-                                        sensor_noise_std=sensor_noise_std, phases=phases,
-                                        propulsion=propulsion, progress=say,
+    samples, selection = select_samples(log, params, options, progress=say,
                                         throttle_delay=command_delay)
-    run = identify_samples(samples, params, rule=rule, reset_interval=reset_interval,
-                           progress=say, source=source, seed=seed,
+    run = identify_samples(samples, params, options, progress=say,
                            effects=testable_effects(selection.air_data, command_delay),
-                           vector_effects=testable_vector_effects(selection.air_data),
-                           coefficients=coefficients)
+                           vector_effects=testable_vector_effects(selection.air_data))
     notes = ((position.note(),) if moved else ()) + selection.notes + run.discovery.notes
     selection = dataclasses.replace(selection, notes=notes,
                                     warnings=checked.notes + selection.warnings)
@@ -491,21 +613,44 @@ def testable_vector_effects(air_data: str) -> list[VectorEffect]:
     return vector_effect_library(located_point=air_data != "estimate")
 
 
-def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 50.0,
-                   source: str = "flight log", air_data: str = "auto",
-                   segment: tuple[float, float] | None = None,
-                   sensor_noise_std: dict[str, float] | None = None,
-                   phases: PhaseSettings = DEFAULT_PHASES,
-                   propulsion: str = "data",
+def select_samples(log: FlightLog, params: FixedWingParams,
+                   options: IdentifyOptions | None = None, *,
                    progress: Callable[[str], None] | None = None,
                    throttle_delay: float | None = None,
-                   ) -> tuple[AeroSamples, LogSelection]:
-    """Regression samples of the usable spans of ``log`` and what was used (see
-    :func:`identify` for the arguments; ``throttle_delay`` [s], a measured servo delay
-    the thrust fit accounts for, :func:`~drake_uav.identification.samples.flight_data.
-    samples_from_log`)."""
-    if propulsion not in ("catalog", "data"):
-        raise ValueError(f"propulsion: 'catalog' or 'data', got {propulsion!r}")
+                   **changes) -> tuple[AeroSamples, LogSelection]:
+    """Regression samples of the usable spans of ``log`` and what was used.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    params : FixedWingParams
+        The aircraft.
+    options : IdentifyOptions, optional
+        The job's settings; ``rate_hz, source, air_data, segment, sensor_noise_std,
+        phases, propulsion`` are used here.
+    progress : callable, optional
+        Called with one line per stage.
+    throttle_delay : float, optional
+        A measured servo delay [s] the thrust fit accounts for
+        (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`).
+    **changes
+        Fields of :class:`IdentifyOptions` to change for this call.
+
+    Returns
+    -------
+    tuple
+        The samples of every span joined, and :class:`LogSelection`.
+
+    Raises
+    ------
+    FlightLogError
+        Naming the span and the problem when the log cannot be used.
+    """
+    options = _options(options, changes)
+    source, air_data, segment = options.source, options.air_data, options.segment
+    phases, sensor_noise_std, rate_hz = (options.phases, options.sensor_noise_std,
+                                         options.rate_hz)
     check_fixed_wing(log, source)
     mode = choose_air_data(log, air_data, source)
     try:
@@ -525,7 +670,7 @@ def select_samples(log: FlightLog, params: FixedWingParams, *, rate_hz: float = 
                                flow_channels=angles.channels,
                                sensor_noise_std=sensor_noise_std, extras=extras)
             thrust = (thrust_from_gridded_log(grid, params, throttle_delay)
-                      if propulsion == "data" else None)
+                      if options.propulsion == "data" else None)
             part = isolated_samples(grid, params, thrust)
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
@@ -598,13 +743,12 @@ def _selection_notes(log: FlightLog, spans, mode: str, air_data: str) -> tuple[s
     return tuple(notes)
 
 
-def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
-                     rule: EvidenceRule | None = None, reset_interval: float = 5.0,
+def identify_samples(samples: AeroSamples, params: FixedWingParams,
+                     options: IdentifyOptions | None = None, *,
                      progress: Callable[[str], None] | None = None,
-                     source: str = "flight samples", seed: int = 0,
                      effects: Sequence[Effect] | None = None,
                      vector_effects: Sequence[VectorEffect] | None = None,
-                     coefficients: Sequence[str] = COEFFICIENTS) -> IdentificationRun:
+                     **changes) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
     :func:`identify` with the measured coefficients already in ``samples``
@@ -615,13 +759,40 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams, *,
     ``vector_effects`` to :func:`~drake_uav.identification.discovery.vector_effects.
     vector_effect_library`. The coefficients skipped and the effects not kept are in
     ``discovery.notes``.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The measured coefficients and their regressors.
+    params : FixedWingParams
+        The aircraft's catalog model.
+    options : IdentifyOptions, optional
+        The job's settings; ``rule, reset_interval, source, seed, coefficients`` are used
+        here.
+    progress : callable, optional
+        Called with one line per stage.
+    effects, vector_effects : sequence, optional
+        The candidate effects (None: the libraries).
+    **changes
+        Fields of :class:`IdentifyOptions` to change for this call.
+
+    Returns
+    -------
+    IdentificationRun
+
+    Raises
+    ------
+    ValueError
+        For an unknown option or coefficient, or samples too few for the evidence tests.
     """
+    options = _options(options, changes)
+    reset_interval = options.reset_interval
     say = progress or (lambda message: None)
     result = discover(samples, params, effects=effects, vector_effects=vector_effects,
-                      rule=rule, progress=say, coefficients=coefficients)
+                      rule=options.rule, progress=say, coefficients=options.coefficients)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)
     say("Monte-Carlo uncertainty of the measured coefficients")
-    sigma = coefficient_uncertainty(samples, params, seed)
-    return IdentificationRun(params, samples, result, before, after, source, sigma)
+    sigma = coefficient_uncertainty(samples, params, options.seed)
+    return IdentificationRun(params, samples, result, before, after, options.source, sigma)

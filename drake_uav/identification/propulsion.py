@@ -524,6 +524,10 @@ def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_da
     throttle/airspeed correction of the catalog model without it, or (with an
     :class:`~.regression.InsufficientExcitationWarning`) the catalog model when the
     data cannot tell thrust from C_X0 (:class:`ThrustDiagnostics`).
+
+    The ten parameters are the flight's arrays (as
+    :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` takes them)
+    and three keyword-only settings.
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked(len(time), specific_force=specific_force, rates=rates,

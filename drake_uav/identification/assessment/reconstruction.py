@@ -83,11 +83,39 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
                 ) -> Reconstruction:
     """Integrates air-relative velocity and body rates with the identified model.
 
-    ``models`` maps each of ``CL, CD, CY, Cl, Cm, Cn`` to ``(names, estimate,
-    design)``: the term names, their values and the (N, n) regressor matrix on
-    ``samples`` (used for effect columns). ``samples.signals`` must hold
-    ``roll`` and ``pitch`` [rad]. The rotational part is the plant's own
-    :meth:`FixedWingModel.angular_acceleration`.
+    The rotational part is the plant's own :meth:`FixedWingModel.angular_acceleration`.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The flight; ``samples.signals`` must hold ``roll`` and ``pitch`` [rad].
+    params : FixedWingParams
+        The aircraft.
+    models : Mapping
+        Each of ``CL, CD, CY, Cl, Cm, Cn`` -> ``(names, estimate, design)``: the term
+        names, their values and the (N, n) regressor matrix on ``samples`` (used for
+        effect columns).
+    exclude_prefixes : collection of str
+        Terms whose name starts with one of these are left out.
+    reset_interval : float
+        [s] between the restarts from the measured state.
+
+    Returns
+    -------
+    Reconstruction
+        Measured and reconstructed airspeed, alpha, beta, p, q, r and their mean absolute
+        errors.
+
+    Raises
+    ------
+    ValueError
+        When a coefficient's model is missing or ``samples`` lack the attitude.
+
+    Examples
+    --------
+    >>> fits = run.discovery.final                                     # doctest: +SKIP
+    >>> models = {k: (f.names, f.result.estimate, f.training_design) for k, f in fits.items()}
+    >>> reconstruct(run.samples, run.params, models).mae               # doctest: +SKIP
     """
     for key in ("roll", "pitch"):
         if key not in samples.signals:

@@ -220,6 +220,29 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
     The same errors-in-variables corrected fits as the discovery loop's baseline, on
     the whole flight. The long-run covariance of all the fits' scores together gives
     their joint covariance.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The measured coefficients and their regressors.
+    params : FixedWingParams
+        The aircraft (its derivative names).
+    coefficients : sequence of str
+        The coefficients fitted.
+
+    Returns
+    -------
+    IdentifiedDerivatives
+
+    Raises
+    ------
+    ValueError
+        For an unknown coefficient.
+
+    Examples
+    --------
+    >>> derivatives = fit_derivatives(samples_from_log(log, params), params)  # doctest: +SKIP
+    >>> derivatives.estimate["CL_alpha"]                                        # doctest: +SKIP
     """
     designs = [baseline_design(samples, params, k) for k in coefficients]
     scores = np.hstack([d.scores(d.solve()) for d in designs])

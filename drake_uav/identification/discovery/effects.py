@@ -282,9 +282,23 @@ def _drift(samples, params, coefficient):
 
 
 def effect_library(command_delay: float | None = None) -> list[Effect]:
-    """The named effects, in the order they are reported. ``command_delay`` [s]: the delay
-    of the commands the data-compatibility check measured, which the servo delay's columns
-    then use (None: their first-order form)."""
+    """The named effects, in the order they are reported.
+
+    Parameters
+    ----------
+    command_delay : float, optional
+        The delay [s] of the commands the data-compatibility check measured, which the
+        servo delay's columns then use (None: their first-order form).
+
+    Returns
+    -------
+    list of Effect
+
+    Examples
+    --------
+    >>> [e.name for e in effect_library()][:3]
+    ['stall_onset', 'unsteady_alphadot', 'thrust_propwash']
+    """
     return [
         Effect("stall_onset", "lift and drag bend away from linear at high angle of attack "
                "(flow separation): higher powers of alpha", LONGITUDINAL,

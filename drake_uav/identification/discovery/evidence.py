@@ -411,6 +411,73 @@ class JointEvidence:
                          self.passed) for k in self.coefficients]
 
 
+def _new_columns(columns: Mapping[str, CandidateColumns], bases: Mapping[str, RoundBase]
+                 ) -> dict[str, list[str]]:
+    """Quantity -> the names of the candidate's columns not in the span of its design."""
+    moved = {}
+    for k in bases:
+        own = columns.get(k)
+        if own is not None and own.columns:
+            V = np.column_stack(list(own.columns.values()))
+            names = [n for n, r in zip(own.columns, redundant(bases[k].basis, V), strict=True)
+                     if not r]
+            if names:
+                moved[k] = names
+    return moved
+
+
+@dataclasses.dataclass(frozen=True)
+class _JointFit:
+    """The weighted joint fit of a candidate's shared parameters over the quantities it
+    moves, on the training part and on each fold's held-in part."""
+
+    blocks: list[JointBlock]
+    extended: dict[str, tuple[np.ndarray, BlockMoments]]
+    """Quantity -> the candidate's columns there and the extended design's moments."""
+    n_eff: dict[str, float]
+    """Quantity -> effective sample size of its residual with the candidate."""
+    phi: np.ndarray
+    thetas: list[np.ndarray]
+    phi_folds: np.ndarray
+    theta_folds: list[np.ndarray]
+
+    @classmethod
+    def of(cls, moved: Mapping[str, list[str]], columns: Mapping[str, CandidateColumns],
+           bases: Mapping[str, RoundBase], parameters: tuple[str, ...]) -> _JointFit | None:
+        """The fit (None: not well posed). A first pass weights each quantity by its
+        residual's variance; the second by the long-run variance of its residual with the
+        candidate (under the null hypothesis the same as without it; with it, not
+        inflated by the candidate)."""
+        q = len(parameters)
+        blocks, extended = [], {}
+        for k, names in moved.items():
+            design = bases[k].design
+            own = columns[k]
+            V = np.column_stack([own.columns[n] for n in names])
+            J = {s: np.column_stack([j[n] for n in names]) for s, j in own.jacobians.items()}
+            moments = bases[k].blocks.extended(design.X, design.z, design.noise, V, J)
+            A, b, _, _ = moments.total()
+            index = np.array([parameters.index(n) for n in names])
+            blocks.append(JointBlock(A, b, design.X.shape[1], index, len(V) / bases[k].sse[0]))
+            extended[k] = (V, moments)
+        phi, thetas, S = joint_solve(blocks, q)
+        if not is_well_posed(S):
+            return None
+        fits = {}
+        for i, (k, blk, theta) in enumerate(zip(moved, blocks, thetas, strict=True)):
+            V, _ = extended[k]
+            design = bases[k].design
+            r = design.z - design.X @ theta - V @ phi[blk.index]
+            n_eff = float(effective_sample_size(r))
+            blocks[i] = dataclasses.replace(blk, weight=n_eff / float(r @ r))
+            fits[k] = n_eff
+        phi, thetas, _ = joint_solve(blocks, q)
+        phi_folds, theta_folds, _ = joint_solve(
+            [JointBlock(*extended[k][1].held_in(), blk.p, blk.index, blk.weight)
+             for k, blk in zip(moved, blocks, strict=True)], q)
+        return cls(blocks, extended, fits, phi, thetas, phi_folds, theta_folds)
+
+
 def score_jointly(effect: Any, parameters: Sequence[str],
                   columns: Mapping[str, CandidateColumns], bases: Mapping[str, RoundBase],
                   rule: EvidenceRule, n_tests: int, searched: int = 0) -> JointEvidence | None:
@@ -438,49 +505,17 @@ def score_jointly(effect: Any, parameters: Sequence[str],
     JointEvidence or None
         None when no column is new to a design or the joint fit is not well posed.
     """
-    moved = {}
-    for k in bases:
-        own = columns.get(k)
-        if own is not None and own.columns:
-            V = np.column_stack(list(own.columns.values()))
-            names = [n for n, r in zip(own.columns, redundant(bases[k].basis, V), strict=True)
-                     if not r]
-            if names:
-                moved[k] = names
+    moved = _new_columns(columns, bases)
     parameters = tuple(n for n in parameters if any(n in v for v in moved.values()))
     if not parameters:
         return None
+    fit = _JointFit.of(moved, columns, bases, parameters)
+    if fit is None:
+        return None
     q = len(parameters)
     searched_parameters = POINT_SEARCH_PARAMETERS if searched else 0
-    blocks, extended = [], {}
-    for k, names in moved.items():
-        design = bases[k].design
-        own = columns[k]
-        V = np.column_stack([own.columns[n] for n in names])
-        J = {s: np.column_stack([j[n] for n in names]) for s, j in own.jacobians.items()}
-        moments = bases[k].blocks.extended(design.X, design.z, design.noise, V, J)
-        A, b, _, _ = moments.total()
-        index = np.array([parameters.index(n) for n in names])
-        # First pass: each quantity weighted by its residual's variance.
-        blocks.append(JointBlock(A, b, design.X.shape[1], index, len(V) / bases[k].sse[0]))
-        extended[k] = (V, moments)
-    phi, thetas, S = joint_solve(blocks, q)
-    if not is_well_posed(S):
-        return None
-    # Second pass: by the long-run variance of the residual with the candidate (under
-    # the null hypothesis the same as without it; with it, not inflated by the candidate).
-    fits = {}
-    for i, (k, blk, theta) in enumerate(zip(moved, blocks, thetas, strict=True)):
-        V, _ = extended[k]
-        design = bases[k].design
-        r = design.z - design.X @ theta - V @ phi[blk.index]
-        n_eff = float(effective_sample_size(r))
-        blocks[i] = dataclasses.replace(blk, weight=n_eff / float(r @ r))
-        fits[k] = n_eff
-    phi, thetas, _ = joint_solve(blocks, q)
-    phi_folds, theta_folds, _ = joint_solve(
-        [JointBlock(*extended[k][1].held_in(), blk.p, blk.index, blk.weight)
-         for k, blk in zip(moved, blocks, strict=True)], q)
+    blocks, extended, fits = fit.blocks, fit.extended, fit.n_eff
+    phi, thetas, phi_folds, theta_folds = fit.phi, fit.thetas, fit.phi_folds, fit.theta_folds
     drop_w = observed_w = dof = bic = 0.0
     reductions, improved = {}, {}
     relative = 0.0

@@ -262,16 +262,48 @@ def discover(samples: AeroSamples, params: FixedWingParams,
              coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
              progress=None, vector_effects: Sequence[VectorEffect] | None = None
              ) -> DiscoveryResult:
-    """Runs the residual -> effect -> refit loop on ``samples``.
+    """Runs the residual -> effect -> refit loop on ``samples`` (module docstring).
 
-    ``effects`` defaults to :func:`effect_library`; ``coefficients`` are fitted in
-    the order of :data:`~drake_uav.model.coefficients.COEFFICIENTS`, except those that
-    do not vary (:attr:`DiscoveryResult.skipped`); ``progress(message)`` is called at
-    each round; ``vector_effects`` (default
-    :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`) are the forces
-    tested jointly on the coefficients they move. Raises ``ValueError`` for an unknown
-    coefficient, samples too few for
-    the evidence tests, or when no coefficient varies.
+    The loop's stages (baseline and pruning, rounds, final check, final fits, adequacy)
+    read one after the other here, in about 60 lines, so that its order is seen at once;
+    the eight parameters are the loop's inputs and switches, each with its default.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The measured coefficients and their regressors.
+    params : FixedWingParams
+        The aircraft's catalog model (its derivative names are the baseline).
+    effects : sequence of Effect, optional
+        The named effects (None: :func:`effect_library`).
+    rule : EvidenceRule, optional
+        The thresholds (None: the defaults).
+    coefficients : sequence of str
+        Fitted in the order of :data:`~drake_uav.model.coefficients.COEFFICIENTS`, except
+        those that do not vary (:attr:`DiscoveryResult.skipped`).
+    fallback : bool
+        Try the data-driven products and logged channels when no named effect passes.
+    progress : callable, optional
+        Called with one line at each round.
+    vector_effects : sequence of VectorEffect, optional
+        The forces tested jointly on the coefficients they move (None:
+        :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`).
+
+    Returns
+    -------
+    DiscoveryResult
+
+    Raises
+    ------
+    ValueError
+        For an unknown coefficient, samples too few for the evidence tests, or when no
+        coefficient varies.
+
+    Examples
+    --------
+    >>> result = discover(samples, aerosonde())          # doctest: +SKIP
+    >>> result.message                                   # doctest: +SKIP
+    'missing effect(s) found: stall_onset (CL)'
     """
     rule = rule or EvidenceRule()
     effects = [e for e in (effects or effect_library()) if e.available(samples)]

@@ -476,6 +476,10 @@ class RecursiveTLS(_Recursive):
         covariance0: prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq.
             4.125, scaled sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1]
             so that the prior alone carries exactly covariance0.
+
+    The nine constructor parameters are those of :func:`~.regression.tls` (the error
+    model, the excitation test, the minimum-norm weights) plus the forgetting and the
+    prior, keyword-only past ``error_std``.
     """
 
     _RANK = 5  # number of excited directions, after the common scalars

@@ -239,16 +239,39 @@ def unidentifiable_loading(directions: np.ndarray, n: int) -> np.ndarray:
 def ols(X, z, names=None, *, confidence: float = 0.95, rcond: float = OLS_RCOND):
     """Ordinary least squares with statistics (Vaiopoulos 2017, eq. 4.2, A.10).
 
-    Args:
-        X: (N, n) regressors, assumed exact. z: (N,) observations.
-        names: parameter names (default theta0..).
-        confidence: two-sided level of the significance test (0.95 -> |t| > ~1.96).
-        rcond: directions of the column-equilibrated X with singular value below
-            ``rcond * s_max`` are unsupported: they trigger an
-            :class:`InsufficientExcitationWarning` and the minimum-norm answer.
+    Parameters
+    ----------
+    X : array_like
+        (N, n) regressors, assumed exact.
+    z : array_like
+        (N,) observations.
+    names : sequence of str, optional
+        Parameter names (default theta0..).
+    confidence : float
+        Two-sided level of the significance test (0.95 -> |t| > ~1.96).
+    rcond : float
+        Directions of the column-equilibrated X with singular value below
+        ``rcond * s_max`` are unsupported: they trigger an
+        :class:`InsufficientExcitationWarning` and the minimum-norm answer.
 
-    Returns:
-        RegressionResult with method "OLS".
+    Returns
+    -------
+    RegressionResult
+        Method "OLS".
+
+    Raises
+    ------
+    ValueError
+        When the shapes of ``X`` and ``z`` do not match.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> X = np.column_stack([np.ones(200), rng.normal(size=200)])
+    >>> fit = ols(X, X @ [0.5, 2.0] + 0.01 * rng.normal(size=200), names=["c", "slope"])
+    >>> np.round(fit.estimate, 2).tolist()
+    [0.5, 2.0]
     """
     X, z = _as_data(X, z)
     N, n = X.shape
@@ -311,7 +334,12 @@ def regression_result(
     directions,
     confidence,
 ):
-    """The common RegressionResult (significance, R^2, identifiability) of an estimate."""
+    """The common RegressionResult (significance, R^2, identifiability) of an estimate.
+
+    Keyword-only, one parameter per field of the result the estimators compute
+    (fourteen): each estimator fills them from its own decomposition, so no smaller
+    grouping is shared by all of them.
+    """
     n = theta.size
     identifiable = unidentifiable_loading(directions, n) <= LOADING_TOL
     sigma = np.where(identifiable, np.sqrt(np.clip(np.diag(covariance), 0.0, None)), np.inf)
@@ -347,6 +375,8 @@ def regression_result(
 
 
 def _tls(X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, warn):
+    """:func:`tls` (its parameters, and ``warn``: warn when a direction is not excited);
+    :func:`pca_tls` calls it without the warning."""
     X, z = _as_data(X, z)
     N, n = X.shape
     names = _names(names, n)
@@ -420,23 +450,54 @@ def tls(
 ):
     """Total least squares / generalised TLS via SVD (Vaiopoulos 2017, eq. 4.3, A.13).
 
-    Args:
-        X: (N, n) measured regressors. z: (N,) measured observations.
-        error_std: (n+1,) error standard deviations of the columns of [X | z] (units of each
-            column); 0 marks an exact column (the constant), replaced by 1e-6 of its rms.
-        error_cov: (n+1, n+1) full error covariance W_T instead of ``error_std``.
-            Neither: plain TLS (C = I).
-        names: parameter names.
-        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
-        weights: W of the minimum-norm choice if some direction is not excited (Vaiopoulos
-            2017, eq. 4.76).
-        confidence: level of the significance test.
-        scale_from_data: estimate the error-variance scale from the smallest singular value
-            (C known up to a factor); False trusts C exactly.
+    The nine parameters are the estimator's published inputs (the data, the error model,
+    the excitation test and the minimum-norm weights); keyword-only past ``error_std``.
 
-    Returns:
-        RegressionResult, method "TLS"/"GTLS"; if a direction is not excited, warns
+    Parameters
+    ----------
+    X : array_like
+        (N, n) measured regressors.
+    z : array_like
+        (N,) measured observations.
+    error_std : array_like, optional
+        (n+1,) error standard deviations of the columns of [X | z] (units of each
+        column); 0 marks an exact column (the constant), replaced by 1e-6 of its rms.
+    error_cov : array_like, optional
+        (n+1, n+1) full error covariance W_T instead of ``error_std``. Neither: plain TLS
+        (C = I).
+    names : sequence of str, optional
+        Parameter names.
+    snr_min : float
+        S/n of the excitation test (Vaiopoulos 2017, eq. 4.68, typically 1..10).
+    weights : array_like, optional
+        W of the minimum-norm choice if some direction is not excited (Vaiopoulos 2017,
+        eq. 4.76).
+    confidence : float
+        Level of the significance test.
+    scale_from_data : bool
+        Estimate the error-variance scale from the smallest singular value (C known up
+        to a factor); False trusts C exactly.
+
+    Returns
+    -------
+    RegressionResult
+        Method "TLS"/"GTLS"; if a direction is not excited, warns
         (:class:`InsufficientExcitationWarning`) and returns the PCA-TLS answer.
+
+    Raises
+    ------
+    ValueError
+        When the shapes do not match or an error standard deviation is negative.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(1)
+    >>> x = rng.normal(size=500)
+    >>> X = np.column_stack([np.ones(500), x + 0.05 * rng.normal(size=500)])
+    >>> fit = tls(X, 2.0 * x + 0.05 * rng.normal(size=500), error_std=[0.0, 0.05, 0.05])
+    >>> round(float(fit.estimate[1]), 1)
+    2.0
     """
     return _tls(
         X, z, error_std, error_cov, names, snr_min, weights, confidence, scale_from_data, True
@@ -447,11 +508,35 @@ def pca_tls(X, z, error_std=None, **options):
     """PCA-TLS: GTLS restricted to the excited singular directions (Vaiopoulos 2017, sec.
     4.3.6, A.14).
 
-    Same arguments as :func:`tls`. Estimates only what the data support, without a warning:
-    ``result.rank`` directions are kept, ``result.unidentifiable`` lists the parameter
-    combinations left at their weighted minimum norm and ``result.identifiable`` /
-    ``result.sigma`` (inf) mark the parameters involved. Method "PCA-TLS" when rank < n,
-    otherwise "TLS"/"GTLS".
+    Estimates only what the data support, without a warning: ``result.rank`` directions
+    are kept, ``result.unidentifiable`` lists the parameter combinations left at their
+    weighted minimum norm and ``result.identifiable`` / ``result.sigma`` (inf) mark the
+    parameters involved.
+
+    Parameters
+    ----------
+    X, z, error_std
+        As :func:`tls`.
+    **options
+        The keyword options of :func:`tls`.
+
+    Returns
+    -------
+    RegressionResult
+        Method "PCA-TLS" when rank < n, otherwise "TLS"/"GTLS".
+
+    Raises
+    ------
+    ValueError
+        As :func:`tls`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.linspace(-1.0, 1.0, 100)
+    >>> fit = pca_tls(np.column_stack([x, x]), 2.0 * x)    # two copies of one column
+    >>> fit.rank
+    1
     """
     arguments = inspect.signature(tls).bind(X, z, error_std, **options)
     arguments.apply_defaults()
@@ -468,22 +553,48 @@ def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
          scores_covariance=None) -> RegressionResult:
     """Bias-compensated least squares with a sandwich covariance (method "BCLS").
 
-    Args:
-        X: (N, n) measured regressors. z: (N,) measured observations.
-        noise: the regressor and observation noise propagated from its sources
-            (:class:`~.errors_in_variables.PropagatedNoise`), with
-            known variances.
-        names: parameter names.
-        confidence: level of the significance test.
-        scores_covariance: (n, n) covariance ``S`` of the summed moment scores; default: their
-            long-run (Newey-West) covariance estimated here.
+    Parameters
+    ----------
+    X : array_like
+        (N, n) measured regressors.
+    z : array_like
+        (N,) measured observations.
+    noise : PropagatedNoise
+        The regressor and observation noise propagated from its sources
+        (:class:`~.errors_in_variables.PropagatedNoise`), with known variances.
+    names : sequence of str, optional
+        Parameter names.
+    confidence : float
+        Level of the significance test.
+    scores_covariance : array_like, optional
+        (n, n) covariance ``S`` of the summed moment scores; default: their long-run
+        (Newey-West) covariance estimated here.
 
-    Returns:
-        RegressionResult: the root of the compensated normal equations
-        (:func:`~drake_uav.identification.statistics.errors_in_variables.compensated_normal_equations`)
-        with covariance ``A^-1 S A^-1``. The residual of smoothed flight data is correlated
-        over several samples (the smoothing window, turbulence), so ``S`` is the long-run
-        covariance, not the white-residual one, which would understate sigma.
+    Returns
+    -------
+    RegressionResult
+        The root of the compensated normal equations
+        (:func:`~.errors_in_variables.compensated_normal_equations`) with covariance
+        ``A^-1 S A^-1``. The residual of smoothed flight data is correlated over several
+        samples (the smoothing window, turbulence), so ``S`` is the long-run covariance,
+        not the white-residual one, which would understate sigma.
+
+    Raises
+    ------
+    ValueError
+        When the shapes of ``X``, ``z`` and ``noise`` do not match.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
+    >>> rng = np.random.default_rng(2)
+    >>> x = rng.normal(size=1000)
+    >>> X = np.column_stack([np.ones(1000), x + 0.3 * rng.normal(size=1000)])
+    >>> noise = PropagatedNoise(2, {"x": np.array([[0.0, 1.0]])}, {}, {"x": 0.09})
+    >>> fit = bcls(X, 1.5 * x, noise)                       # doctest: +SKIP
+    >>> round(float(fit.estimate[1]), 1)                    # doctest: +SKIP
+    1.5
     """
     X, z = _as_data(X, z)
     n, p = X.shape
