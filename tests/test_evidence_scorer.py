@@ -24,14 +24,13 @@ def _with_logged_channel(samples, rng):
     """The samples with a logged channel unrelated to the coefficients (a slow voltage)."""
     volts = 12.0 + np.cumsum(rng.normal(0.0, 0.01, len(samples)))
 
-    def add(view):
-        return dataclasses.replace(
-            view, signals={**view.signals, "logged:voltage": volts},
-            noise_variance={**view.noise_variance, "logged:voltage": 1e-6},
-            signal_units={**view.signal_units, "logged:voltage": "V"})
-
-    view = None if samples.moment_view is None else add(samples.moment_view)
-    return dataclasses.replace(add(samples), moment_view=view)
+    samples = samples.with_moments(lambda m: dataclasses.replace(
+        m, logged={**m.logged, "logged:voltage": volts},
+        noise_variance={**m.noise_variance, "logged:voltage": 1e-6}))
+    return dataclasses.replace(
+        samples, signals={**samples.signals, "logged:voltage": volts},
+        noise_variance={**samples.noise_variance, "logged:voltage": 1e-6},
+        signal_units={**samples.signal_units, "logged:voltage": "V"})
 
 
 def _context(samples, params, coefficients):

@@ -203,7 +203,16 @@ class LogSelection:
 
 @dataclasses.dataclass(frozen=True)
 class IdentificationRun:
-    """Result of the main job on one flight log."""
+    """Result of the main job on one flight log: everything its report prints.
+
+    Examples
+    --------
+    >>> run = identify(log, aerosonde())                 # doctest: +SKIP
+    >>> run.findings, run.discovery.message              # doctest: +SKIP
+    (('thrust_propwash',), 'missing effect(s) found: thrust_propwash (CD)')
+    >>> run.noise_floors["CD"].floor                     # doctest: +SKIP
+    >>> json.dumps(json_ready(run.summary()))            # summary.json  # doctest: +SKIP
+    """
 
     params: FixedWingParams
     samples: AeroSamples
@@ -413,9 +422,29 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     The first steps of :func:`identify` without the search for missing effects: the
     log is isolated into coefficients (:func:`select_samples`) and each coefficient
     is fitted on the aircraft's own derivative names over the whole flight
-    (:func:`~drake_uav.identification.discovery.coefficient_design.fit_derivatives`). Raises
-    :class:`~drake_uav.io.flight_log.FlightLogError` naming the problem when the log
-    cannot be used.
+    (:func:`~drake_uav.identification.discovery.coefficient_design.fit_derivatives`).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    params : FixedWingParams
+        The aircraft's catalog model (its derivative names).
+    rate_hz : float
+        Rate of the samples [Hz].
+
+    Returns
+    -------
+    IdentifiedDerivatives
+
+    Raises
+    ------
+    FlightLogError
+        Naming the problem when the log cannot be used.
+
+    Examples
+    --------
+    >>> derivatives = identify_derivatives(read_log("flight.csv"), aerosonde())  # doctest: +SKIP
     """
     return fit_derivatives(select_samples(log, params, rate_hz=rate_hz)[0], params)
 
@@ -695,9 +724,10 @@ def _common_signals(parts: list[AeroSamples], spans) -> tuple[list[AeroSamples],
             "(no GPS fix there); the effects that need them are not tested")
 
     def kept(samples):
-        view = None if samples.moment_view is None else kept(samples.moment_view)
-        return dataclasses.replace(samples, moment_view=view, signals={
-            k: v for k, v in samples.signals.items() if k in common})
+        return dataclasses.replace(
+            samples.with_moments(lambda m: dataclasses.replace(
+                m, logged={k: v for k, v in m.logged.items() if k in common})),
+            signals={k: v for k, v in samples.signals.items() if k in common})
     return [kept(p) for p in parts], (note,)
 
 
@@ -724,9 +754,9 @@ def _with_flow_error(samples: AeroSamples, variance: dict[str, float] | None) ->
     if variance is None:
         return samples
     noise = {**samples.noise_variance, **variance}
-    view = None if samples.moment_view is None else dataclasses.replace(
-        samples.moment_view, noise_variance=noise)
-    return dataclasses.replace(samples, noise_variance=noise, moment_view=view)
+    return dataclasses.replace(
+        samples.with_moments(lambda m: dataclasses.replace(m, noise_variance=noise)),
+        noise_variance=noise)
 
 
 def _selection_notes(log: FlightLog, spans, mode: str, air_data: str) -> tuple[str, ...]:

@@ -513,17 +513,37 @@ def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_da
                     raw_noise_variance: Mapping[str, float] | None = None) -> ThrustModel:
     """Thrust identified with C_X from airborne, uniformly sampled flight data.
 
-    Shapes as :func:`~.isolation.isolate_coefficients`: ``specific_force`` (N, 3)
-    [m/s^2], ``rates`` (N, 3) [rad/s], ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad],
-    ``controls`` (N, 4) [elevator, aileron, rudder rad, throttle 0..1];
-    ``motor_speed`` (N,) [rad/s] or None. ``window`` [s] is the Savitzky-Golay
-    smoothing, ``folds`` the number of held-out blocks, ``raw_noise_variance`` the raw
-    white-noise variance of ``airspeed, alpha, motor_speed, ax`` where known.
+    Parameters
+    ----------
+    params : FixedWingParams
+        The aircraft (its catalog propulsion model).
+    time : array_like
+        (N,) [s], uniform.
+    specific_force, rates, air_data, controls : array_like
+        (N, 3) [m/s^2], (N, 3) [rad/s], (N, 3) [Va m/s, alpha rad, beta rad] and (N, 4)
+        [elevator, aileron, rudder rad, throttle 0..1], as
+        :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` takes them.
+    motor_speed : array_like, optional
+        (N,) [rad/s].
+    window : float
+        The Savitzky-Golay smoothing [s].
+    folds : int
+        The number of held-out blocks.
+    raw_noise_variance : Mapping, optional
+        The raw white-noise variance of ``airspeed, alpha, motor_speed, ax`` where known.
 
-    Returns a :class:`ThrustModel`: the propeller's C_T0, C_T1 with a motor speed, a
-    throttle/airspeed correction of the catalog model without it, or (with an
-    :class:`~.regression.InsufficientExcitationWarning`) the catalog model when the
-    data cannot tell thrust from C_X0 (:class:`ThrustDiagnostics`).
+    Returns
+    -------
+    ThrustModel
+        The propeller's C_T0, C_T1 with a motor speed, a throttle/airspeed correction of
+        the catalog model without it, or (with an
+        :class:`~.statistics.regression.InsufficientExcitationWarning`) the catalog model
+        when the data cannot tell thrust from C_X0 (:class:`ThrustDiagnostics`).
+
+    Raises
+    ------
+    ValueError
+        When the flight is too short for the held-out blocks or an array's shape is wrong.
 
     The ten parameters are the flight's arrays (as
     :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` takes them)

@@ -156,7 +156,26 @@ class Design:
 
 
 def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
-    """The aircraft's derivative names for ``coefficient`` (a constant term always)."""
+    """The aircraft's derivative names for ``coefficient`` (a constant term always).
+
+    Parameters
+    ----------
+    params : FixedWingParams
+        The aircraft.
+    coefficient : str
+        One of ``CL, CD, CY, Cl, Cm, Cn``.
+
+    Returns
+    -------
+    list of str
+        ``<coefficient>_<signal>`` names, the constant ``<coefficient>_0`` first.
+
+    Examples
+    --------
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> baseline_names(aerosonde(), "CL")[0]
+    'CL_0'
+    """
     names = [n for n in params.derivatives if n.split("_", 1)[0] == coefficient]
     if f"{coefficient}_0" not in names:
         names.insert(0, f"{coefficient}_0")

@@ -64,7 +64,15 @@ ColumnFunction = Callable[[AeroSamples, FixedWingParams], Mapping[str, np.ndarra
 
 @dataclasses.dataclass(frozen=True)
 class Effect:
-    """A physical effect: its regressor columns per coefficient and what it means."""
+    """A physical effect: its regressor columns per coefficient and what it means.
+
+    Examples
+    --------
+    >>> cubic = Effect("lift_break", "the lift falls off with the cube of alpha", ("CL",),
+    ...                lambda samples, params, k: {"alpha3": samples.condition.alpha ** 3})
+    >>> cubic.kind
+    'aerodynamic'
+    """
 
     name: str
     explanation: str

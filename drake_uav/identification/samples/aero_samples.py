@@ -9,19 +9,48 @@ later stage (the discovery, the assessment) reads them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
+from enum import StrEnum
 
 import numpy as np
 
 from drake_uav.model.coefficients import AeroCondition
 
-__all__ = ["AeroSamples", "LOGGED", "MOMENTS", "ATTITUDE", "GPS_VELOCITY", "GPS_POSITION"]
+__all__ = ["AeroSamples", "MomentInputs", "Signal", "LOGGED", "logged", "MOMENTS", "ATTITUDE",
+           "GPS_VELOCITY", "GPS_POSITION"]
 
-ATTITUDE = ("roll", "pitch", "yaw")
+class Signal(StrEnum):
+    """The named signals of :attr:`AeroSamples.signals` (a logged extra channel is
+    ``logged:<channel>``, :func:`logged`). Each is its name as a string too."""
+
+    ROLL = "roll"
+    """Roll angle [rad] (body -> NED)."""
+    PITCH = "pitch"
+    """Pitch angle [rad]."""
+    YAW = "yaw"
+    """Yaw angle [rad]."""
+    HEIGHT = "height"
+    """Barometric height [m]."""
+    GPS_VN = "gps_vn"
+    """GPS velocity north [m/s]."""
+    GPS_VE = "gps_ve"
+    """GPS velocity east [m/s]."""
+    GPS_VD = "gps_vd"
+    """GPS velocity down [m/s]."""
+    GPS_PN = "gps_pn"
+    """GPS position north [m] (from the first fix)."""
+    GPS_PE = "gps_pe"
+    """GPS position east [m]."""
+    GPS_PD = "gps_pd"
+    """GPS position down [m]."""
+
+
+ATTITUDE = (Signal.ROLL, Signal.PITCH, Signal.YAW)
 """:attr:`AeroSamples.signals` of the attitude [rad] (body -> NED)."""
-GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
+GPS_VELOCITY = (Signal.GPS_VN, Signal.GPS_VE, Signal.GPS_VD)
 """:attr:`AeroSamples.signals` of the GPS velocity, NED [m/s]."""
-GPS_POSITION = ("gps_pn", "gps_pe", "gps_pd")
+GPS_POSITION = (Signal.GPS_PN, Signal.GPS_PE, Signal.GPS_PD)
 """:attr:`AeroSamples.signals` of the GPS position, NED [m]."""
 
 MOMENTS = ("Cl", "Cm", "Cn")
@@ -32,9 +61,55 @@ LOGGED = "logged:"
 :attr:`AeroSamples.noise_variance` and :attr:`AeroSamples.signal_units`."""
 
 
+def logged(channel: str) -> str:
+    """The :attr:`AeroSamples.signals` key of the logged extra channel ``channel``."""
+    return f"{LOGGED}{channel}"
+
+
+@dataclasses.dataclass(frozen=True)
+class MomentInputs:
+    """What the moment coefficients see where it differs from the forces: the regressors
+    through the moments' interval filter (:func:`~drake_uav.identification.samples.
+    isolation.isolate_coefficients`), on the samples' time base."""
+
+    condition: AeroCondition
+    """Air data, rates, controls and thrust coefficient as the moments see them."""
+    dynamic_pressure: np.ndarray
+    """qbar [Pa]."""
+    throttle: np.ndarray
+    """[0..1]."""
+    thrust: np.ndarray
+    """[N]."""
+    thrust_airspeed_slope: np.ndarray | None
+    """d(thrust)/d(airspeed) [N/(m/s)] (None: thrust measured)."""
+    rate_derivatives: np.ndarray
+    """(N, 3) body angular accelerations [rad/s^2]."""
+    logged: Mapping[str, np.ndarray]
+    """The logged extra channels (``logged:<channel>``) through the moments' filter."""
+    noise_variance: Mapping[str, float]
+    """Noise variance of each smoothed source as the moments see it (units squared)."""
+
+    def subset(self, index) -> MomentInputs:
+        """The samples selected by a boolean mask or an index array."""
+        return MomentInputs(
+            AeroCondition(*(np.broadcast_to(f, self.throttle.shape)[index]
+                            for f in self.condition)),
+            self.dynamic_pressure[index], self.throttle[index], self.thrust[index],
+            None if self.thrust_airspeed_slope is None else self.thrust_airspeed_slope[index],
+            self.rate_derivatives[index], {k: v[index] for k, v in self.logged.items()},
+            dict(self.noise_variance))
+
+
 @dataclasses.dataclass(frozen=True)
 class AeroSamples:
-    """Flight samples ready for regression: the conditions and the measured coefficients."""
+    """Flight samples ready for regression: the conditions and the measured coefficients.
+
+    Examples
+    --------
+    >>> samples = samples_from_log(log, aerosonde())     # doctest: +SKIP
+    >>> samples.coefficients["CL"], samples.condition.alpha        # doctest: +SKIP
+    >>> samples.aligned("Cm").condition.elevator   # as the moments see it  # doctest: +SKIP
+    """
 
     time: np.ndarray
     """[s], uniformly sampled."""
@@ -67,10 +142,9 @@ class AeroSamples:
     empty for the catalog's thrust or a measured one."""
     reference_area: float = 1.0
     """Wing area S [m^2] the coefficients refer to."""
-    moment_view: AeroSamples | None = None
-    """The same samples with the controls (surfaces, throttle, thrust) as the moment
-    coefficients see them, or None when forces and moments see the same controls
-    (see :func:`isolate_coefficients`)."""
+    moments: MomentInputs | None = None
+    """What the moment coefficients see where it differs from the forces (the regressors
+    through their interval filter), or None when forces and moments see the same."""
     signal_units: Mapping[str, str] = dataclasses.field(default_factory=dict)
     """Unit of each logged extra channel of :attr:`signals` (``logged:<channel>``)."""
 
@@ -78,11 +152,30 @@ class AeroSamples:
         return len(self.time)
 
     def aligned(self, coefficient: str) -> AeroSamples:
-        """The samples whose controls belong with ``coefficient``: the moment view for
+        """The samples whose regressors belong with ``coefficient``: :attr:`moment_view` for
         ``Cl, Cm, Cn`` when there is one, else these samples."""
-        if coefficient in MOMENTS and self.moment_view is not None:
+        if coefficient in MOMENTS and self.moments is not None:
             return self.moment_view
         return self
+
+    @functools.cached_property
+    def moment_view(self) -> AeroSamples | None:
+        """These samples as the moment coefficients see them (:attr:`moments` in place of
+        the forces' regressors), or None when both see the same."""
+        m = self.moments
+        if m is None:
+            return None
+        signals = {k: v for k, v in self.signals.items() if not k.startswith(LOGGED)}
+        return dataclasses.replace(
+            self, condition=m.condition, dynamic_pressure=m.dynamic_pressure,
+            throttle=m.throttle, thrust=m.thrust, thrust_airspeed_slope=m.thrust_airspeed_slope,
+            rate_derivatives=m.rate_derivatives, signals={**signals, **m.logged},
+            noise_variance=m.noise_variance, moments=None)
+
+    def with_moments(self, update) -> AeroSamples:
+        """A copy whose :attr:`moments` (when there are any) is ``update(moments)``."""
+        return self if self.moments is None else dataclasses.replace(
+            self, moments=update(self.moments))
 
     def observation_sensitivity(self, coefficient: str) -> dict[str, np.ndarray]:
         """d(measured coefficient)/d(air-data signal) per sample, for noise propagation.
@@ -105,20 +198,17 @@ class AeroSamples:
         return out
 
     def perturbed(self, signal: str, delta: float) -> AeroSamples:
-        """A copy with ``delta`` added to one air-data signal (``airspeed``, ``alpha``, ``beta``);
-        the dynamic pressure follows the airspeed."""
-        value = getattr(self.condition, signal) + delta
-        condition = self.condition._replace(**{signal: value})
-        view = None if self.moment_view is None else self.moment_view.perturbed(signal, delta)
-        if signal != "airspeed":
-            return dataclasses.replace(self, condition=condition, moment_view=view)
-        q_bar = self.dynamic_pressure * (value / self.condition.airspeed) ** 2
-        thrust = self.thrust
-        if self.thrust_airspeed_slope is not None:
-            thrust = thrust + self.thrust_airspeed_slope * delta
-        condition = condition._replace(thrust_coefficient=thrust / (q_bar * self.reference_area))
-        return dataclasses.replace(self, condition=condition, dynamic_pressure=q_bar,
-                                   thrust=thrust, moment_view=view)
+        """A copy with ``delta`` added to one air-data signal (``airspeed``, ``alpha``, ``beta``)
+        as the forces and the moments see it; the dynamic pressure follows the airspeed."""
+        condition, q_bar, thrust = _perturbed_air_data(
+            self.condition, self.dynamic_pressure, self.thrust, self.thrust_airspeed_slope,
+            self.reference_area, signal, delta)
+        return dataclasses.replace(
+            self.with_moments(lambda m: dataclasses.replace(m, **dict(zip(
+                ("condition", "dynamic_pressure", "thrust"), _perturbed_air_data(
+                    m.condition, m.dynamic_pressure, m.thrust, m.thrust_airspeed_slope,
+                    self.reference_area, signal, delta), strict=True)))),
+            condition=condition, dynamic_pressure=q_bar, thrust=thrust)
 
     def subset(self, index) -> AeroSamples:
         """The samples selected by a boolean mask or an index array."""
@@ -142,6 +232,22 @@ class AeroSamples:
                                    else pick(self.thrust_airspeed_slope)),
             thrust_correction_terms=self.thrust_correction_terms,
             reference_area=self.reference_area,
-            moment_view=None if self.moment_view is None else self.moment_view.subset(index),
+            moments=None if self.moments is None else self.moments.subset(index),
             signal_units=dict(self.signal_units),
         )
+
+
+def _perturbed_air_data(condition: AeroCondition, q_bar: np.ndarray, thrust: np.ndarray,
+                        slope: np.ndarray | None, area: float, signal: str, delta: float
+                        ) -> tuple[AeroCondition, np.ndarray, np.ndarray]:
+    """The condition, dynamic pressure [Pa] and thrust [N] with ``delta`` added to the
+    air-data ``signal``: qbar scales with the airspeed squared, the modelled thrust
+    follows its airspeed ``slope``, and the thrust coefficient both (wing area ``area``)."""
+    value = getattr(condition, signal) + delta
+    moved = condition._replace(**{signal: value})
+    if signal != "airspeed":
+        return moved, q_bar, thrust
+    q_bar = q_bar * (value / condition.airspeed) ** 2
+    if slope is not None:
+        thrust = thrust + slope * delta
+    return moved._replace(thrust_coefficient=thrust / (q_bar * area)), q_bar, thrust

@@ -72,9 +72,10 @@ from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
 from drake_uav.identification.samples.aero_samples import (
     GPS_POSITION,
     GPS_VELOCITY,
-    LOGGED,
     AeroSamples,
+    Signal,
 )
+from drake_uav.identification.samples.aero_samples import logged as logged_key
 from drake_uav.identification.samples.decimation import (
     bin_means,
     binned_channels,
@@ -192,7 +193,7 @@ def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
     ``logged:<channel>`` name: the declared standard deviation where there is one, else
     the white floor read from the data (:func:`native_noise_variance`; of the means of
     ``averaged`` samples)."""
-    sources = {f"{LOGGED}{c}": c for c in extras}
+    sources = {logged_key(c): c for c in extras}
     declared = declared or {}
     noise = {name: (float(declared[c]) ** 2 if c in declared
                     else native_noise_variance(log, c, averaged))
@@ -433,6 +434,15 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
     ------
     FlightLogError
         As :func:`gridded_log`, or when the isolation refuses the data.
+
+    Examples
+    --------
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.loading import load_fixed_wing
+    >>> samples = samples_from_log(read_log("flight.csv"), load_fixed_wing("aerosonde"),
+    ...                            rate_hz=50.0)                  # doctest: +SKIP
+    >>> sorted(samples.coefficients)                               # doctest: +SKIP
+    ['CD', 'CL', 'CY', 'Cl', 'Cm', 'Cn']
     """
     return isolated_samples(gridded_log(log, params, rate_hz, max_gap, min_airspeed,
                                         flow_channels, sensor_noise_std, extras), params)
@@ -516,10 +526,10 @@ def gridded_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
     whole = log
     log = _air_data_unheld(log.slice(log.time[airborne[0]], log.time[airborne[-1]]), extras)
     uniform, controls, moment_controls = _on_grid(log, rate_hz, factor)
-    signals = {"roll": uniform["att_roll"], "pitch": uniform["att_pitch"],
-               "yaw": uniform["att_yaw"]}
+    signals = {Signal.ROLL: uniform["att_roll"], Signal.PITCH: uniform["att_pitch"],
+               Signal.YAW: uniform["att_yaw"]}
     if HEIGHT in uniform:
-        signals["height"] = uniform[HEIGHT]
+        signals[Signal.HEIGHT] = uniform[HEIGHT]
     signals.update(gps_signals(whole, uniform.time))
     return GriddedLog(uniform, controls, moment_controls, signals, {**noise, **extra_noise},
                       extras)

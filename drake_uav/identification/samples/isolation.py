@@ -40,7 +40,8 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 from scipy.special import ndtr
 
-from drake_uav.identification.samples.aero_samples import LOGGED, AeroSamples
+from drake_uav.identification.samples.aero_samples import AeroSamples, MomentInputs
+from drake_uav.identification.samples.aero_samples import logged as logged_key
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition
 from drake_uav.model.fixed_wing import FixedWingModel
@@ -164,7 +165,7 @@ def isolate_coefficients(
     ``[t_k, t_(k+1))`` (the last row is not used). By default the interval
     averages are those of ``controls`` by :func:`interval_averages` (right for
     controls that vary smoothly). The moment coefficients' regressors are in
-    :attr:`AeroSamples.moment_view` (:meth:`AeroSamples.aligned`).
+    :attr:`AeroSamples.moments` (:meth:`AeroSamples.aligned`).
 
     Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
     ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` and
@@ -182,13 +183,17 @@ def isolate_coefficients(
     sample smoothing for the forces, the interval filter for the moments) into
     ``signals["logged:<channel>"]``, with their noise variance (``raw_noise_variance``
     may give it under the same key, else it is estimated like the others).
+
+    The fourteen parameters are the flight's arrays as the sensors give them (six), the
+    isolation's setting (one) and the optional inputs of the thrust, the moments' controls
+    and the extra signals, each None by default.
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
                              air_data=air_data, controls=controls,
                              moment_controls=moment_controls)
     extra = _checked_signals(signals, len(time))
-    channels = _checked_signals({f"{LOGGED}{k}": v for k, (v, _) in (logged or {}).items()},
+    channels = _checked_signals({logged_key(k): v for k, (v, _) in (logged or {}).items()},
                                 len(time))
     filters = _Filters(time, derivative_window)
     model = FixedWingModel(params)
@@ -210,15 +215,14 @@ def isolate_coefficients(
         signals={**extra, **{k: filters.sample(v) for k, v in channels.items()}},
         noise_variance=noise_variance, thrust_airspeed_slope=view.thrust_slope,
         thrust_correction_terms=tuple(thrust_correction_terms), reference_area=params.S,
-        signal_units={f"{LOGGED}{k}": unit for k, (_, unit) in (logged or {}).items()},
+        signal_units={logged_key(k): unit for k, (_, unit) in (logged or {}).items()},
     )
     view = moments.view
-    return dataclasses.replace(samples, moment_view=dataclasses.replace(
-        samples, condition=moments.condition, dynamic_pressure=view.q_bar, thrust=view.thrust,
-        thrust_airspeed_slope=view.thrust_slope, throttle=view.controls[:, 3],
+    return dataclasses.replace(samples, moments=MomentInputs(
+        condition=moments.condition, dynamic_pressure=view.q_bar, throttle=view.controls[:, 3],
+        thrust=view.thrust, thrust_airspeed_slope=view.thrust_slope,
         rate_derivatives=moments.rate_derivatives,
-        signals={**extra, **{k: filters.interval(interval_averages(v))
-                             for k, v in channels.items()}},
+        logged={k: filters.interval(interval_averages(v)) for k, v in channels.items()},
         noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
 
 

@@ -123,16 +123,23 @@ def source_step(source: str) -> float:
 def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
     """A copy of ``samples`` (both views) with ``delta`` added to one source's signal."""
     if source.startswith(LOGGED):
-        view = None if samples.moment_view is None else perturbed(samples.moment_view, source,
-                                                                  delta)
-        return dataclasses.replace(samples, moment_view=view, signals={
-            **samples.signals, source: samples.signals[source] + delta})
+        return dataclasses.replace(
+            samples.with_moments(lambda m: dataclasses.replace(
+                m, logged={**m.logged, source: m.logged[source] + delta})),
+            signals={**samples.signals, source: samples.signals[source] + delta})
     if source not in DERIVATIVES or source == "alphadot":
         return samples.perturbed(source, delta)
-    rates = samples.rate_derivatives.copy()
-    rates[:, _RATES.index(source[0])] += delta
-    view = None if samples.moment_view is None else perturbed(samples.moment_view, source, delta)
-    return dataclasses.replace(samples, rate_derivatives=rates, moment_view=view)
+    axis = _RATES.index(source[0])
+
+    def moved(rates):
+        rates = rates.copy()
+        rates[:, axis] += delta
+        return rates
+
+    return dataclasses.replace(
+        samples.with_moments(lambda m: dataclasses.replace(
+            m, rate_derivatives=moved(m.rate_derivatives))),
+        rate_derivatives=moved(samples.rate_derivatives))
 
 
 def observation_sensitivity(samples: AeroSamples, coefficient: str,

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from drake_uav.identification.samples.aero_samples import AeroSamples
+from drake_uav.identification.samples.aero_samples import AeroSamples, MomentInputs
 from drake_uav.model.coefficients import AeroCondition
 from drake_uav.model.propeller import THROTTLE_TERMS
 
@@ -54,7 +54,7 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
             raise ValueError(f"segments overlap: one ends at {before.time[-1]:.3f} s, the "
                              f"next starts at {after.time[0]:.3f} s")
     first = parts[0]
-    if any((p.moment_view is None) != (first.moment_view is None)
+    if any((p.moments is None) != (first.moments is None)
            or (p.thrust_airspeed_slope is None) != (first.thrust_airspeed_slope is None)
            or set(p.signals) != set(first.signals) for p in parts):
         raise ValueError("segments differ in their signals, thrust model or moment view")
@@ -63,8 +63,7 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
              for name in first.noise_variance}
     slope = (None if first.thrust_airspeed_slope is None
              else _joined(parts, lambda p: p.thrust_airspeed_slope))
-    view = (None if first.moment_view is None
-            else concatenate_samples([p.moment_view for p in parts]))
+    moments = None if first.moments is None else _joined_moments(parts, weights)
     return AeroSamples(
         time=_joined(parts, lambda p: p.time),
         condition=AeroCondition(*(_joined(parts, lambda p, i=i: p.condition[i])
@@ -82,6 +81,25 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
         thrust_correction_terms=tuple(t for t in THROTTLE_TERMS if any(
             t in p.thrust_correction_terms for p in parts)),
         reference_area=first.reference_area,
-        moment_view=view,
+        moments=moments,
         signal_units=dict(first.signal_units),
     )
+
+
+def _joined_moments(parts: Sequence[AeroSamples], weights: np.ndarray) -> MomentInputs:
+    """The moments' inputs of the segments ``parts`` joined as :func:`concatenate_samples`
+    joins the samples (noise variances weighted by ``weights``)."""
+    first = parts[0].moments
+    return MomentInputs(
+        condition=AeroCondition(*(_joined(parts, lambda p, i=i: p.moments.condition[i])
+                                  for i in range(len(first.condition)))),
+        dynamic_pressure=_joined(parts, lambda p: p.moments.dynamic_pressure),
+        throttle=_joined(parts, lambda p: p.moments.throttle),
+        thrust=_joined(parts, lambda p: p.moments.thrust),
+        thrust_airspeed_slope=(None if first.thrust_airspeed_slope is None
+                               else _joined(parts, lambda p: p.moments.thrust_airspeed_slope)),
+        rate_derivatives=np.concatenate([p.moments.rate_derivatives for p in parts]),
+        logged={k: _joined(parts, lambda p, k=k: p.moments.logged[k]) for k in first.logged},
+        noise_variance={name: float(np.average([p.moments.noise_variance[name] for p in parts],
+                                               weights=weights))
+                        for name in first.noise_variance})

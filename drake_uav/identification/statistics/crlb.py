@@ -49,7 +49,24 @@ def _inverse_gram(X: np.ndarray) -> np.ndarray:
 def crlb_ols(X, noise_std: float) -> np.ndarray:
     """Cramer-Rao bound (n, n) of theta for exact regressors X (N, n) and white noise on z.
 
-    ``noise_std``: standard deviation of the observation noise (units of z).
+    Parameters
+    ----------
+    X : array_like
+        (N, n) exact regressors.
+    noise_std : float
+        Standard deviation of the observation noise (units of z).
+
+    Returns
+    -------
+    ndarray
+        (n, n) the bound on the covariance of any unbiased estimate of theta.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.column_stack([np.ones(100), np.linspace(-1.0, 1.0, 100)])
+    >>> float(np.sqrt(crlb_ols(X, 0.1)[0, 0]))   # 0.1 / sqrt(100)
+    0.01
     """
     if not noise_std > 0:
         raise ValueError(f"noise_std must be positive, got {noise_std}")
@@ -59,10 +76,33 @@ def crlb_ols(X, noise_std: float) -> np.ndarray:
 def crlb_errors_in_variables(X_true, theta, error_cov) -> np.ndarray:
     """Cramer-Rao bound (n, n) of theta with noisy regressors (functional EIV model).
 
-    Args:
-        X_true: (N, n) true regressors. theta: (n,) true parameters.
-        error_cov: (n+1, n+1) covariance W_T of one row of [dX | e], or its diagonal
-            (n+1,) of variances; zero entries mark exact columns.
+    Parameters
+    ----------
+    X_true : array_like
+        (N, n) true regressors.
+    theta : array_like
+        (n,) true parameters.
+    error_cov : array_like
+        (n+1, n+1) covariance W_T of one row of [dX | e], or its diagonal (n+1,) of
+        variances; zero entries mark exact columns.
+
+    Returns
+    -------
+    ndarray
+        (n, n) the bound.
+
+    Raises
+    ------
+    ValueError
+        When the shapes do not match.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.column_stack([np.ones(100), np.linspace(-1.0, 1.0, 100)])
+    >>> bound = crlb_errors_in_variables(X, [0.0, 2.0], [0.0, 0.05, 0.05])
+    >>> bound.shape
+    (2, 2)
     """
     X = _regressors(X_true)
     n = X.shape[1]
@@ -88,18 +128,43 @@ def sample_errors_in_variables(
 ):
     """Draw measured data sets [X | z] = [X0 | X0 theta] + independent Gaussian column errors.
 
-    Args:
-        X_true: (N, n) true regressors. theta: (n,) true parameters.
-        error_std: (n+1,) error standard deviation of each column of [X | z] (0 = exact).
-        rng: numpy Generator (the only source of randomness).
-        runs: number of data sets; None draws one.
-        antithetic: draw the runs in pairs with opposite errors (run i + runs/2 has the
-            negated errors of run i; ``runs`` must be even). Every run keeps the error
-            distribution; the Monte-Carlo mean of an estimator is then free of the sampling
-            noise that is odd in the errors, so it shows the estimator's own bias.
+    Parameters
+    ----------
+    X_true : array_like
+        (N, n) true regressors.
+    theta : array_like
+        (n,) true parameters.
+    error_std : array_like
+        (n+1,) error standard deviation of each column of [X | z] (0 = exact).
+    rng : numpy.random.Generator
+        The only source of randomness.
+    runs : int, optional
+        Number of data sets; None draws one.
+    antithetic : bool
+        Draw the runs in pairs with opposite errors (run i + runs/2 has the negated
+        errors of run i; ``runs`` must be even). Every run keeps the error distribution;
+        the Monte-Carlo mean of an estimator is then free of the sampling noise that is
+        odd in the errors, so it shows the estimator's own bias.
 
-    Returns:
-        (X, z): shapes (N, n) and (N,), or (runs, N, n) and (runs, N) when ``runs`` is given.
+    Returns
+    -------
+    tuple
+        (X, z): shapes (N, n) and (N,), or (runs, N, n) and (runs, N) when ``runs`` is
+        given.
+
+    Raises
+    ------
+    ValueError
+        For a bad ``error_std`` or an odd number of antithetic runs.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X0 = np.column_stack([np.ones(50), np.linspace(-1.0, 1.0, 50)])
+    >>> X, z = sample_errors_in_variables(X0, [0.0, 2.0], [0.0, 0.1, 0.1],
+    ...                                   np.random.default_rng(0), runs=4)
+    >>> X.shape, z.shape
+    ((4, 50, 2), (4, 50))
     """
     X = _regressors(X_true)
     N, n = X.shape
