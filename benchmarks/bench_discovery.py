@@ -42,13 +42,13 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
-from drake_uav.campaigns.discovery_cases import (
+from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
+from drake_uav.testing.discovery_cases import (
     EXCITATIONS,
     FLIGHT_DURATION,
     INJECTED,
     SUITES,
 )
-from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
 
 TARGETS = {("research", 0.2): 0.9, ("default", 0.3): 0.7}
 """Exact-detection rates the campaign is held to (suite, size) -> rate; false-discovery

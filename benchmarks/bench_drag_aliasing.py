@@ -21,9 +21,9 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import parse_seeds
-from drake_uav.campaigns.discovery_cases import EXCITATIONS, FLIGHT_DURATION
-from drake_uav.campaigns.drag_aliasing import WITH_THRUST, drag_axis_shares
 from drake_uav.diagrams import fly
+from drake_uav.testing.discovery_cases import EXCITATIONS, FLIGHT_DURATION
+from drake_uav.testing.drag_aliasing import WITH_THRUST, drag_axis_shares
 from drake_uav.vehicles.loading import load_fixed_wing
 
 

@@ -19,7 +19,7 @@ import multiprocessing
 from figures import figure
 
 from drake_uav.campaigns import parse_seeds
-from drake_uav.campaigns.imu_offset import imu_offset_run
+from drake_uav.testing.imu_offset import imu_offset_run
 
 
 def _run(job: tuple[int, str, str]) -> tuple[tuple[str, str], dict]:

@@ -21,15 +21,15 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import parse_seeds
-from drake_uav.campaigns.discovery_cases import (
+from drake_uav.diagrams import fly
+from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.testing.discovery_cases import (
     FLIGHT_DURATION,
     SUITES,
     aero_condition,
     true_coefficients,
 )
-from drake_uav.campaigns.noise_budget import ALL, SENSOR_GROUPS, noise_budget
-from drake_uav.diagrams import fly
-from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.testing.noise_budget import ALL, SENSOR_GROUPS, noise_budget
 from drake_uav.vehicles.loading import load_fixed_wing
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
-from drake_uav.campaigns.realistic_logs import FORMATS
+from drake_uav.testing.realistic_logs import FORMATS
 
 
 def _rate(flags) -> str:

@@ -88,7 +88,7 @@ def test_averaging_a_100_hz_log_cuts_the_coefficients_error_by_the_square_root_o
     """Against the same log interpolated onto the 50 Hz grid first (every other sample),
     the errors of the measured coefficients (:func:`noise_budget`: against the coefficients
     isolated from the true signals the same way) fall by about sqrt(2)."""
-    from drake_uav.campaigns.noise_budget import ALL, noise_budget
+    from drake_uav.testing.noise_budget import ALL, noise_budget
 
     errors = noise_budget(flight, PARAMS)[ALL]
     before = noise_budget(flight.resample(rate_hz=50.0), PARAMS)[ALL]

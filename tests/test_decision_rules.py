@@ -15,13 +15,13 @@ import pytest
 from synthetic_flight import synthetic_samples
 
 import drake_uav
-from drake_uav.campaigns.discovery_cases import measured_only
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.identification.discovery.loop import check_coefficients, discover
 from drake_uav.identification.discovery.result import NO_EFFECT_MESSAGE, EvidenceRule
 from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.testing.discovery_cases import measured_only
 from drake_uav.vehicles.loading import load_fixed_wing
 from drake_uav.vehicles.sensors import SensorSuiteParams
 

@@ -16,10 +16,10 @@ import types
 
 import pytest
 
-import drake_uav.campaigns.discovery_cases as discovery_cases
-from drake_uav.campaigns.discovery_cases import INJECTED, discovery
+import drake_uav.testing.discovery_cases as discovery_cases
 from drake_uav.identification.discovery.result import Evidence, FoundEffect
 from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.testing.discovery_cases import INJECTED, discovery
 
 SEEDS = (0, 1, 2)
 CASES = ("stall_onset", "elevator_roll", "roll_yaw_rate_pitch", "servo_delay",

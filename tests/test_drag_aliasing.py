@@ -4,14 +4,14 @@
 import numpy as np
 import pytest
 
-from drake_uav.campaigns.drag_aliasing import (
+from drake_uav.diagrams import fly
+from drake_uav.testing.drag_aliasing import (
     CATALOG,
     DRAG_AXIS,
     WITH_THRUST,
     drag_axis_shares,
     unique_share,
 )
-from drake_uav.diagrams import fly
 from drake_uav.vehicles.loading import load_fixed_wing
 
 

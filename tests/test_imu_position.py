@@ -1,7 +1,7 @@
 """The accelerometers moved to the centre of gravity from the IMU position the log records.
 
 The flights carry an IMU 20 cm ahead of the centre of gravity, 5 cm left and 10 cm below
-(:mod:`drake_uav.campaigns.imu_offset`; Aerosonde, default sensors, light turbulence,
+(:mod:`drake_uav.testing.imu_offset`; Aerosonde, default sensors, light turbulence,
 120 s): its accelerometers read ``w_dot x r + w x (w x r)`` more. Without that position
 the job took it for an air-data time skew of 14-18 ms and found an accelerometer lever
 arm and an unsteady alpha-dot on tuning flights 100-103; with it, nothing on the same
@@ -15,9 +15,6 @@ import numpy as np
 import pytest
 from log_writers import dataflash_from_log, ulog_from_log
 
-from drake_uav.campaigns.discovery_cases import measured_only
-from drake_uav.campaigns.imu_offset import OFFSET as IMU_OFFSET
-from drake_uav.campaigns.imu_offset import imu_away_from_cg
 from drake_uav.cli import main
 from drake_uav.diagrams import fly
 from drake_uav.estimation.imu_position import accelerometers_at_cg, logged_imu_position
@@ -25,6 +22,9 @@ from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.readers import read_log
 from drake_uav.model.isolation import lever_arm_specific_force
+from drake_uav.testing.discovery_cases import measured_only
+from drake_uav.testing.imu_offset import OFFSET as IMU_OFFSET
+from drake_uav.testing.imu_offset import imu_away_from_cg
 from drake_uav.vehicles import aerosonde
 
 PARAMS = aerosonde()

@@ -4,10 +4,10 @@ prints the campaign's figures)."""
 import numpy as np
 import pytest
 
-from drake_uav.campaigns.discovery_cases import SUITES, measured_only
-from drake_uav.campaigns.noise_budget import ALL, SENSOR_GROUPS, noise_budget
 from drake_uav.diagrams import fly
 from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.testing.discovery_cases import SUITES, measured_only
+from drake_uav.testing.noise_budget import ALL, SENSOR_GROUPS, noise_budget
 from drake_uav.vehicles.loading import load_fixed_wing
 
 FORCES, MOMENTS = ("CL", "CD", "CY"), ("Cl", "Cm", "Cn")

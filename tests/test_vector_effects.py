@@ -9,7 +9,7 @@ airspeed (qbar within 2 %) no force of realistic size can be found, by any effec
 Thresholds and sizes were set on seeds 100-107; the seeds below were run once.
 
 A pull towards a point nobody gave (the campaign scenario
-:func:`~drake_uav.campaigns.discovery_cases.discovery`, effect ``pull_to_point``: the
+:func:`~drake_uav.testing.discovery_cases.discovery`, effect ``pull_to_point``: the
 default multisine, 30 % of C_Y's variation, 4.26 N towards a ground point 400 m beside the
 track, the main job on the measured channels): the point's tolerances were set on seeds
 100-109 (largest error 14 m with the research-grade sensors, 100 m with the default
@@ -22,7 +22,6 @@ import warnings
 import numpy as np
 import pytest
 
-from drake_uav.campaigns.discovery_cases import SUITES, discovery, pull_towards_point
 from drake_uav.diagrams import fly
 from drake_uav.diagrams.identification_flight import default_excitation
 from drake_uav.identification.discovery.evidence import JointBlock, joint_solve
@@ -37,6 +36,7 @@ from drake_uav.identification.discovery.vector_effects import (
 from drake_uav.identification.pipeline import identify, select_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.systems.excitation import Multisine
+from drake_uav.testing.discovery_cases import SUITES, discovery, pull_towards_point
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 PARAMS = aerosonde()

@@ -22,8 +22,8 @@ _SCENARIOS: dict[str, Scenario] = {}
 BUILT_IN = {"main_job": "drake_uav.campaigns.scenarios",
             "air_data_ekf": "drake_uav.campaigns.scenarios",
             "tracking_nmpc": "drake_uav.campaigns.scenarios",
-            "realistic_logs": "drake_uav.campaigns.realistic_logs",
-            "discovery": "drake_uav.campaigns.discovery_cases"}
+            "realistic_logs": "drake_uav.testing.realistic_logs",
+            "discovery": "drake_uav.testing.discovery_cases"}
 """Built-in scenario name -> the module that registers it (imported on first use only)."""
 
 

@@ -12,7 +12,7 @@ CSV names ``control_nonlinearity`` instead on seed 3).
 
 import pytest
 
-from drake_uav.campaigns.realistic_logs import realistic_logs
+from drake_uav.testing.realistic_logs import realistic_logs
 
 SEEDS = range(5)
 

@@ -2,7 +2,7 @@
 
 A term the baseline can already represent is not missing from the model: its fit moves the
 baseline's coefficients instead, and no evidence rule can name it. For each effect of
-:data:`~drake_uav.campaigns.discovery_cases.INJECTED` that acts on C_D, along a flight's
+:data:`~drake_uav.testing.discovery_cases.INJECTED` that acts on C_D, along a flight's
 truth, :func:`drag_axis_shares` gives its *unique share*: ``1 - R^2`` of its term regressed
 on a set of columns, the part of its variation over the flight that the set cannot
 reproduce (1: nothing of it; 0: all of it). The sets are the catalog's C_D terms, those
@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_uav.campaigns.discovery_cases import INJECTED, aero_condition, qbar_s
 from drake_uav.identification.discovery.coefficient_design import baseline_names
 from drake_uav.identification.propulsion import thrust_drag_columns
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.coefficients import regressor_matrix
+from drake_uav.testing.discovery_cases import INJECTED, aero_condition, qbar_s
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["DRAG_AXIS", "CATALOG", "WITH_THRUST", "unique_share", "drag_axis_shares"]

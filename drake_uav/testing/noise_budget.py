@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_uav.campaigns.discovery_cases import measured_only
 from drake_uav.estimation.signals import AIR_DATA, ATTITUDE, IMU, LOG_CHANNELS
 from drake_uav.identification.pipeline import select_samples
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS
+from drake_uav.testing.discovery_cases import measured_only
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["SENSOR_GROUPS", "ALL", "noise_budget"]

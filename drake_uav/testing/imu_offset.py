@@ -17,12 +17,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from drake_uav.campaigns.discovery_cases import FLIGHT_DURATION, SUITES, measured_only
 from drake_uav.diagrams import fly
 from drake_uav.estimation.imu_position import ACCELEROMETERS
 from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.isolation import lever_arm_specific_force
+from drake_uav.testing.discovery_cases import FLIGHT_DURATION, SUITES, measured_only
 from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["OFFSET", "imu_away_from_cg", "imu_offset_run"]
