@@ -8,11 +8,17 @@ structured array with pymavlink's format table and multipliers. Time is
 SD-card logs often end in a half-written record followed by block padding:
 that last record is dropped with a warning (``allow_truncated``). Bytes that
 cannot be parsed although complete messages follow them are corrupt data, an
-error whatever ``allow_truncated`` says.
+error whatever ``allow_truncated`` says. pymavlink reports every byte it skips on
+standard error; those reports become one warning per file.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
+import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -28,6 +34,27 @@ _TRAILING_SLACK = 528
 """Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
 _PADDING_RUN = 8
 """Shortest run of 0x00 or 0xFF bytes at the end of a file taken for block padding."""
+
+
+@contextlib.contextmanager
+def _printed_into(sink: io.StringIO):
+    """Collects what is printed meanwhile on standard output and error, by Python code and
+    by C code (pymavlink's compiled indexer prints on file descriptor 2), into ``sink``."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as scratch:
+        saved = [os.dup(1), os.dup(2)]
+        os.dup2(scratch.fileno(), 1)
+        os.dup2(scratch.fileno(), 2)
+        try:
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield
+        finally:
+            for fd, copy in zip((1, 2), saved, strict=True):
+                os.dup2(copy, fd)
+                os.close(copy)
+            scratch.seek(0)
+            sink.write(scratch.read().decode(errors="replace"))
 
 
 class _Index(DFReader_binary):
@@ -69,8 +96,10 @@ class DataFlash:
         if self.data.size < 3 or tuple(self.data[:3]) != _HEAD:
             raise FlightLogError(f"{path}: not an ArduPilot DataFlash log (no FMT message at "
                                  "the start of the file)")
+        skipped = io.StringIO()
         try:
-            index = _Index(str(path))
+            with _printed_into(skipped):  # pymavlink prints a line per skipped byte
+                index = _Index(str(path))
         except Exception as err:  # pymavlink raises bare Exceptions on malformed formats
             raise FlightLogError(f"{path}: unreadable DataFlash log ({err})") from None
         try:
@@ -79,7 +108,27 @@ class DataFlash:
                             for name, f in self.formats.items()}
         finally:
             index.close()
-        self._check_coverage(allow_truncated)
+        with warnings.catch_warnings(record=True) as reported:
+            warnings.simplefilter("always")
+            self._check_coverage(allow_truncated)
+        for warning in reported:
+            warnings.warn(warning.message, stacklevel=3)
+        if not reported:
+            self._report_skipped(skipped.getvalue())
+
+    def _report_skipped(self, report: str) -> None:
+        """One warning for what pymavlink printed while indexing that the coverage check
+        did not account for (a bad header inside the trailing slack, an unknown message
+        type, a malformed format)."""
+        lines = [line.strip() for line in report.splitlines() if line.strip()]
+        bad = sum(line.startswith("bad header") for line in lines)
+        other = [line for line in lines if not line.startswith("bad header")]
+        what = ([f"{bad} corrupt byte(s) skipped"] if bad else []) + (
+            [f"the DataFlash parser reported '{other[0]}'"
+             + (f" and {len(other) - 1} more line(s)" if len(other) > 1 else "")]
+            if other else [])
+        if what:
+            warnings.warn(f"{self.source}: {'; '.join(what)}", stacklevel=4)
 
     def _truncated(self, message: str, allow_truncated: bool) -> None:
         if not allow_truncated:
