@@ -22,7 +22,7 @@ time of each step and the median of its process CPU time per mode, the RMSE afte
     python benchmarks/bench_nmpc.py [--duration 20] [--modes rti,nlp,casadi_ipopt,...] [--quick]
 
 Without CasADi (pip ``casadi``, the optional ``[bench]`` extra) its modes are skipped with a
-note and the others fly. ``--quick`` flies 3 s.
+note and the others fly. ``--quick`` flies 3 s with a coarser terminal level.
 """
 
 from __future__ import annotations
@@ -209,7 +209,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=20.0)
     parser.add_argument("--modes", default=MODES)
-    parser.add_argument("--quick", action="store_true", help="a 3 s flight")
+    parser.add_argument("--quick", action="store_true",
+                        help="a 3 s flight, a coarser terminal level")
     args = parser.parse_args(argv)
     if args.quick:
         args.duration = 3.0
@@ -222,7 +223,8 @@ def main(argv=None) -> None:
                   "(pip install 'drake_uav[bench]' or casadi)")
     params = hexacopter()
     t0 = time.perf_counter()
-    terminal = build_terminal_set(params, tracking_reference(params))
+    coarse = {"samples": 32, "shrink_interval": 1.0} if args.quick else {}
+    terminal = build_terminal_set(params, tracking_reference(params), **coarse)
     print(f"terminal sets: {time.perf_counter() - t0:.1f} s")
     x0 = terminal.reference.state[0].copy()
     x0[:3] += [0.3, 0.4, 0.0]

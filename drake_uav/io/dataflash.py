@@ -243,23 +243,35 @@ class DataFlash:
                 return None
         out = {}
         for field in fields:
-            values = records[field].astype(float)
+            values = self._numbers(name, records, field)
             mult = fmt.msg_mults[fmt.colhash[field]]
             if mult is not None:
                 # Divide by the inverse of a fractional multiplier, as pymavlink does:
                 # 1234 / 100 is exact to the last bit where 1234 * 0.01 is not.
                 values = values / (1.0 / mult) if 0.0 < mult < 1.0 else values * mult
             out[field] = values
-        return records["TimeUS"].astype(float) / 1e6, out
+        return self._numbers(name, records, "TimeUS") / 1e6, out
+
+    def _numbers(self, name: str, records: np.ndarray, field: str) -> np.ndarray:
+        """Field ``field`` of message ``name``'s ``records`` as floats; FlightLogError when
+        the log's format gives it as text (a corrupt FMT message)."""
+        if records.dtype[field].kind not in "biuf":
+            raise FlightLogError(f"{self.source}: message {name}: field {field} is "
+                                 f"'{records.dtype[field]}', not a number (a corrupt FMT "
+                                 "message)")
+        return records[field].astype(float)
 
     def strings(self, name: str, field: str) -> tuple[np.ndarray, list[str]] | None:
         """(time [s], decoded text) of a text field of message ``name``, or None."""
         if not self.has(name) or field not in self.formats[name].colhash:
             return None
         records = self.records(name)
+        if records.dtype[field].kind != "S":
+            raise FlightLogError(f"{self.source}: message {name}: field {field} is "
+                                 f"'{records.dtype[field]}', not text (a corrupt FMT message)")
         text = [raw.split(b"\0", 1)[0].decode("ascii", "replace") for raw in records[field]]
-        time = (records["TimeUS"].astype(float) / 1e6 if "TimeUS" in records.dtype.names
-                else np.zeros(len(text)))
+        time = (self._numbers(name, records, "TimeUS") / 1e6
+                if "TimeUS" in records.dtype.names else np.zeros(len(text)))
         return time, text
 
     def parameters(self) -> dict[str, float]:
@@ -267,5 +279,8 @@ class DataFlash:
         got = self.strings("PARM", "Name")
         if got is None:
             return {}
-        values = self.records("PARM")["Value"].astype(float)
+        if "Value" not in self.formats["PARM"].colhash:
+            raise FlightLogError(f"{self.source}: message PARM has no field Value (fields: "
+                                 f"{', '.join(self.formats['PARM'].columns)})")
+        values = self._numbers("PARM", self.records("PARM"), "Value")
         return dict(zip(got[1], values.tolist(), strict=True))

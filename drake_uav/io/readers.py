@@ -77,6 +77,7 @@ CORRUPT_MAGNITUDE: dict[str, float] = {
     "m/s": 1e4,  # 30 times the speed of sound
     "m": 1e8,  # 15 Earth radii
     "Pa": 1e7,  # 100 atmospheres
+    "1": 1e3,  # the throttle, 0..1
 }
 """Magnitude [SI unit] beyond which a canonical channel's value is corrupt data, not a
 reading: far beyond any sensor of a small aircraft, so that only a damaged number (a flipped
