@@ -22,8 +22,8 @@ scripts print FIGURE lines).
         [--quick] [--scripts bench_fixed_wing.py ... | all] [--log-dir DIR]
 
 ``--quick`` runs the scripts in their quick modes, once each unless ``--repeats`` is given
-(alone: one run of bench_fixed_wing.py in each tree). The exit status is 1 when a script of
-the "after" tree failed.
+(alone: one run of bench_fixed_wing.py in HEAD and in the working tree, what uncommitted
+changes do). The exit status is 1 when a script of the "after" tree failed.
 """
 
 from __future__ import annotations
@@ -322,7 +322,9 @@ def main() -> None:
         run_in_tree(tree, flag == "--moved-names", script, rest)
         return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--base", default=DEFAULT_BASE, help="revision before the change")
+    parser.add_argument("--base", default=None,
+                        help=f"revision before the change (default {DEFAULT_BASE}; HEAD with "
+                             "--quick alone)")
     parser.add_argument("--after", default=None,
                         help="revision after the change (default: the working tree)")
     parser.add_argument("--repeats", type=int, default=None,
@@ -340,8 +342,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.repeats is None:
         args.repeats = 1 if args.quick else 3
-    if args.quick and not args.scripts:
+    if args.quick and not args.scripts:  # a smoke run: HEAD against the working tree
         args.scripts = list(QUICK_SCRIPTS)
+        args.base = args.base or "HEAD"
+    args.base = args.base or DEFAULT_BASE
     sys.exit(compare(args))
 
 
