@@ -3,7 +3,9 @@
 Each script of benchmarks/ and examples/ (the helper modules excepted) runs with ``--quick``
 in a fresh process of this interpreter, in a scratch folder (so the ``out/`` files the
 examples write do not land in the tree), with this tree first on ``PYTHONPATH``. One line
-per script gives its status and wall time; a script that exits non-zero or runs longer than
+per script gives its status, wall time and CPU time (of the script and the processes it
+starts; on a shared machine the wall time grows with the load, the CPU time much less); a
+script that exits non-zero or runs longer than
 ``--timeout`` has its output printed and ends the run with exit status 1. CI runs this
 (``.ci/run``), so a benchmark or an example that no longer runs fails the build.
 
@@ -14,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -30,6 +33,11 @@ def scripts() -> list[Path]:
     """Every script of benchmarks/ and examples/, sorted by folder then name."""
     return [path for folder in FOLDERS for path in sorted((ROOT / folder).glob("*.py"))
             if path.name not in HELPERS]
+
+
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def run(script: Path, scratch: Path, timeout: float, verbose: bool) -> tuple[int, float, str]:
@@ -60,18 +68,22 @@ def main() -> int:
         parser.error(f"no such script in {' or '.join(FOLDERS)}: {', '.join(sorted(unknown))}")
     if args.names:
         chosen = [path for path in chosen if path.name in args.names]
-    total = time.perf_counter()
+    total, total_cpu = time.perf_counter(), _children_cpu()
     for script in chosen:
         name = script.relative_to(ROOT)
+        cpu = _children_cpu()
         with tempfile.TemporaryDirectory(prefix="drake_uav_quick_") as scratch:
             status, seconds, output = run(script, Path(scratch), args.timeout, args.verbose)
+        times = f"{seconds:6.1f} s wall {_children_cpu() - cpu:6.1f} s CPU"
         if status != 0:
             reason = f"timed out after {args.timeout:g} s" if status == -1 else f"exit {status}"
             print(output, end="" if output.endswith("\n") else "\n")
-            print(f"FAILED {seconds:6.1f} s  {name} --quick ({reason})", flush=True)
+            print(f"FAILED {times}  {name} --quick ({reason})", flush=True)
             return 1
-        print(f"ok     {seconds:6.1f} s  {name} --quick", flush=True)
-    print(f"{len(chosen)} scripts in {time.perf_counter() - total:.0f} s", flush=True)
+        print(f"ok     {times}  {name} --quick", flush=True)
+    print(f"{len(chosen)} scripts in {time.perf_counter() - total:.0f} s wall, "
+          f"{_children_cpu() - total_cpu:.0f} s CPU (load average {os.getloadavg()[0]:.1f})",
+          flush=True)
     return 0
 
 
