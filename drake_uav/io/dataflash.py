@@ -208,6 +208,9 @@ class DataFlash:
     def records(self, name: str) -> np.ndarray:
         """Every message ``name`` as a numpy structured array (raw stored values)."""
         fmt = self.formats[name]
+        if len(fmt.columns) != len(fmt.format):
+            raise FlightLogError(f"{self.source}: FMT of {name} gives {len(fmt.format)} types "
+                                 f"for {len(fmt.columns)} columns (a corrupt FMT message)")
         dtype = _dtype(fmt)
         if dtype.itemsize != fmt.len - 3:
             raise FlightLogError(f"{self.source}: FMT of {name} gives length {fmt.len}, its "
