@@ -2,7 +2,8 @@
 
 Each script of benchmarks/ and examples/ (the helper modules excepted) runs with ``--quick``
 in a fresh process of this interpreter, in a scratch folder (so the ``out/`` files the
-examples write do not land in the tree), with this tree first on ``PYTHONPATH``. One line
+examples write do not land in the tree), with this tree first on ``PYTHONPATH`` and one
+numerical-library thread. One line
 per script gives its status, wall time and CPU time (of the script and the processes it
 starts; on a shared machine the wall time grows with the load, the CPU time much less); a
 script that exits non-zero or runs longer than
@@ -27,6 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = ("benchmarks", "examples")
 HELPERS = frozenset({"figures.py", "timing.py", "run_quick.py"})
 """Modules of benchmarks/ that the scripts import (or this runner): not scripts."""
+ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""Thread counts set to 1 for the scripts unless the environment sets them."""
 
 
 def scripts() -> list[Path]:
@@ -44,6 +47,8 @@ def run(script: Path, scratch: Path, timeout: float, verbose: bool) -> tuple[int
     """(exit status, wall time [s], output) of ``script --quick``; status -1 on a timeout."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]), MPLBACKEND="Agg")
+    for name in ONE_THREAD:  # idle BLAS threads spin on a shared machine
+        env.setdefault(name, "1")
     start = time.perf_counter()
     try:
         done = subprocess.run([sys.executable, str(script), "--quick"], cwd=scratch, env=env,
