@@ -37,6 +37,7 @@ from log_writers import dataflash_from_log, ulog_from_log
 import drake_uav
 from drake_uav.cli import main
 from drake_uav.io import FlightLog, FlightLogError, read_log
+from drake_uav.vehicles import aerosonde
 
 DATA = Path(__file__).parent / "data"
 SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
@@ -225,14 +226,17 @@ def snapshot(folder: Path, leave_out: Path | None = None) -> dict[str, str]:
 
 
 def check_read(path: Path, capfd) -> None:
-    """read_log gives a FlightLog or one FlightLogError line naming the file; the parsers
-    print nothing and the folder is unchanged."""
+    """read_log (with the options ``drake-uav identify`` gives an autopilot log) gives a
+    FlightLog or one FlightLogError line naming the file; the parsers print nothing and the
+    folder is unchanged."""
+    options = ({"deflections": aerosonde().limits.deflections(), "extra_channels": []}
+               if path.suffix in (".bin", ".ulg") else {})
     before = snapshot(path.parent)
     capfd.readouterr()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            log = read_log(path)
+            log = read_log(path, **options)
         except FlightLogError as err:
             message = str(err)
             assert str(path) in message and "\n" not in message, message
@@ -337,3 +341,21 @@ def test_absurd_value_is_refused_at_the_reader(tmp_path):
         f"{path}: channel imu_q holds 4.5e+85 rad/s at t = {sample.time[100]:.6g} s (sample "
         "100; 1 such sample(s)), beyond any sensor's range (|value| > 100000 rad/s): "
         "corrupt data")
+
+
+def test_parquet_with_a_cut_footer_fails_on_one_line(corpus, tmp_path):
+    """pyarrow's message spans lines; the error the command prints is one line."""
+    path = tmp_path / "cut.parquet"
+    path.write_bytes(corpus["parquet"][0].read_bytes()[:-100])
+    with pytest.raises(FlightLogError) as raised:
+        read_log(path)
+    message = str(raised.value)
+    assert message.startswith(f"{path}: not a readable Parquet file (") and "\n" not in message
+
+
+def test_flight_log_error_is_one_line():
+    """A parser's message quoted in a FlightLogError keeps its words, not its line breaks."""
+    error = FlightLogError("f.parquet: not a readable Parquet file (Couldn't deserialize "
+                           "thrift: Invalid data\nDeserializing page header failed.\n)")
+    assert str(error) == ("f.parquet: not a readable Parquet file (Couldn't deserialize "
+                          "thrift: Invalid data Deserializing page header failed. )")
