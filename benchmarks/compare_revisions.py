@@ -21,9 +21,10 @@ scripts print FIGURE lines).
     python benchmarks/compare_revisions.py [--base 3edcacf] [--after REV] [--repeats 3]
         [--quick] [--scripts bench_fixed_wing.py ... | all] [--log-dir DIR]
 
-``--quick`` runs the scripts in their quick modes, once each unless ``--repeats`` is given
-(alone: one run of bench_fixed_wing.py in HEAD and in the working tree, what uncommitted
-changes do). The exit status is 1 when a script of the "after" tree failed.
+``--quick`` runs the scripts in their quick modes. The exit status is 1 when a script of the
+"after" tree failed (benchmarks/run_quick.py runs
+``--quick --base HEAD --repeats 1 --scripts bench_fixed_wing.py``: what uncommitted changes
+do to the plant's figures).
 """
 
 from __future__ import annotations
@@ -52,8 +53,6 @@ DEFAULT_BASE = "3edcacf"
 DEFAULT_SCRIPTS = ("bench_fixed_wing.py", "bench_identification_flight.py", "bench_estimation.py",
                    "bench_identification.py", "bench_multirotor.py")
 """The scripts of the speed figures (``--scripts all``: every benchmarks/bench_*.py)."""
-QUICK_SCRIPTS = ("bench_fixed_wing.py",)
-"""The scripts of ``--quick`` without ``--scripts``."""
 PACKAGE = "drake_uav"
 ALIAS = "ALIAS"
 
@@ -322,31 +321,20 @@ def main() -> None:
         run_in_tree(tree, flag == "--moved-names", script, rest)
         return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--base", default=None,
-                        help=f"revision before the change (default {DEFAULT_BASE}; HEAD with "
-                             "--quick alone)")
+    parser.add_argument("--base", default=DEFAULT_BASE, help="revision before the change")
     parser.add_argument("--after", default=None,
                         help="revision after the change (default: the working tree)")
-    parser.add_argument("--repeats", type=int, default=None,
-                        help="alternating runs per script (default 3; 1 with --quick)")
+    parser.add_argument("--repeats", type=int, default=3, help="alternating runs per script")
     parser.add_argument("--scripts", nargs="*",
                         help="benchmark file names or 'all' (default: the speed figures)")
     parser.add_argument("--quick", action="store_true",
-                        help="pass --quick to the scripts that have it (headline figures); "
-                             f"alone, one run of {QUICK_SCRIPTS[0]}")
+                        help="pass --quick to the scripts that have it (headline figures)")
     parser.add_argument("--own-scripts", action="store_true",
                         help="each tree runs its own benchmark scripts")
     parser.add_argument("--threads", type=int, default=1, help="BLAS/OpenMP threads")
     parser.add_argument("--timeout", type=float, default=3600.0, help="per run [s]")
     parser.add_argument("--log-dir", help="keep the output of every run here")
-    args = parser.parse_args()
-    if args.repeats is None:
-        args.repeats = 1 if args.quick else 3
-    if args.quick and not args.scripts:  # a smoke run: HEAD against the working tree
-        args.scripts = list(QUICK_SCRIPTS)
-        args.base = args.base or "HEAD"
-    args.base = args.base or DEFAULT_BASE
-    sys.exit(compare(args))
+    sys.exit(compare(parser.parse_args()))
 
 
 if __name__ == "__main__":

@@ -1,14 +1,14 @@
 """Runs every benchmark and example in its quick mode and stops at the first that fails.
 
 Each script of benchmarks/ and examples/ (the helper modules excepted) runs with ``--quick``
-in a fresh process of this interpreter, in a scratch folder (so the ``out/`` files the
-examples write do not land in the tree), with this tree first on ``PYTHONPATH`` and one
-numerical-library thread. One line
-per script gives its status, wall time and CPU time (of the script and the processes it
-starts; on a shared machine the wall time grows with the load, the CPU time much less); a
-script that exits non-zero or runs longer than
-``--timeout`` has its output printed and ends the run with exit status 1. CI runs this
-(``.ci/run``), so a benchmark or an example that no longer runs fails the build.
+(and the :data:`QUICK_ARGUMENTS` it has) in a fresh process of this interpreter, in a
+scratch folder (so the ``out/`` files the examples write do not land in the tree), with this
+tree first on ``PYTHONPATH`` and one numerical-library thread. One line per script gives its
+status, wall time and CPU time (of the script and the processes it starts; on a shared
+machine the wall time grows with the load, the CPU time much less); a script that exits
+non-zero or runs longer than ``--timeout`` has its output printed and ends the run with exit
+status 1. CI runs this (``.ci/run``), so a benchmark or an example that no longer runs fails
+the build.
 
     python benchmarks/run_quick.py [SCRIPT ...] [--timeout 240] [--verbose]
 """
@@ -28,6 +28,9 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = ("benchmarks", "examples")
 HELPERS = frozenset({"figures.py", "timing.py", "run_quick.py"})
 """Modules of benchmarks/ that the scripts import (or this runner): not scripts."""
+QUICK_ARGUMENTS = {"compare_revisions.py": ["--base", "HEAD", "--repeats", "1", "--scripts",
+                                            "bench_fixed_wing.py"]}
+"""Arguments given with ``--quick`` to a script whose quick mode alone is still long."""
 ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """Thread counts set to 1 for the scripts unless the environment sets them."""
 
@@ -51,7 +54,8 @@ def run(script: Path, scratch: Path, timeout: float, verbose: bool) -> tuple[int
         env.setdefault(name, "1")
     start = time.perf_counter()
     try:
-        done = subprocess.run([sys.executable, str(script), "--quick"], cwd=scratch, env=env,
+        command = [sys.executable, str(script), "--quick", *QUICK_ARGUMENTS.get(script.name, [])]
+        done = subprocess.run(command, cwd=scratch, env=env,
                               stdout=None if verbose else subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as expired:
