@@ -37,6 +37,8 @@ from log_writers import dataflash_from_log, ulog_from_log
 import drake_uav
 from drake_uav.cli import main
 from drake_uav.io import FlightLog, FlightLogError, read_log
+from drake_uav.io.realistic_ardupilot import write_ardupilot_log
+from drake_uav.io.realistic_px4 import write_px4_log
 from drake_uav.vehicles import aerosonde
 
 DATA = Path(__file__).parent / "data"
@@ -57,12 +59,16 @@ SLOW_CLI = settings(FAST, max_examples=25, derandomize=False)
 @pytest.fixture(scope="module")
 def corpus(tmp_path_factory) -> dict[str, list[Path]]:
     """Seed logs per format: real autopilot logs and a 30 s slice of the bundled sample
-    written in each format (a fixed-wing flight every reader accepts)."""
+    written in each format (a fixed-wing flight every reader accepts), for ``.bin`` and
+    ``.ulg`` both with every channel at one rate and as a realistic autopilot log (ground
+    segment, servo parameters, flight modes, sensors at their own rates)."""
     folder = tmp_path_factory.mktemp("corpus")
     sample = FlightLog.load(SAMPLE).slice(0.0, 30.0)
     return {
-        "bin": [DATA / "ardupilot_center_0003.bin", dataflash_from_log(sample, folder / "s.bin")],
-        "ulg": [DATA / "px4_sample_log_small.ulg", ulog_from_log(sample, folder / "s.ulg")],
+        "bin": [DATA / "ardupilot_center_0003.bin", dataflash_from_log(sample, folder / "s.bin"),
+                write_ardupilot_log(sample, folder / "r.bin", seed=3).path],
+        "ulg": [DATA / "px4_sample_log_small.ulg", ulog_from_log(sample, folder / "s.ulg"),
+                write_px4_log(sample, folder / "r.ulg", seed=3).path],
         "csv": [sample.save(folder / "s.csv")],
         "parquet": [sample.save(folder / "s.parquet")],
     }
