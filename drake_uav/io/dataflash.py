@@ -108,12 +108,7 @@ class DataFlash:
                             for name, f in self.formats.items()}
         finally:
             index.close()
-        with warnings.catch_warnings(record=True) as reported:
-            warnings.simplefilter("always")
-            self._check_coverage(allow_truncated)
-        for warning in reported:
-            warnings.warn(warning.message, stacklevel=3)
-        if not reported:
+        if not self._check_coverage(allow_truncated):
             self._report_skipped(skipped.getvalue())
 
     def _report_skipped(self, report: str) -> None:
@@ -135,9 +130,10 @@ class DataFlash:
             raise FlightLogError(message + " (allow_truncated=True drops it)")
         warnings.warn(message + "; dropped", stacklevel=5)
 
-    def _check_coverage(self, allow_truncated: bool) -> None:
-        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs)."""
-        size, end, covered, where = self.data.size, 0, 0, None
+    def _check_coverage(self, allow_truncated: bool) -> bool:
+        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs);
+        True when a warning reported one of them."""
+        size, end, covered, where, reported = self.data.size, 0, 0, None, False
         padding = self._padding_start()
         for name, offsets in self.offsets.items():
             if not offsets.size:
@@ -148,6 +144,7 @@ class DataFlash:
             if cut:
                 self._truncated(f"{self.source}: truncated file: the last {name} message "
                                 f"(byte {last}) {cut}", allow_truncated)
+                reported = True
                 self.offsets[name] = offsets = offsets[:-1]
                 if not offsets.size:
                     continue
@@ -161,9 +158,12 @@ class DataFlash:
             if self._message_in(end):
                 raise FlightLogError(message + ": corrupt data in the log")
             self._truncated(message + ": a truncated log", allow_truncated)
+            reported = True
         if covered < end:
             warnings.warn(f"{self.source}: {end - covered} bytes of corrupt data skipped",
                           stacklevel=4)
+            reported = True
+        return reported
 
     def _cut_short(self, name: str, last: int, length: int, padding: int) -> str:
         """Why the last message ``name`` (at byte ``last``) is incomplete, or ""."""
