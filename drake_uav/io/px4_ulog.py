@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import struct
 import warnings
 from pathlib import Path
 
@@ -26,10 +25,6 @@ from drake_uav.io.flight_log import FlightLogError
 from drake_uav.io.streams import CHANNELS, Stream
 
 __all__ = ["ULogFile", "channel_stream"]
-
-_PARSER_ERRORS = (struct.error, ValueError, IndexError, KeyError, UnicodeDecodeError,
-                  OverflowError, MemoryError)
-"""Exceptions pyulog lets escape when a corrupt length or type name misleads it."""
 
 
 class _ShortReads(io.BufferedReader):
@@ -69,9 +64,6 @@ class ULogFile:
                 ulog = ULog(handle, message_name_filter_list=topics)
         except ULogException as err:
             raise FlightLogError(f"{path}: not a PX4 ULog file ({err})") from None
-        except _PARSER_ERRORS as err:  # what pyulog's decoding raises on corrupt bytes
-            raise FlightLogError(f"{path}: corrupt PX4 ULog file (the parser stopped: "
-                                 f"{type(err).__name__}: {err})") from None
         finally:
             handle.close()
         # Numeric fields only: a field of another type in a topic the readers use comes
