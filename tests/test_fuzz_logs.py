@@ -365,3 +365,14 @@ def test_flight_log_error_is_one_line():
                            "thrift: Invalid data\nDeserializing page header failed.\n)")
     assert str(error) == ("f.parquet: not a readable Parquet file (Couldn't deserialize "
                           "thrift: Invalid data Deserializing page header failed. )")
+
+
+def test_parquet_time_in_float32_is_refused(corpus, tmp_path):
+    """float32 sample times jitter by a part in 10^4 at 30 s: refused at the reader, before
+    the job's differentiation finds them non-uniform."""
+    path = tmp_path / "float32.parquet"
+    path.write_bytes(damage_parquet(corpus["parquet"][0].read_bytes(), ("dtype", 0, "float32")))
+    with pytest.raises(FlightLogError) as raised:
+        read_log(path)
+    assert str(raised.value) == (f"{path}: column 'time' is stored as float; sample times "
+                                 "need float64 (double) to stay uniform")

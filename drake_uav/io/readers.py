@@ -112,6 +112,8 @@ def _read_parquet(path: Path) -> FlightLog:
     try:
         return FlightLog.load(path)
     except FlightLogError as err:
-        raise FlightLogError(f"{path}: {err}") from None
+        message = str(err)  # named once: FlightLog.load names the file in some messages
+        raise FlightLogError(message if message.startswith(f"{path}: ") else f"{path}: {message}"
+                             ) from None
     except (ValueError, OSError, pyarrow.ArrowException) as err:
         raise FlightLogError(f"{path}: not a readable Parquet file ({err})") from None
