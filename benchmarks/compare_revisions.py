@@ -20,6 +20,10 @@ scripts print FIGURE lines).
 
     python benchmarks/compare_revisions.py [--base 3edcacf] [--after REV] [--repeats 3]
         [--quick] [--scripts bench_fixed_wing.py ... | all] [--log-dir DIR]
+
+``--quick`` runs the scripts in their quick modes, once each unless ``--repeats`` is given
+(alone: one run of bench_fixed_wing.py in HEAD and in the working tree, what uncommitted
+changes do). The exit status is 1 when a script of the "after" tree failed.
 """
 
 from __future__ import annotations
@@ -48,6 +52,8 @@ DEFAULT_BASE = "3edcacf"
 DEFAULT_SCRIPTS = ("bench_fixed_wing.py", "bench_identification_flight.py", "bench_estimation.py",
                    "bench_identification.py", "bench_multirotor.py")
 """The scripts of the speed figures (``--scripts all``: every benchmarks/bench_*.py)."""
+QUICK_SCRIPTS = ("bench_fixed_wing.py",)
+"""The scripts of ``--quick`` without ``--scripts``."""
 PACKAGE = "drake_uav"
 ALIAS = "ALIAS"
 
@@ -251,7 +257,9 @@ def table(results: dict[str, dict[str, list]], labels: tuple[str, str]) -> str:
     return "\n".join(rows)
 
 
-def compare(args) -> None:
+def compare(args) -> int:
+    """Runs the comparison and prints its table; returns 1 when a run of the "after" tree
+    failed (its scripts are expected to run), else 0."""
     repo = pathlib.Path(subprocess.run(["git", "-C", str(HERE), "rev-parse", "--show-toplevel"],
                                        check=True, capture_output=True,
                                        text=True).stdout.strip())
@@ -305,6 +313,7 @@ def compare(args) -> None:
                 print(f"  {line}")
         for (name, side), error in sorted(errors.items()):
             print(f"{name} ({side}): {error}")
+        return int(any(side == "after" for _, side in errors))
 
 
 def main() -> None:
@@ -313,20 +322,31 @@ def main() -> None:
         run_in_tree(tree, flag == "--moved-names", script, rest)
         return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--base", default=DEFAULT_BASE, help="revision before the change")
+    parser.add_argument("--base", default=None,
+                        help=f"revision before the change (default {DEFAULT_BASE}; HEAD with "
+                             "--quick alone)")
     parser.add_argument("--after", default=None,
                         help="revision after the change (default: the working tree)")
-    parser.add_argument("--repeats", type=int, default=3, help="alternating runs per script")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="alternating runs per script (default 3; 1 with --quick)")
     parser.add_argument("--scripts", nargs="*",
                         help="benchmark file names or 'all' (default: the speed figures)")
     parser.add_argument("--quick", action="store_true",
-                        help="pass --quick to the scripts that have it (headline figures)")
+                        help="pass --quick to the scripts that have it (headline figures); "
+                             f"alone, one run of {QUICK_SCRIPTS[0]}")
     parser.add_argument("--own-scripts", action="store_true",
                         help="each tree runs its own benchmark scripts")
     parser.add_argument("--threads", type=int, default=1, help="BLAS/OpenMP threads")
     parser.add_argument("--timeout", type=float, default=3600.0, help="per run [s]")
     parser.add_argument("--log-dir", help="keep the output of every run here")
-    compare(parser.parse_args())
+    args = parser.parse_args()
+    if args.repeats is None:
+        args.repeats = 1 if args.quick else 3
+    if args.quick and not args.scripts:  # a smoke run: HEAD against the working tree
+        args.scripts = list(QUICK_SCRIPTS)
+        args.base = args.base or "HEAD"
+    args.base = args.base or DEFAULT_BASE
+    sys.exit(compare(args))
 
 
 if __name__ == "__main__":

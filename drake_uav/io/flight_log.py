@@ -57,7 +57,15 @@ _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]+?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 
 
 class FlightLogError(ValueError):
-    """A flight log is malformed; the message names the channel and sample."""
+    """A flight log is malformed; the message names the channel and sample.
+
+    The message is kept on one line (the line breaks of a parser's message it quotes
+    become spaces): the command line prints it as its one ``error:`` line.
+    """
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(part.strip() for part in str(message).splitlines()
+                                  if part.strip()))
 
 
 def register_unit(symbol: str, quantity: str) -> None:
