@@ -59,7 +59,7 @@ INJECTED_DESCRIPTIONS = {
     "logged_tension": "a tether along -x body, its tension (mean 3k N, std k N) logged "
                       "as `tension`",
 }
-"""What each campaign effect puts into the flight (docs/main_job.md, "Validation")."""
+"""What each campaign effect puts into the flight (the benchmark's scenario)."""
 
 INTRO = """\
 How often the main job names an effect the aircraft's model lacks, and how often it names
