@@ -15,6 +15,7 @@ flights the false-discovery rate (flights with any finding).
         [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
         [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
         [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle] [--quick]
+        [--markdown docs/validation.md]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
 ``--quick`` flies one clean and one stall-onset flight of 60 s (default sensors, light
@@ -28,6 +29,9 @@ length), to study what a longer flight buys; ``--excitation multisine_throttle``
 the throttle too (a fourth multisine), to study what a flight that moves the thrust on
 its own buys. Each option needs its own ``--out`` folder.
 
+``--markdown docs/validation.md`` writes the cells run into that page and its data file
+(``benchmarks/validation_report.py``), keeping the cells other runs measured.
+
 A miss whose effect the report names as a near-tied alternative of a finding (the
 flight cannot tell them apart) is counted as "tied".
 """
@@ -38,12 +42,14 @@ import argparse
 import collections
 import contextlib
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from figures import figure
+from validation_report import update as write_validation_page
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
 from drake_uav.campaigns.discovery_cases import (
@@ -159,7 +165,11 @@ def main() -> None:
                         help="the flight's excitation (default multisine)")
     parser.add_argument("--quick", action="store_true",
                         help="one clean and one stall-onset 60 s flight, in this process")
+    parser.add_argument("--markdown", default=None,
+                        help="write the cells run into this page (docs/validation.md)")
     args = parser.parse_args()
+    if args.markdown and args.min_folds is not None:
+        parser.error("--markdown: the validation page holds the job's own rule, not --min-folds")
     if args.quick:
         args.seeds, args.clean_seeds, args.sizes, args.effects = "0:1", "0:1", "0.3", "stall_onset"
         args.suites, args.turbulence, args.workers = "default", "light", 0
@@ -207,6 +217,12 @@ def _campaigns(args: argparse.Namespace) -> None:
     for suite in suites:
         for level in turbulence:
             _report_setting(suite, level, ok, clean_ok, sizes)
+    if args.markdown:
+        write_validation_page(
+            Path(args.markdown), ok, clean_ok, excitation=args.excitation or "multisine",
+            duration_s=args.duration or FLIGHT_DURATION, targets=TARGETS,
+            command="python benchmarks/bench_discovery.py " + " ".join(sys.argv[1:]),
+            expected={effect: injected.expected for effect, injected in INJECTED.items()})
 
 
 if __name__ == "__main__":
