@@ -15,10 +15,11 @@ Real-time factor = flight duration / wall time; target >= 200x (a 300 s flight i
 (after the first 5 s), for the smoothed estimate and for the forward filter alone, and
 the mean normalised squared error of the smoothed alpha and beta (samples 2 s apart).
 
-``--decimation`` sets the filter steps of ``estimate_air_data`` (default: its own).
+``--decimation`` sets the filter steps of ``estimate_air_data`` (default: its own);
+``--quick`` flies one 30 s flight and times each piece once (the same figures, noisier).
 
 Run: python benchmarks/bench_air_data_smoother.py [--seeds 0 1 2 3 4] [--repeat 3]
-     [--decimation 3]
+     [--decimation 3] [--quick]
 """
 
 import argparse
@@ -42,6 +43,7 @@ from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.vehicles import aerosonde
 
 DURATION = 300.0  # s
+QUICK_DURATION = 30.0  # s
 RTF_TARGET = 200.0
 SETTLE = 5.0  # s
 
@@ -69,9 +71,9 @@ def nees(log: FlightLog, estimate) -> tuple[float, float]:
         estimate, f"{n}_std"))[picks] ** 2)) for n in ("alpha", "beta"))
 
 
-def run_seed(seed: int, repeat: int, options: dict) -> dict[str, float]:
+def run_seed(seed: int, repeat: int, options: dict, duration: float) -> dict[str, float]:
     aircraft = aerosonde()
-    truth = fly(aircraft, "light", duration=DURATION, seed=seed)
+    truth = fly(aircraft, "light", duration=duration, seed=seed)
     log = measured_only(truth)
     estimate_air_data(log.slice(0.0, 2.0), aircraft)  # code generation, once
     out = {}
@@ -82,7 +84,7 @@ def run_seed(seed: int, repeat: int, options: dict) -> dict[str, float]:
                          estimate.beta, estimate.valid)
         na, nb = nees(truth, estimate)
         print(f"  seed {seed} estimate_air_data ({label:9s}): wall {wall:6.3f} s, CPU "
-              f"{cpu:6.3f} s, {DURATION / wall:6.1f}x real time; MAE alpha {a:.3f} deg, "
+              f"{cpu:6.3f} s, {duration / wall:6.1f}x real time; MAE alpha {a:.3f} deg, "
               f"beta {b:.3f} deg, airspeed {v:.3f} m/s; NEES alpha {na:.2f}, beta {nb:.2f}")
         out.update({f"{label}_wall": wall, f"{label}_alpha": a, f"{label}_beta": b,
                     f"{label}_airspeed": v})
@@ -97,7 +99,7 @@ def run_seed(seed: int, repeat: int, options: dict) -> dict[str, float]:
     a, b, v = errors(truth, data.time, *air, np.ones(len(data.time), bool))
     print(f"  seed {seed} pieces: filter_pass {wall_f:.3f} s (CPU {cpu_f:.3f}), rts_smooth "
           f"{wall_b:.3f} s (CPU {cpu_b:.3f}); peer run_filter (forward EKF alone) "
-          f"{wall_r:.3f} s (CPU {cpu_r:.3f}), {DURATION / wall_r:.1f}x real time, MAE alpha "
+          f"{wall_r:.3f} s (CPU {cpu_r:.3f}), {duration / wall_r:.1f}x real time, MAE alpha "
           f"{a:.3f} deg, beta {b:.3f} deg, airspeed {v:.3f} m/s")
     out.update({"forward_wall": wall_f, "backward_wall": wall_b, "peer_wall": wall_r,
                 "peer_alpha": a, "peer_beta": b})
@@ -109,13 +111,18 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--decimation", type=int, default=None)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"one {QUICK_DURATION:g} s flight of the first seed, timed once")
     args = parser.parse_args()
+    duration = DURATION
+    if args.quick:
+        duration, args.seeds, args.repeat = QUICK_DURATION, args.seeds[:1], 1
     options = {} if args.decimation is None else {"decimation": args.decimation}
-    print(f"Air data without vanes: {DURATION:.0f} s flights at 100 Hz, light turbulence, "
+    print(f"Air data without vanes: {duration:.0f} s flights at 100 Hz, light turbulence, "
           f"seeds {args.seeds}, best of {args.repeat}, options {options}")
-    results = [run_seed(seed, args.repeat, options) for seed in args.seeds]
+    results = [run_seed(seed, args.repeat, options, duration) for seed in args.seeds]
     mean = {k: float(np.mean([r[k] for r in results])) for k in results[0]}
-    rtf = DURATION / mean["lift_wall"]
+    rtf = duration / mean["lift_wall"]
     print(f"Mean over seeds: estimate_air_data {mean['lift_wall']:.3f} s ({rtf:.1f}x real "
           f"time, target {RTF_TARGET:.0f}x: {'met' if rtf >= RTF_TARGET else 'NOT met'}); "
           f"MAE alpha {mean['lift_alpha']:.3f} deg, beta {mean['lift_beta']:.3f} deg "

@@ -13,10 +13,11 @@ in the environment wins in both). Prints both wall times, their ratio (target <=
 workers on 2 cores), how much CPU other processes took meanwhile (on Linux; with other load
 the ratio says little), and checks that both give the same rows bit for bit (outside the
 wall-time column). ``--repeats N`` runs each mode N times, alternating, and keeps each
-mode's best wall time.
+mode's best wall time. ``--quick`` runs 2 flights of 30 s in each mode (the same figures;
+the ratio then mostly measures the cluster's start-up).
 
     python benchmarks/bench_campaigns.py [--flights 40] [--workers 2] [--duration 60]
-                                         [--repeats 1]
+                                         [--repeats 1] [--quick]
 """
 
 from __future__ import annotations
@@ -97,8 +98,11 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=60.0, help="flight duration [s]")
     parser.add_argument("--repeats", type=int, default=1,
                         help="runs of each mode, alternating; each mode's best is kept")
+    parser.add_argument("--quick", action="store_true", help="2 flights of 30 s, once")
     parser.add_argument("--child", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.quick:
+        args.flights, args.duration, args.repeats = 2, 30.0, 1
     if args.child is not None:
         _one_mode(args)
         return
@@ -130,6 +134,8 @@ def main() -> None:
     detected = sum(tables[0].column("metric.detected").to_pylist())
     print(f"  propwash drag detected  : {detected}/{args.flights}")
     figure("campaign_cluster_to_one_process_wall", parallel / serial, "ratio", "lower")
+    if args.quick and any(t["errors"] for t in best.values()):
+        raise SystemExit("runs failed")
 
 
 if __name__ == "__main__":

@@ -57,6 +57,7 @@ STATE = [10.0, -5.0, -100.0, 0.999, 0.01, 0.04, 0.02, 24.5, 0.3, 1.2, 0.02, -0.0
 CONTROLS = [-0.05, 0.01, 0.002, 0.55]
 WIND = [1.0, -0.5, 0.1]
 NO_WRENCH = [0.0] * 6
+NO_WIND_RATE = [0.0] * 3
 # ModelBasedAirDataModel: Va, alpha, beta, wind NED; p, q, r, roll, pitch, yaw, controls.
 EKF_STATE = [25.0, 0.06, 0.02, 3.0, -2.0, 0.2]
 EKF_INPUTS = [0.05, 0.1, -0.05, 0.1, 0.05, 1.0, *CONTROLS]
@@ -182,7 +183,7 @@ def per_call_cases(cls) -> dict:
         derivative, calls = built["derivative"], 20_000
         start = time.process_time()
         for _ in range(calls):
-            derivative(STATE, CONTROLS, WIND, NO_WRENCH)
+            derivative(STATE, CONTROLS, WIND, NO_WRENCH, NO_WIND_RATE)
         return (time.process_time() - start) / calls
 
     def batch() -> float:  # best of three: one call takes only milliseconds

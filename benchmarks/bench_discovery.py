@@ -14,9 +14,13 @@ flights the false-discovery rate (flights with any finding).
     python benchmarks/bench_discovery.py [--seeds 0:20] [--clean-seeds 0:40]
         [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
         [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
-        [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle]
+        [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle] [--quick]
+        [--markdown docs/validation.md]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
+``--quick`` flies one clean and one stall-onset flight of 60 s (default sensors, light
+turbulence) in this process, its results in a temporary folder unless ``--out`` is given:
+the same report for one cell, its rates on one flight each.
 ``--min-folds`` runs the whole campaign with another evidence rule (how many of the five
 cross-validation folds an effect must improve; the job's is 5), to study what the rule
 costs in false discoveries and gains in detections. ``--duration`` flies longer or
@@ -24,6 +28,9 @@ shorter flights (120 s by default; the sizes are calibrated on flights of the sa
 length), to study what a longer flight buys; ``--excitation multisine_throttle`` moves
 the throttle too (a fourth multisine), to study what a flight that moves the thrust on
 its own buys. Each option needs its own ``--out`` folder.
+
+``--markdown docs/validation.md`` writes the cells run into that page and its data file
+(``benchmarks/validation_report.py``), keeping the cells other runs measured.
 
 A miss whose effect the report names as a near-tied alternative of a finding (the
 flight cannot tell them apart) is counted as "tied".
@@ -35,11 +42,14 @@ import argparse
 import collections
 import contextlib
 import os
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from figures import figure
+from validation_report import update as write_validation_page
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
 from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
@@ -153,7 +163,25 @@ def main() -> None:
                         help=f"flight length [s] (default {FLIGHT_DURATION:g})")
     parser.add_argument("--excitation", default=None, choices=EXCITATIONS,
                         help="the flight's excitation (default multisine)")
+    parser.add_argument("--quick", action="store_true",
+                        help="one clean and one stall-onset 60 s flight, in this process")
+    parser.add_argument("--markdown", default=None,
+                        help="write the cells run into this page (docs/validation.md)")
     args = parser.parse_args()
+    if args.markdown and args.min_folds is not None:
+        parser.error("--markdown: the validation page holds the job's own rule, not --min-folds")
+    if args.quick:
+        args.seeds, args.clean_seeds, args.sizes, args.effects = "0:1", "0:1", "0.3", "stall_onset"
+        args.suites, args.turbulence, args.workers = "default", "light", 0
+        args.duration = args.duration or 60.0
+    with contextlib.ExitStack() as stack:
+        if args.quick and args.out == parser.get_default("out"):
+            args.out = stack.enter_context(tempfile.TemporaryDirectory())
+        _campaigns(args)
+
+
+def _campaigns(args: argparse.Namespace) -> None:
+    """Runs the clean and effect campaigns ``args`` asks for and prints their report."""
     effects = list(INJECTED) if args.effects == "all" else args.effects.split(",")
     sizes = [float(s) for s in args.sizes.split(",")]
     suites, turbulence = args.suites.split(","), args.turbulence.split(",")
@@ -182,11 +210,19 @@ def main() -> None:
           f"{wall:.0f} s wall on {args.workers or 1} worker(s), load {os.getloadavg()[0]:.1f}")
     for row in failed[:10]:
         print(f"  {row.get('effect')} seed {row['seed']}: {row['status']} {row.get('error', '')}")
+    if failed and args.quick:
+        raise SystemExit(f"{len(failed)} run(s) failed")
     ok = [r for r in effect_rows if r["status"] == "ok"]
     clean_ok = [r for r in clean if r["status"] == "ok"]
     for suite in suites:
         for level in turbulence:
             _report_setting(suite, level, ok, clean_ok, sizes)
+    if args.markdown:
+        write_validation_page(
+            Path(args.markdown), ok, clean_ok, excitation=args.excitation or "multisine",
+            duration_s=args.duration or FLIGHT_DURATION, targets=TARGETS,
+            command="python benchmarks/bench_discovery.py " + " ".join(sys.argv[1:]),
+            expected={effect: injected.expected for effect, injected in INJECTED.items()})
 
 
 if __name__ == "__main__":

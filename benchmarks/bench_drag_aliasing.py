@@ -7,7 +7,9 @@ throttle terms of a thrust identified from the flight, and against the catalog's
 each other drag-axis effect; for the campaign's flight ("multisine") and for one that also
 moves the throttle ("multisine_throttle"), 120 s, light and moderate turbulence.
 
-    python benchmarks/bench_drag_aliasing.py [--seeds 0:5]
+    python benchmarks/bench_drag_aliasing.py [--seeds 0:5] [--quick]
+
+``--quick`` flies one seed of 60 s per excitation and turbulence level.
 
 A share near 0 means the baseline (or the other effect) already reproduces the effect:
 its fit moves the baseline's coefficients, and no evidence rule can name it.
@@ -30,11 +32,14 @@ from drake_uav.vehicles.loading import load_fixed_wing
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0:5", help="seeds of the flights START:END")
-    seeds = parse_seeds(parser.parse_args().seeds)
+    parser.add_argument("--quick", action="store_true", help="one seed, 60 s flights")
+    args = parser.parse_args()
+    seeds = parse_seeds(args.seeds)[:1] if args.quick else parse_seeds(args.seeds)
+    duration = 60.0 if args.quick else FLIGHT_DURATION
     params = load_fixed_wing("aerosonde")
     for excitation in EXCITATIONS:
         shares = [drag_axis_shares(fly(params, turbulence, excitation=excitation, seed=seed,
-                                       duration=FLIGHT_DURATION), params)
+                                       duration=duration), params)
                   for turbulence in ("light", "moderate") for seed in seeds]
         print(f"\n== {excitation}: median unique share over {len(shares)} flights "
               "(light and moderate turbulence) ==")

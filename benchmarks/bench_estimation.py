@@ -10,7 +10,7 @@ flight (plant, Dryden wind, sensors, safety pilot, multisine excitation, loggers
 without and with the AirDataEkf at 100 Hz added through ``extend``. Target: >= 50x.
 
 Each headline figure is also printed as a FIGURE line (benchmarks/figures.py); ``--quick``
-skips the batch and AutoDiffXd reference costs.
+skips the batch and AutoDiffXd reference costs, repeats twice and flies 20 s flights once.
 
 Run: python benchmarks/bench_estimation.py [--quick]
 """
@@ -133,15 +133,18 @@ FIGURE_KEYS = {"AirDataEkf (model-free)": "airdata", "AirDataEkf": "airdata",
 """Names of the FIGURE lines by label."""
 
 
-if __name__ == "__main__":
-    import sys
+def main() -> None:
+    import argparse
 
     from figures import figure
 
-    quick = "--quick" in sys.argv[1:]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="no batch or AutoDiffXd costs, 2 repeats, 20 s flights flown once")
+    quick = parser.parse_args().quick
     params = aerosonde()
     log = fly(params, "light", steady_wind=STEADY_WIND, seed=2, duration=25.0)
-    repeats = 7
+    repeats = 2 if quick else 7
     filters = [("AirDataEkf (model-free)", AirDataModel(params), {}),
                ("ModelBasedAirDataEkf", ModelBasedAirDataModel(params), {}),
                ("ParameterEkf longitudinal", ParameterModel(params, "longitudinal"),
@@ -182,8 +185,11 @@ if __name__ == "__main__":
         print(f"  {label:26s} {low:6.1f} / {median:6.1f} us per step, {low / count:6.1f} us "
               f"per filter ({low / count / STEP_TARGET_US:4.2f} of the target)")
         figure(f"ekf_leaf_us_{FIGURE_KEYS[label]}", low / count, "us", "lower")
-    without, with_ekf = flight_rtf(False), flight_rtf(True)
-    print(f"identification flight (plant, Dryden, sensors, pilot, excitation, loggers), 60 s: "
+    duration, flights = (20.0, 1) if quick else (60.0, 3)
+    without = flight_rtf(False, duration, flights)
+    with_ekf = flight_rtf(True, duration, flights)
+    print(f"identification flight (plant, Dryden, sensors, pilot, excitation, loggers), "
+          f"{duration:.0f} s: "
           f"{without:6.1f}x real time")
     added_us = 1e6 * SAMPLE_PERIOD * (1.0 / with_ekf - 1.0 / without)
     print(f"  with the AirDataEkf at 100 Hz:  {with_ekf:6.1f}x real time "
@@ -193,3 +199,7 @@ if __name__ == "__main__":
     figure("flight_rtf", without, "x")
     figure("flight_airdata_ekf_rtf", with_ekf, "x")
     figure("airdata_ekf_tick_us", added_us, "us", "lower")
+
+
+if __name__ == "__main__":
+    main()

@@ -4,8 +4,8 @@ Prints the real-time factor (target >= 100x), the plant-only reference run with 
 same integrator and step, and where the time goes: every callback of the diagram timed
 on its own in a mid-flight context, times its calls per 10 ms tick. Real-time factors are
 simulated time over CPU time of this process (best of ``--repeats``), so other load on a
-shared machine inflates them less than wall time. ``--quick`` prints the real-time factors
-only (no breakdown, no integrator study).
+shared machine inflates them less than wall time. ``--quick`` flies once, times each
+callback over fewer calls and studies the integrators on a 10 s flight.
 
     python benchmarks/bench_identification_flight.py [--duration 300] [--quick]
 """
@@ -71,7 +71,7 @@ def model_evaluation(flight, repeats: int = 5000) -> None:
           f"{costs['compiled']:.1f} us ({costs['generic'] / costs['compiled']:.1f}x)")
 
 
-def breakdown(flight, tick_us: float) -> None:
+def breakdown(flight, tick_us: float, calls: int = 2000) -> None:
     """Cost of each callback per 10 ms tick, timed one by one in a mid-flight context."""
     simulator = Simulator(flight.diagram)
     ApplySimulatorConfig(flight.simulator_config, simulator)
@@ -86,12 +86,13 @@ def breakdown(flight, tick_us: float) -> None:
         pc.SetContinuousState(x)
 
     rows = [("plant derivatives (RK2: 2 per step)", 2.0,
-             _per_call(lambda: plant.EvalTimeDerivatives(pc), touch))]
+             _per_call(lambda: plant.EvalTimeDerivatives(pc), touch, calls))]
     # The sensors and the safety pilot read these at each sample, each computed by
     # its own compiled code (the Euler angles come from the state quaternion).
     for name in ("air_data", "specific_force"):
         port = plant.GetOutputPort(name)
-        rows.append((f"plant output {name}", 1.0, _per_call(lambda p=port: p.Eval(pc), touch)))
+        rows.append((f"plant output {name}", 1.0, _per_call(lambda p=port: p.Eval(pc), touch,
+                                                                   calls)))
     updates = [("Dryden filter update", flight.wind.filter if flight.wind else None),
                ("sensor suite update", flight.sensors.sensors),
                ("safety pilot update", flight.pilot),
@@ -102,7 +103,7 @@ def breakdown(flight, tick_us: float) -> None:
         context = system.GetMyContextFromRoot(root)
         values = system.AllocateDiscreteVariables()
         rows.append((label, 1.0, _per_call(lambda s=system, c=context, v=values: s._update(c, v),
-                                           lambda: None)))
+                                           lambda: None, calls)))
     accounted = sum(calls * cost for _, calls, cost in rows)
     print(f"\nWhere the time goes (each callback timed alone; CPU {tick_us:.0f} us "
           "per 10 ms tick):")
@@ -139,8 +140,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=300.0, help="flight time [s]")
     parser.add_argument("--repeats", type=int, default=3, help="flights flown (best is shown)")
-    parser.add_argument("--quick", action="store_true", help="real-time factors only")
+    parser.add_argument("--quick", action="store_true",
+                        help="one flight; fewer calls per cost, a 10 s integrator flight")
     args = parser.parse_args()
+    if args.quick:
+        args.repeats = 1
 
     start = time.perf_counter()
     flight = build_identification_flight(turbulence="moderate", duration=args.duration)
@@ -167,11 +171,9 @@ def main() -> None:
     figure("identification_flight_rtf", rtf, "x")
     figure("plant_alone_rtf", reference, "x")
     figure("identification_flight_tick_us", 1e6 * wall / len(log), "us", "lower")
-    if args.quick:
-        return
-    model_evaluation(flight)
-    breakdown(flight, 1e6 * wall / len(log))
-    integrators()
+    model_evaluation(flight, 500 if args.quick else 5000)
+    breakdown(flight, 1e6 * wall / len(log), 200 if args.quick else 2000)
+    integrators(10.0 if args.quick else 30.0)
 
 
 if __name__ == "__main__":

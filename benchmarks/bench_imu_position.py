@@ -7,7 +7,9 @@ without the IMU position and once with it (as the autopilot's ``INS_POS<n>_*`` o
 ``EKF2_IMU_POS_*`` give it). Prints, per sensor suite and turbulence level, the flights
 with any finding and with an air-data time skew applied, and the findings' names.
 
-    python benchmarks/bench_imu_position.py [--seeds 200:220] [--workers 2]
+    python benchmarks/bench_imu_position.py [--seeds 200:220] [--workers 2] [--quick]
+
+``--quick`` runs one flight (the first seed, default sensors, light turbulence) on one worker.
 """
 
 from __future__ import annotations
@@ -33,7 +35,12 @@ def main() -> None:
     parser.add_argument("--turbulence", default="light,moderate")
     parser.add_argument("--suites", default="default")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--quick", action="store_true",
+                        help="one flight: first seed, default sensors, light turbulence")
     args = parser.parse_args()
+    if args.quick:
+        args.seeds = str(parse_seeds(args.seeds)[0])
+        args.turbulence, args.suites, args.workers = "light", "default", 1
     jobs = [(seed, turbulence, suite) for suite in args.suites.split(",")
             for turbulence in args.turbulence.split(",") for seed in parse_seeds(args.seeds)]
     cells = collections.defaultdict(list)

@@ -27,8 +27,11 @@ the 30-minute 400 Hz ``.bin`` read in <= 3 s wall time.
 The files go into a temporary folder, or into ``--keep DIR`` (kept, and reused by the
 next run with the same ``--minutes`` and ``--rate``).
 
+``--quick`` reads a 2-minute log once (pymavlink on 20,000 IMU messages): the same figures,
+the target scaled to the log's length.
+
 Run: python benchmarks/bench_log_reading.py [--minutes 30] [--rate 400] [--repeat 3]
-     [--peer-messages 200000] [--keep DIR]
+     [--peer-messages 200000] [--keep DIR] [--quick]
 """
 
 from __future__ import annotations
@@ -227,7 +230,9 @@ def bench_bin(folder: Path, args) -> None:
           f"{peer_cpu:.1f} s CPU for {imu_total} IMU messages (index pass {index:.1f} s CPU; "
           f"loop timed on {timed}, extrapolated); ratio pymavlink / read_ardupilot "
           f"{peer_cpu / cpu:.0f}x (CPU)")
-    print(f"  target <= {TARGET_S:g} s wall: {'met' if wall <= TARGET_S else 'NOT met'}")
+    target = TARGET_S * args.minutes / 30.0  # the target is per 30 minutes of flight
+    print(f"  target <= {target:.2g} s wall ({TARGET_S:g} s per 30 min): "
+          f"{'met' if wall <= target else 'NOT met'}")
     figure("read_bin_s", wall, "s", "lower")
     figure("read_bin_cpu_s", cpu, "s", "lower")
     figure("read_bin_mb_per_s", size / 1e6 / wall, "MB/s")
@@ -259,7 +264,12 @@ def main() -> None:
                         help="IMU messages pymavlink parses before extrapolating")
     parser.add_argument("--keep", type=Path, metavar="DIR",
                         help="write (or reuse) the logs in DIR instead of a temporary folder")
+    parser.add_argument("--quick", action="store_true",
+                        help="a 2-minute log read once, 20,000 IMU messages for pymavlink")
     args = parser.parse_args()
+    if args.quick:
+        args.minutes, args.repeat = 2.0, 1
+        args.peer_messages = min(args.peer_messages, 20_000)
     load = os.getloadavg()
     print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} (1, 5, 15 min) before")
     with tempfile.TemporaryDirectory() as tmp:

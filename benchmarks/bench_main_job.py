@@ -1,6 +1,6 @@
 """Main-job benchmark: ``drake-uav identify`` on the bundled sample flight, stage by stage.
 
-Run: python benchmarks/bench_main_job.py [--repeats 3] [--log LOG]
+Run: python benchmarks/bench_main_job.py [--repeats 3] [--log LOG] [--quick]   (quick: one run)
 
 Every run is a fresh interpreter (imports included), as the command line runs it; it
 times each stage in wall time and in CPU time of its process (``time.process_time``):
@@ -186,9 +186,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--log", help="flight log (default: the bundled sample flight)")
+    parser.add_argument("--quick", action="store_true", help="one run of each")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.quick:
+        args.repeats = 1
     sample = Path(__file__).resolve().parents[1] / "drake_uav" / "data" / "sample_flight.parquet"
     log = args.log or str(sample)
     if args.child:

@@ -15,9 +15,12 @@
 Real-time factors are simulated time over CPU time of this process; each figure is also
 printed as a FIGURE line (benchmarks/figures.py).
 
-Run: python benchmarks/bench_multirotor.py
+``--quick`` runs 10 min-snap solves and each plant case once.
+
+Run: python benchmarks/bench_multirotor.py [--quick]
 """
 
+import argparse
 import time
 
 import numpy as np
@@ -82,12 +85,17 @@ def real_time_factor(system, commands: PiecewisePolynomial, state0, t0: float,
     return FLIGHT / (time.process_time() - start), simulator.get_num_steps_taken()
 
 
-if __name__ == "__main__":
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="10 min-snap solves instead of 50, each plant case run once")
+    quick = parser.parse_args().quick
+    solves, runs = (10, 1) if quick else (50, 3)
     minimum_snap(WAYPOINTS, TIMES)  # warm-up (first program construction loads solvers)
-    one_shot = median_ms(lambda: minimum_snap(WAYPOINTS, TIMES), 50)
+    one_shot = median_ms(lambda: minimum_snap(WAYPOINTS, TIMES), solves)
     program = MinimumSnap(10)
     shifted = [WAYPOINTS + 0.01 * k for k in range(50)]
-    resolve = median_ms(lambda: program.solve(shifted[RNG.integers(50)], TIMES), 50)
+    resolve = median_ms(lambda: program.solve(shifted[RNG.integers(50)], TIMES), solves)
     print(f"min-snap 10 segments 3-D: one-shot {one_shot:.2f} ms, re-solve {resolve:.2f} ms "
           f"(target 20 ms: {20.0 / one_shot:.0f}x / {20.0 / resolve:.0f}x margin)")
     figure("min_snap_one_shot_ms", one_shot, "ms", "lower")
@@ -124,9 +132,13 @@ if __name__ == "__main__":
     keys = ("hover", "reference_log100hz", "reference_zoh40hz", "reference_rk2")
     for key, (name, commands, state0, config, log_period) in zip(keys, cases, strict=True):
         rtf, steps = max(real_time_factor(MultirotorPlant(params), commands, state0, t0,
-                                          config, log_period) for _ in range(3))
+                                          config, log_period) for _ in range(runs))
         floor, _ = max(real_time_factor(EmptyPlant(params.num_motors), commands, state0, t0,
-                                        config, log_period) for _ in range(3))
+                                        config, log_period) for _ in range(runs))
         print(f"plant {name}: {rtf:.0f}x real time, {steps} steps in {FLIGHT:.0f} s "
               f"(target 200x: ratio {rtf / 200.0:.2f}; empty Python system {floor:.0f}x)")
         figure(f"multirotor_rtf_{key}", rtf, "x")
+
+
+if __name__ == "__main__":
+    main()

@@ -19,12 +19,16 @@ shared machine falls on all of them alike. Prints median / p95 / max of the wall
 time of each step and the median of its process CPU time per mode, the RMSE after
 2 s, which solver path the steps took, and the ratios of the medians.
 
-    python benchmarks/bench_nmpc.py [--duration 20] [--modes rti,nlp,casadi_ipopt,...]
+    python benchmarks/bench_nmpc.py [--duration 20] [--modes rti,nlp,casadi_ipopt,...] [--quick]
+
+Without CasADi (pip ``casadi``, the optional ``[bench]`` extra) its modes are skipped with a
+note and the others fly. ``--quick`` flies 3 s with a coarser terminal level.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import time
 
 import numpy as np
@@ -205,15 +209,26 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=20.0)
     parser.add_argument("--modes", default=MODES)
+    parser.add_argument("--quick", action="store_true",
+                        help="a 3 s flight, a coarser terminal level")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.duration = 3.0
+    modes = args.modes.split(",")
+    if importlib.util.find_spec("casadi") is None:
+        skipped = [m for m in modes if m.startswith("casadi")]
+        modes = [m for m in modes if not m.startswith("casadi")]
+        if skipped:
+            print(f"CasADi is not installed: {', '.join(skipped)} skipped "
+                  "(pip install 'drake_uav[bench]' or casadi)")
     params = hexacopter()
     t0 = time.perf_counter()
-    terminal = build_terminal_set(params, tracking_reference(params))
+    coarse = {"samples": 32, "shrink_interval": 1.0} if args.quick else {}
+    terminal = build_terminal_set(params, tracking_reference(params), **coarse)
     print(f"terminal sets: {time.perf_counter() - t0:.1f} s")
     x0 = terminal.reference.state[0].copy()
     x0[:3] += [0.3, 0.4, 0.0]
     x0[3:7] = quat_multiply(x0[3:7], euler_to_quat([np.radians(10.0), 0.0, 0.0]))
-    modes = args.modes.split(",")
     runs = _closed_loops({m: _controller(m, params, terminal) for m in modes}, params,
                          terminal, args.duration, x0)
     for mode, run in runs.items():

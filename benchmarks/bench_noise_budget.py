@@ -8,7 +8,9 @@ along the flight's truth (what an effect's size is a share of). Flights: the cam
 120 s.
 
     python benchmarks/bench_noise_budget.py [--seeds 500:502] [--suites default research]
-        [--turbulence light moderate]
+        [--turbulence light moderate] [--quick]
+
+``--quick`` flies one 60 s flight (the first seed) per suite and turbulence level.
 
 The default seeds are tuning seeds, never those of the campaign's acceptance cells.
 """
@@ -45,14 +47,16 @@ def main() -> None:
     parser.add_argument("--suites", nargs="+", default=list(SUITES), choices=list(SUITES))
     parser.add_argument("--turbulence", nargs="+", default=["light"],
                         choices=["light", "moderate"])
+    parser.add_argument("--quick", action="store_true", help="one 60 s flight per cell")
     args = parser.parse_args()
-    seeds = parse_seeds(args.seeds)
+    seeds = parse_seeds(args.seeds)[:1] if args.quick else parse_seeds(args.seeds)
+    duration = 60.0 if args.quick else FLIGHT_DURATION
     params = load_fixed_wing("aerosonde")
     for suite in args.suites:
         for turbulence in args.turbulence:
             budgets, spreads = [], []
             for seed in seeds:
-                flight = fly(params, turbulence, seed=seed, duration=FLIGHT_DURATION,
+                flight = fly(params, turbulence, seed=seed, duration=duration,
                              sensors=SUITES[suite](params.rho))
                 budgets.append(noise_budget(flight, params))
                 spreads.append(_true_spread(flight, params))

@@ -11,7 +11,9 @@ extra effect appeared, the agreement with the CSV, and the alpha/beta error of t
 vaneless estimate against the truth.
 
     python benchmarks/bench_realistic_logs.py [--seeds 0:5] [--effect elevator_roll]
-        [--duration 180] [--workers 2]
+        [--duration 180] [--workers 2] [--quick]
+
+``--quick`` runs one seed of 90 s in this process.
 """
 
 from __future__ import annotations
@@ -42,7 +44,10 @@ def main() -> None:
     parser.add_argument("--effect", default="elevator_roll", help="a main_job EFFECTS key")
     parser.add_argument("--duration", type=float, default=180.0, help="flight time [s]")
     parser.add_argument("--workers", type=int, default=2, help="0: in this process")
+    parser.add_argument("--quick", action="store_true", help="one 90 s flight in this process")
     args = parser.parse_args()
+    if args.quick:
+        args.seeds, args.duration, args.workers = str(parse_seeds(args.seeds)[0]), 90.0, 0
     campaign = Campaign("realistic_logs", seeds=parse_seeds(args.seeds),
                         fixed={"effect": args.effect, "duration": args.duration})
     start = time.perf_counter()
@@ -59,6 +64,8 @@ def main() -> None:
     for row in rows:
         if row["status"] != "ok":
             print(f"  seed {row['seed']}: {row['status']} {row.get('error', '')}")
+    if args.quick and len(ok) < len(rows):
+        raise SystemExit(f"{len(rows) - len(ok)} run(s) failed")
     for kind in FORMATS:
         named = collections.Counter(name for r in ok for name in str(r[f"found_{kind}"]).split(",")
                                     if name)

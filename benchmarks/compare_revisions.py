@@ -20,6 +20,11 @@ scripts print FIGURE lines).
 
     python benchmarks/compare_revisions.py [--base 3edcacf] [--after REV] [--repeats 3]
         [--quick] [--scripts bench_fixed_wing.py ... | all] [--log-dir DIR]
+
+``--quick`` runs the scripts in their quick modes. The exit status is 1 when a script of the
+"after" tree failed (benchmarks/run_quick.py runs
+``--quick --base HEAD --repeats 1 --scripts bench_fixed_wing.py``: what uncommitted changes
+do to the plant's figures).
 """
 
 from __future__ import annotations
@@ -251,7 +256,9 @@ def table(results: dict[str, dict[str, list]], labels: tuple[str, str]) -> str:
     return "\n".join(rows)
 
 
-def compare(args) -> None:
+def compare(args) -> int:
+    """Runs the comparison and prints its table; returns 1 when a run of the "after" tree
+    failed (its scripts are expected to run), else 0."""
     repo = pathlib.Path(subprocess.run(["git", "-C", str(HERE), "rev-parse", "--show-toplevel"],
                                        check=True, capture_output=True,
                                        text=True).stdout.strip())
@@ -305,6 +312,7 @@ def compare(args) -> None:
                 print(f"  {line}")
         for (name, side), error in sorted(errors.items()):
             print(f"{name} ({side}): {error}")
+        return int(any(side == "after" for _, side in errors))
 
 
 def main() -> None:
@@ -326,7 +334,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="BLAS/OpenMP threads")
     parser.add_argument("--timeout", type=float, default=3600.0, help="per run [s]")
     parser.add_argument("--log-dir", help="keep the output of every run here")
-    compare(parser.parse_args())
+    sys.exit(compare(parser.parse_args()))
 
 
 if __name__ == "__main__":

@@ -3,9 +3,10 @@ model-free EKF (GPS, pitot, vanes) and the model-based EKF (no vanes) over the l
 airspeed, angle of attack and sideslip against the truth with 3-sigma bands.
 
 Run: python examples/air_data_ekf.py [output.png]   (default out/air_data_ekf.png)
+     python examples/air_data_ekf.py --quick    (a 30 s flight)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import matplotlib
@@ -20,8 +21,14 @@ from drake_uav.estimation.ekf import ExtendedKalmanFilter, run_filter
 from drake_uav.model.air_data import air_data_from_velocity
 from drake_uav.vehicles.fixed_wing import aerosonde
 
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("output", nargs="?", default="out/air_data_ekf.png", help="figure file")
+parser.add_argument("--quick", action="store_true", help="a 30 s flight instead of 120 s")
+args = parser.parse_args()
+
 aircraft = aerosonde()
-log = fly(aircraft, "light", steady_wind=(4.0, -3.0, 0.0), seed=3, duration=120.0)
+duration = 30.0 if args.quick else 120.0
+log = fly(aircraft, "light", steady_wind=(4.0, -3.0, 0.0), seed=3, duration=duration)
 
 # Model-free filter: state [u_r, v_r, w_r, W_N, W_E, W_D]; triplet and its sigma by sampling
 # the posterior (a first-order map would do as well at these small uncertainties).
@@ -63,10 +70,10 @@ for i, ax in enumerate(axes):
     ax.set_ylabel(labels[i])
 axes[0].legend(loc="upper right", fontsize=8)
 axes[-1].set_xlabel("time [s]")
-axes[-1].set_xlim(60.0, 80.0)
+axes[-1].set_xlim(duration / 2, duration / 2 + 20.0)
 fig.suptitle("Air data from IMU, GPS, pitot and vanes (3-sigma bands)")
 fig.tight_layout()
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "air_data_ekf.png"
+out = Path(args.output)
 out.parent.mkdir(parents=True, exist_ok=True)
 fig.savefig(out, dpi=120)
 print(f"figure written to {out}")

@@ -7,6 +7,7 @@ Dask cluster (one worker per core), writes one Parquet row per flight, the HTML 
 one is given. Run it again after an interruption: finished flights are not flown again.
 
 Run: python examples/campaign_main_job.py [--seeds 0:10] [--baseline baseline.parquet]
+     python examples/campaign_main_job.py --quick   (seed 0 only, 30 s flights, its own file)
 """
 
 import argparse
@@ -28,11 +29,18 @@ def main() -> None:
     parser.add_argument("--out", default="out/campaign_main_job.parquet", help="results file")
     parser.add_argument("--baseline", help="an earlier results file to compare with")
     parser.add_argument("--workers", type=int, default=None, help="default: one per core")
+    parser.add_argument("--quick", action="store_true",
+                        help="seed 0 only, 30 s flights, results in out/campaign_main_job_quick")
     args = parser.parse_args()
+    duration = 60.0
+    if args.quick:
+        duration, args.seeds = 30.0, "0"
+        if args.out == parser.get_default("out"):
+            args.out = "out/campaign_main_job_quick.parquet"
 
     campaign = Campaign("main_job", seeds=parse_seeds(args.seeds),
                         grid={"effect": ["propwash_drag", "none"]},
-                        fixed={"duration": 60.0, "turbulence": "light"})
+                        fixed={"duration": duration, "turbulence": "light"})
     done = run_campaign(campaign, args.out, workers=args.workers)
     print(f"{done.path}: {done.table.num_rows} rows, {done.ran} flown now, "
           f"{done.resumed} from an earlier run, {done.errors} errors")

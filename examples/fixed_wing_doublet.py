@@ -1,9 +1,10 @@
 """Trim the Aerosonde at 25 m/s, fly an elevator doublet and plot the response.
 
-Run: python examples/fixed_wing_doublet.py [output.png]
+Run: python examples/fixed_wing_doublet.py [output.png]   (default out/fixed_wing_doublet.png)
+     python examples/fixed_wing_doublet.py --quick   (10 s of flight instead of 30 s)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import matplotlib
@@ -21,12 +22,17 @@ from drake_uav.optimization.trim import trim
 from drake_uav.systems.fixed_wing import FixedWingPlant
 from drake_uav.vehicles.fixed_wing import aerosonde
 
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("output", nargs="?", default="out/fixed_wing_doublet.png", help="figure file")
+parser.add_argument("--quick", action="store_true", help="10 s of flight instead of 30 s")
+args = parser.parse_args()
+
 params = aerosonde()
 level = trim(params, airspeed=25.0)
 print(mode_analysis(params, level).table())
 
 # Elevator doublet: +3 deg for 1 s, -3 deg for 1 s, starting at t = 2 s.
-times = [0.0, 2.0, 3.0, 4.0, 30.0]
+times = [0.0, 2.0, 3.0, 4.0, 10.0 if args.quick else 30.0]
 controls = np.tile(level.controls[:, None], (1, len(times)))
 controls[0, 1] += np.radians(3.0)
 controls[0, 2] -= np.radians(3.0)
@@ -57,7 +63,7 @@ axes[2].step(times, np.degrees(controls[0]), where="post")
 axes[2].set_ylabel("elevator [deg]")
 axes[2].set_xlabel("time [s]")
 fig.suptitle("Aerosonde, elevator doublet at 25 m/s")
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "fixed_wing_doublet.png"
+out = Path(args.output)
 out.parent.mkdir(parents=True, exist_ok=True)
 fig.savefig(out, dpi=120)
 print(f"figure written to {out}")

@@ -9,6 +9,7 @@ main job would see them late); the metadata records how the flight was made.
 
 Run: python examples/generate_sample_flight.py [out.parquet]   (default out/sample_flight.parquet)
      python examples/generate_sample_flight.py --bundle   (replaces the bundled file)
+     python examples/generate_sample_flight.py --quick    (a 30 s flight, never bundled)
 """
 
 import argparse
@@ -27,9 +28,13 @@ parser.add_argument("output", nargs="?", default="out/sample_flight.parquet",
                     help="where to write the flight (default: %(default)s)")
 parser.add_argument("--bundle", action="store_true",
                     help=f"write the package's bundled sample instead ({BUNDLED})")
+parser.add_argument("--quick", action="store_true",
+                    help="a 30 s flight (a try of the script; not with --bundle)")
 args = parser.parse_args()
+if args.quick and args.bundle:
+    parser.error("--quick writes a 30 s flight, not the bundled sample: drop one of them")
 
-log = fly("aerosonde", turbulence="light", seed=2026, duration=150.0,
+log = fly("aerosonde", turbulence="light", seed=2026, duration=30.0 if args.quick else 150.0,
           disturbance=lambda c: (0.0, PROPWASH_DRAG * c.thrust_coefficient, 0, 0, 0, 0))
 sample = log.select(log.measured_names)
 sample.metadata.update(

@@ -5,9 +5,10 @@ sensor suite of Vaiopoulos 2017, Dryden gusts and a 4 m/s crosswind. The log hol
 what the autopilot would record (measured) and the simulation truth.
 
 Run: python examples/identification_flight.py [output.png]   (default out/identification_flight.png)
+     python examples/identification_flight.py --quick   (a 20 s flight)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import matplotlib
@@ -18,15 +19,21 @@ import numpy as np
 
 from drake_uav.diagrams.identification_flight import fly
 
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("output", nargs="?", default="out/identification_flight.png",
+                    help="figure file (the log goes next to it as .parquet)")
+parser.add_argument("--quick", action="store_true", help="a 20 s flight instead of 60 s")
+args = parser.parse_args()
+
 log = fly("aerosonde", turbulence="moderate", steady_wind=(0.0, 4.0, 0.0),
-          excitation="multisine", seed=7, duration=60.0)
+          excitation="multisine", seed=7, duration=20.0 if args.quick else 60.0)
 print(log)
 for measured, true in (("imu_q", "q"), ("vane_alpha", "alpha"), ("pitot_airspeed", "airspeed")):
     error = log[measured] - log[true]
     print(f"{measured:15s} - {true:9s}: mean {error.mean():+.4f}, std {error.std():.4f} "
           f"[{log.unit(true)}]")
 
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "identification_flight.png"
+out = Path(args.output)
 out.parent.mkdir(parents=True, exist_ok=True)
 log.save(out.with_suffix(".parquet"))
 

@@ -5,10 +5,11 @@ does not have. The main job fits the catalog structure, finds the missing effect
 in the residual, refits, and writes a report; the identified derivatives are
 printed next to the true ones.
 
-Run: python examples/identify_from_flight.py [report_folder]
+Run: python examples/identify_from_flight.py [report_folder]   (default out/identify_from_flight)
+     python examples/identify_from_flight.py --quick   (a 60 s flight instead of 150 s)
 """
 
-import sys
+import argparse
 
 import numpy as np
 
@@ -17,8 +18,14 @@ from drake_uav.identification.pipeline import identify
 from drake_uav.reporting.identification_report import write_report
 from drake_uav.vehicles import aerosonde
 
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("report", nargs="?", default="out/identify_from_flight",
+                    help="report folder")
+parser.add_argument("--quick", action="store_true", help="a 60 s flight instead of 150 s")
+args = parser.parse_args()
+
 params = aerosonde()
-log = fly(params, turbulence="light", seed=11, duration=150.0,
+log = fly(params, turbulence="light", seed=11, duration=60.0 if args.quick else 150.0,
           disturbance=lambda c: (-30.0 * c.alpha**3, 0, 0, 0, 0, 0))
 run = identify(log, params, progress=lambda message: print("...", message))
 result = run.discovery
@@ -42,5 +49,4 @@ before, after = result.rms_change()["CL"]
 print(f"\nheld-out C_L equation-error RMS: {before:.4f} -> {after:.4f}")
 mae = np.degrees(run.reconstruction_before.mae[1]), np.degrees(run.reconstruction_after.mae[1])
 print(f"reconstruction MAE of alpha: {mae[0]:.3f} deg -> {mae[1]:.3f} deg")
-folder = sys.argv[1] if len(sys.argv) > 1 else "out/identify_from_flight"
-print(f"report: {write_report(run, folder) / 'report.html'}")
+print(f"report: {write_report(run, args.report) / 'report.html'}")

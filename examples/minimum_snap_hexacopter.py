@@ -4,10 +4,11 @@ Plans one mission twice, with equal segment times and with the times found by
 the constrained gradient descent (same total time), then derives the hexacopter
 reference motor thrusts from the optimal trajectory by differential flatness.
 
-    python examples/minimum_snap_hexacopter.py [figure.png]
+    python examples/minimum_snap_hexacopter.py [figure.png]   (out/minimum_snap_hexacopter.png)
+    python examples/minimum_snap_hexacopter.py --quick   (the reference at 10 Hz instead of 50 Hz)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import matplotlib
@@ -19,6 +20,12 @@ import numpy as np  # noqa: E402
 from drake_uav.optimization.flatness import flat_reference, velocity_heading  # noqa: E402
 from drake_uav.optimization.min_snap import minimum_snap, optimize_segment_times  # noqa: E402
 from drake_uav.vehicles.multirotor import hexacopter  # noqa: E402
+
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("output", nargs="?", default="out/minimum_snap_hexacopter.png",
+                    help="figure file")
+parser.add_argument("--quick", action="store_true", help="the reference at 10 Hz, not 50 Hz")
+args = parser.parse_args()
 
 # NED waypoints [m] (negative down = up): take off, uneven legs, come back.
 waypoints = np.array([[0, 0, 0], [0, 0, -3], [2, 1, -4], [10, 3, -5], [11, 9, -5],
@@ -32,7 +39,7 @@ print(f"snap cost: equal times {optimal.initial_cost:.3f}, optimal times {optima
 print("optimal segment times [s]:", np.round(np.diff(optimal.times), 2))
 
 vehicle = hexacopter()
-t = np.linspace(0.0, 24.0, 1201)
+t = np.linspace(0.0, 24.0, 241 if args.quick else 1201)
 reference = flat_reference(optimal.trajectory, vehicle, t, yaw=velocity_heading(optimal.trajectory))
 print(f"motor thrust range {reference.motor_thrusts.min():.2f}.."
       f"{reference.motor_thrusts.max():.2f} N (f_max {vehicle.f_max} N)")
@@ -54,7 +61,7 @@ for a in ax.flat[:3]:
     a.legend()
 fig.tight_layout()
 
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "minimum_snap_hexacopter.png"
+out = Path(args.output)
 out.parent.mkdir(parents=True, exist_ok=True)
 fig.savefig(out, dpi=120)
 print(f"figure saved to {out}")

@@ -8,10 +8,11 @@ truncated tail; no vanes, no truth. Reading them back shows what the readers mak
 of it; `drake-uav identify FOLDER/flight.bin` runs the main job on one, and
 FOLDER/flight.csv (the same flight with vanes and truth) is the reference to compare with.
 
-Run: python examples/realistic_autopilot_logs.py [folder]
+Run: python examples/realistic_autopilot_logs.py [folder]   (default out/realistic_autopilot_logs)
+     python examples/realistic_autopilot_logs.py --quick   (a 40 s flight instead of 120 s)
 """
 
-import sys
+import argparse
 import warnings
 from pathlib import Path
 
@@ -20,9 +21,14 @@ from drake_uav.io import read_log
 from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_px4 import write_px4_log
 
-folder = Path(sys.argv[1] if len(sys.argv) > 1 else "out/realistic_autopilot_logs")
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("folder", nargs="?", default="out/realistic_autopilot_logs",
+                    help="where the logs go")
+parser.add_argument("--quick", action="store_true", help="a 40 s flight instead of 120 s")
+args = parser.parse_args()
+folder = Path(args.folder)
 folder.mkdir(parents=True, exist_ok=True)
-flight = fly("aerosonde", turbulence="light", seed=3, duration=120.0,
+flight = fly("aerosonde", turbulence="light", seed=3, duration=40.0 if args.quick else 120.0,
              disturbance=lambda c: (-30.0 * c.alpha**3, 0, 0, 0, 0, 0))
 flight.save(folder / "flight.csv")
 

@@ -14,6 +14,7 @@ from drake_uav.identification.samples.flight_data import (
     samples_from_log,
 )
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.model.isolation import differentiate
 from drake_uav.vehicles import aerosonde
 
 PARAMS = aerosonde()
@@ -48,6 +49,22 @@ def test_the_means_keep_every_sample_and_their_times():
     np.testing.assert_allclose(np.unwrap(means["att_yaw"]),
                                np.pi - 0.02 + 0.1 * means.time, atol=1e-12)
     np.testing.assert_allclose(means["slow"], np.interp(means.time, time, slow))
+
+
+def test_a_microsecond_clock_jitter_gives_means_on_one_exact_interval():
+    """A 100 Hz log stamped by a microsecond clock (+-2 us) is uniform enough to average;
+    the means stand on one exact interval, as the derivatives need, within the jitter of
+    their own times."""
+    rng = np.random.default_rng(7)
+    exact = np.arange(3000) * 0.01
+    time = exact + rng.uniform(-2e-6, 2e-6, exact.size)
+    log = FlightLog(time, {"ramp": 3.0 * time}, units={"ramp": "1"})
+    assert decimation_factor(time, 50.0) == 2
+    means = bin_means(log, 2, 50.0)
+    steps = np.diff(means.time)
+    assert np.ptp(steps) < 1e-12
+    np.testing.assert_allclose(means.time, exact.reshape(-1, 2).mean(axis=1), atol=2e-6)
+    differentiate(means.time, means["ramp"])  # raised "must be uniform" before
 
 
 def test_the_commands_are_averaged_as_the_sensors_see_them():

@@ -8,11 +8,17 @@ structured array with pymavlink's format table and multipliers. Time is
 SD-card logs often end in a half-written record followed by block padding:
 that last record is dropped with a warning (``allow_truncated``). Bytes that
 cannot be parsed although complete messages follow them are corrupt data, an
-error whatever ``allow_truncated`` says.
+error whatever ``allow_truncated`` says. pymavlink reports every byte it skips on
+standard error; those reports become one warning per file.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
+import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -28,6 +34,27 @@ _TRAILING_SLACK = 528
 """Bytes at the end of a log that may be block padding (pymavlink's allowance)."""
 _PADDING_RUN = 8
 """Shortest run of 0x00 or 0xFF bytes at the end of a file taken for block padding."""
+
+
+@contextlib.contextmanager
+def _printed_into(sink: io.StringIO):
+    """Collects what is printed meanwhile on standard output and error, by Python code and
+    by C code (pymavlink's compiled indexer prints on file descriptor 2), into ``sink``."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as scratch:
+        saved = [os.dup(1), os.dup(2)]
+        os.dup2(scratch.fileno(), 1)
+        os.dup2(scratch.fileno(), 2)
+        try:
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield
+        finally:
+            for fd, copy in zip((1, 2), saved, strict=True):
+                os.dup2(copy, fd)
+                os.close(copy)
+            scratch.seek(0)
+            sink.write(scratch.read().decode(errors="replace"))
 
 
 class _Index(DFReader_binary):
@@ -69,8 +96,10 @@ class DataFlash:
         if self.data.size < 3 or tuple(self.data[:3]) != _HEAD:
             raise FlightLogError(f"{path}: not an ArduPilot DataFlash log (no FMT message at "
                                  "the start of the file)")
+        skipped = io.StringIO()
         try:
-            index = _Index(str(path))
+            with _printed_into(skipped):  # pymavlink prints a line per skipped byte
+                index = _Index(str(path))
         except Exception as err:  # pymavlink raises bare Exceptions on malformed formats
             raise FlightLogError(f"{path}: unreadable DataFlash log ({err})") from None
         try:
@@ -79,16 +108,32 @@ class DataFlash:
                             for name, f in self.formats.items()}
         finally:
             index.close()
-        self._check_coverage(allow_truncated)
+        if not self._check_coverage(allow_truncated):
+            self._report_skipped(skipped.getvalue())
+
+    def _report_skipped(self, report: str) -> None:
+        """One warning for what pymavlink printed while indexing that the coverage check
+        did not account for (a bad header inside the trailing slack, an unknown message
+        type, a malformed format)."""
+        lines = [line.strip() for line in report.splitlines() if line.strip()]
+        bad = sum(line.startswith("bad header") for line in lines)
+        other = [line for line in lines if not line.startswith("bad header")]
+        what = ([f"{bad} corrupt byte(s) skipped"] if bad else []) + (
+            [f"the DataFlash parser reported '{other[0]}'"
+             + (f" and {len(other) - 1} more line(s)" if len(other) > 1 else "")]
+            if other else [])
+        if what:
+            warnings.warn(f"{self.source}: {'; '.join(what)}", stacklevel=4)
 
     def _truncated(self, message: str, allow_truncated: bool) -> None:
         if not allow_truncated:
             raise FlightLogError(message + " (allow_truncated=True drops it)")
         warnings.warn(message + "; dropped", stacklevel=5)
 
-    def _check_coverage(self, allow_truncated: bool) -> None:
-        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs)."""
-        size, end, covered, where = self.data.size, 0, 0, None
+    def _check_coverage(self, allow_truncated: bool) -> bool:
+        """Truncated last message, unparsed tail, skipped corrupt bytes (pymavlink resyncs);
+        True when a warning reported one of them."""
+        size, end, covered, where, reported = self.data.size, 0, 0, None, False
         padding = self._padding_start()
         for name, offsets in self.offsets.items():
             if not offsets.size:
@@ -99,6 +144,7 @@ class DataFlash:
             if cut:
                 self._truncated(f"{self.source}: truncated file: the last {name} message "
                                 f"(byte {last}) {cut}", allow_truncated)
+                reported = True
                 self.offsets[name] = offsets = offsets[:-1]
                 if not offsets.size:
                     continue
@@ -112,9 +158,12 @@ class DataFlash:
             if self._message_in(end):
                 raise FlightLogError(message + ": corrupt data in the log")
             self._truncated(message + ": a truncated log", allow_truncated)
+            reported = True
         if covered < end:
             warnings.warn(f"{self.source}: {end - covered} bytes of corrupt data skipped",
                           stacklevel=4)
+            reported = True
+        return reported
 
     def _cut_short(self, name: str, last: int, length: int, padding: int) -> str:
         """Why the last message ``name`` (at byte ``last``) is incomplete, or ""."""
@@ -159,6 +208,9 @@ class DataFlash:
     def records(self, name: str) -> np.ndarray:
         """Every message ``name`` as a numpy structured array (raw stored values)."""
         fmt = self.formats[name]
+        if len(fmt.columns) != len(fmt.format):
+            raise FlightLogError(f"{self.source}: FMT of {name} gives {len(fmt.format)} types "
+                                 f"for {len(fmt.columns)} columns (a corrupt FMT message)")
         dtype = _dtype(fmt)
         if dtype.itemsize != fmt.len - 3:
             raise FlightLogError(f"{self.source}: FMT of {name} gives length {fmt.len}, its "
@@ -194,23 +246,35 @@ class DataFlash:
                 return None
         out = {}
         for field in fields:
-            values = records[field].astype(float)
+            values = self._numbers(name, records, field)
             mult = fmt.msg_mults[fmt.colhash[field]]
             if mult is not None:
                 # Divide by the inverse of a fractional multiplier, as pymavlink does:
                 # 1234 / 100 is exact to the last bit where 1234 * 0.01 is not.
                 values = values / (1.0 / mult) if 0.0 < mult < 1.0 else values * mult
             out[field] = values
-        return records["TimeUS"].astype(float) / 1e6, out
+        return self._numbers(name, records, "TimeUS") / 1e6, out
+
+    def _numbers(self, name: str, records: np.ndarray, field: str) -> np.ndarray:
+        """Field ``field`` of message ``name``'s ``records`` as floats; FlightLogError when
+        the log's format gives it as text (a corrupt FMT message)."""
+        if records.dtype[field].kind not in "biuf":
+            raise FlightLogError(f"{self.source}: message {name}: field {field} is "
+                                 f"'{records.dtype[field]}', not a number (a corrupt FMT "
+                                 "message)")
+        return records[field].astype(float)
 
     def strings(self, name: str, field: str) -> tuple[np.ndarray, list[str]] | None:
         """(time [s], decoded text) of a text field of message ``name``, or None."""
         if not self.has(name) or field not in self.formats[name].colhash:
             return None
         records = self.records(name)
+        if records.dtype[field].kind != "S":
+            raise FlightLogError(f"{self.source}: message {name}: field {field} is "
+                                 f"'{records.dtype[field]}', not text (a corrupt FMT message)")
         text = [raw.split(b"\0", 1)[0].decode("ascii", "replace") for raw in records[field]]
-        time = (records["TimeUS"].astype(float) / 1e6 if "TimeUS" in records.dtype.names
-                else np.zeros(len(text)))
+        time = (self._numbers(name, records, "TimeUS") / 1e6
+                if "TimeUS" in records.dtype.names else np.zeros(len(text)))
         return time, text
 
     def parameters(self) -> dict[str, float]:
@@ -218,5 +282,8 @@ class DataFlash:
         got = self.strings("PARM", "Name")
         if got is None:
             return {}
-        values = self.records("PARM")["Value"].astype(float)
+        if "Value" not in self.formats["PARM"].colhash:
+            raise FlightLogError(f"{self.source}: message PARM has no field Value (fields: "
+                                 f"{', '.join(self.formats['PARM'].columns)})")
+        values = self._numbers("PARM", self.records("PARM"), "Value")
         return dict(zip(got[1], values.tolist(), strict=True))

@@ -57,7 +57,15 @@ _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]+?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 
 
 class FlightLogError(ValueError):
-    """A flight log is malformed; the message names the channel and sample."""
+    """A flight log is malformed; the message names the channel and sample.
+
+    The message is kept on one line (the line breaks of a parser's message it quotes
+    become spaces): the command line prints it as its one ``error:`` line.
+    """
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(part.strip() for part in str(message).splitlines()
+                                  if part.strip()))
 
 
 def register_unit(symbol: str, quantity: str) -> None:
@@ -422,7 +430,7 @@ class FlightLog:
 
     @classmethod
     def _load_parquet(cls, path: Path) -> FlightLog:
-        _, pq = _pyarrow()
+        pa, pq = _pyarrow()
         # One file: read_table would import pyarrow's dataset API for it, which builds every
         # compute function at import (a tenth of a second).
         with pq.ParquetFile(path) as file:
@@ -436,6 +444,10 @@ class FlightLog:
             columns.append(column.to_numpy())
         if not headers or headers[0][0] != "time":
             raise FlightLogError(f"{path}: first column must be 'time'")
+        if not pa.types.is_float64(table.schema.field(0).type):
+            raise FlightLogError(f"{path}: column 'time' is stored as "
+                                 f"{table.schema.field(0).type}; sample times need float64 "
+                                 "(double) to stay uniform")
         schema_meta = table.schema.metadata or {}
         metadata = json.loads(schema_meta.get(b"flight_log", b"{}"))
         return cls._from_columns(headers, columns, metadata)

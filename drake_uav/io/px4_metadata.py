@@ -68,7 +68,7 @@ def firmware(log: ULogFile) -> str:
     (``ver_sw_release`` is 0xMMmmppTT: major, minor, patch, release type)."""
     name = str(log.info.get("sys_name", "PX4"))
     release = log.info.get("ver_sw_release")
-    if release:
+    if isinstance(release, (int, np.integer)) and release:  # else a corrupt definition
         release = int(release)
         kind = next(label for limit, label in _RELEASE_TYPES if release & 0xFF >= limit)
         name += (f" v{release >> 24 & 0xFF}.{release >> 16 & 0xFF}.{release >> 8 & 0xFF}"

@@ -12,6 +12,7 @@ error.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import warnings
 from pathlib import Path
@@ -48,7 +49,7 @@ class ULogFile:
 
     Attributes:
         source: the file name, for messages.
-        data: (topic, multi-id) -> field name -> values.
+        data: (topic, multi-id) -> numeric field name -> values.
         parameters: the parameters at the start of the log (name -> value).
         parameter_changes: (time [s], name, value) of the changes during the log.
         info: the log's information messages (``ver_sw_release``, ``sys_name``, ...).
@@ -57,13 +58,19 @@ class ULogFile:
     def __init__(self, path: Path, topics: list[str], allow_truncated: bool):
         self.source = str(path)
         handle = _ShortReads(io.FileIO(path, "r"))
+        printed = io.StringIO()  # pyulog prints a line per corrupt message it skips
         try:
-            ulog = ULog(handle, message_name_filter_list=topics)
+            with contextlib.redirect_stdout(printed):
+                ulog = ULog(handle, message_name_filter_list=topics)
         except ULogException as err:
             raise FlightLogError(f"{path}: not a PX4 ULog file ({err})") from None
         finally:
             handle.close()
-        self.data = {(d.name, d.multi_id): d.data for d in ulog.data_list}
+        # Numeric fields only: a field of another type in a topic the readers use comes
+        # from a corrupt format definition, and is then reported as missing.
+        self.data = {(d.name, d.multi_id): {f: v for f, v in d.data.items()
+                                            if v.dtype.kind in "biuf"}
+                     for d in ulog.data_list}
         if handle.short is not None:
             position, asked, got = handle.short
             message = (f"{path}: truncated file: a message at byte {position} needs {asked} "
@@ -73,11 +80,16 @@ class ULogFile:
                                                 if self.data else " (no data before it)"))
             # stacklevel 4: the caller of read_log (read_px4 builds this object).
             warnings.warn(message + "; dropped", stacklevel=4)
-        elif ulog.file_corruption:
-            warnings.warn(f"{path}: corrupt data skipped by the ULog parser", stacklevel=4)
-        self.parameters = {k: _plain(v) for k, v in ulog.initial_parameters.items()}
+        elif ulog.file_corruption or printed.getvalue():
+            reports = len(printed.getvalue().splitlines())
+            warnings.warn(f"{path}: corrupt data skipped by the ULog parser"
+                          + (f" ({reports} report(s))" if reports else ""), stacklevel=4)
+        # A parameter's value is a number; another type comes from a corrupt definition.
+        self.parameters = {k: _plain(v) for k, v in ulog.initial_parameters.items()
+                           if isinstance(v, _NUMBERS)}
         self.parameter_changes = [(t / 1e6, name, _plain(v))
-                                  for t, name, v in ulog.changed_parameters]
+                                  for t, name, v in ulog.changed_parameters
+                                  if isinstance(v, _NUMBERS)]
         self.info = dict(ulog.msg_info_dict)
 
     def has(self, topic: str, instance: int = 0) -> bool:
@@ -94,7 +106,7 @@ class ULogFile:
             ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """(time [s], field -> float values) of one topic instance."""
         data = self.fields(topic, instance)
-        missing = [f for f in fields if f not in data]
+        missing = [f for f in ("timestamp", *fields) if f not in data]
         if missing:
             raise FlightLogError(f"{self.source}: topic {topic} has no field {missing[0]} "
                                  f"(fields: {', '.join(data)})")
@@ -106,6 +118,9 @@ class ULogFile:
     def parameter(self, name: str, default=None):
         """The parameter's value at the start of the log, else ``default``."""
         return self.parameters.get(name, default)
+
+
+_NUMBERS = (int, float, np.integer, np.floating)
 
 
 def _plain(value):

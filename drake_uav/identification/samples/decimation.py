@@ -53,11 +53,19 @@ def binned_channels(log: FlightLog, rate_hz: float) -> tuple[str, ...]:
 
 def bin_means(log: FlightLog, factor: int, rate_hz: float) -> FlightLog:
     """``log`` with each run of ``factor`` consecutive samples replaced by its mean, time
-    included (the samples left over at the end are dropped). Channels logged no faster than
-    ``rate_hz`` [Hz] (:func:`binned_channels`) are interpolated at the means' times
+    included, the mean times put on the uniform grid that fits them best where the log's
+    clock jitters (the samples left over at the end are dropped). Channels logged no faster
+    than ``rate_hz`` [Hz] (:func:`binned_channels`) are interpolated at the means' times
     instead. A wrapped angle (the yaw) is averaged unwrapped and wrapped again."""
     n = (len(log.time) // factor) * factor
     time = log.time[:n].reshape(-1, factor).mean(axis=1)
+    steps = np.diff(time)
+    if steps.size and np.ptp(steps) > 1e-9 * np.median(steps):
+        # The means jitter as the log's clock does (a microsecond clock: about 1e-6 s); the
+        # derivatives downstream need one exact interval, so they stand on the uniform grid
+        # that fits their times best.
+        k = np.arange(len(time))
+        time = np.polynomial.polynomial.Polynomial.fit(k, time, 1).convert()(k)
     averaged = set(binned_channels(log, rate_hz))
 
     def reduce(name: str) -> np.ndarray:
