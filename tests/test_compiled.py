@@ -2,7 +2,6 @@
 linear in the expression graph, restricted outputs and the folding of temporaries."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -199,9 +198,7 @@ def _shared_chain(depth: int):
 
 
 def test_a_200_deep_shared_chain_compiles_with_work_linear_in_its_graph():
-    start = time.process_time()
     compiled = CompiledFunction(_shared_chain(200), (1,), {0: None})
-    seconds = time.process_time() - start
     # Each distinct node (Add, Mul, sin, cos per level) is walked once, not once per path.
     assert compiled.node_count == 4 * 200
     sizes = {n: CompiledFunction(_shared_chain(n), (1,), {0: None}) for n in (50, 100)}
@@ -212,7 +209,6 @@ def test_a_200_deep_shared_chain_compiles_with_work_linear_in_its_graph():
         source = {n: len(c.source(False, with_jacobians)) for n, c in sizes.items()}
         growth = (source[200] - source[100]) / (source[100] - source[50])
         assert 1.9 < growth < 2.25, (with_jacobians, source)  # linear (longer names aside)
-    assert seconds < 5.0  # a guard only (0.2 s measured); the counts above are the test
     x, y = 0.4, 0.4
     for _ in range(200):
         y = math.sin(y) * math.cos(y) + x
