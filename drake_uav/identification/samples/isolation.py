@@ -187,6 +187,23 @@ def isolate_coefficients(
     The fourteen parameters are the flight's arrays as the sensors give them (six), the
     isolation's setting (one) and the optional inputs of the thrust, the moments' controls
     and the extra signals, each None by default.
+
+    Returns
+    -------
+    AeroSamples
+        The six measured coefficients and their regressors; :attr:`AeroSamples.moments`
+        holds what the moment coefficients see.
+
+    Raises
+    ------
+    ValueError
+        Naming the array whose shape or values are wrong.
+
+    Examples
+    --------
+    >>> samples = isolate_coefficients(aerosonde(), time, specific_force, rates,
+    ...                                air_data, controls)           # doctest: +SKIP
+    >>> samples.coefficients["CL"]                                   # doctest: +SKIP
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
@@ -407,6 +424,33 @@ def monte_carlo_sigma(
     with ``error_std`` (n,) and ``error_correlation``; the error
     ``f(x) - f(x + dx)`` has its 95% coverage interval [U-, U+], and the
     result is ``max(|U-|, |U+|) / 1.96``. ``function`` takes n arrays.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(*inputs) -> array``, vectorised over the draws.
+    ranges : ndarray
+        (n, 2) lower and upper bound of each input.
+    error_std : ndarray
+        (n,) standard deviation of each input's error.
+    correlation, error_correlation : ndarray, optional
+        (n, n) correlation of the inputs (Gaussian copula) and of their errors.
+    samples : int
+        Number of draws.
+    seed : int
+        Seed of the draws.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sigma = monte_carlo_sigma(lambda x: 2.0 * x, np.array([[0.0, 1.0]]),
+    ...                           np.array([0.1]), samples=200_000)
+    >>> round(sigma, 2)
+    0.2
     """
     return monte_carlo_sigmas(lambda *x: {"f": function(*x)}, ranges, error_std, correlation,
                               error_correlation, samples, seed)["f"]

@@ -68,7 +68,27 @@ __all__ = [
 
 def forgetting_time(forgetting: float, sample_rate: float, fraction: float = 0.05) -> float:
     """Time [s] after which a sample's weight lambda^(t f_s) falls to ``fraction``
-    (Vaiopoulos 2017, eq. 4.93)."""
+    (Vaiopoulos 2017, eq. 4.93).
+
+    Parameters
+    ----------
+    forgetting : float
+        The forgetting factor lambda in (0, 1).
+    sample_rate : float
+        [Hz].
+    fraction : float
+        The weight left.
+
+    Returns
+    -------
+    float
+        [s].
+
+    Examples
+    --------
+    >>> round(forgetting_time(0.999, 50.0), 1)   # ln(0.05) / (50 ln(0.999))
+    59.9
+    """
     if not 0.0 < forgetting < 1.0:
         raise ValueError(f"forgetting must be in (0, 1), got {forgetting}")
     if not sample_rate > 0:
@@ -178,12 +198,30 @@ class RecursiveHistory:
 def reconvergence_time(time, estimates, truth, t_change: float, band) -> float:
     """Time [s] from ``t_change`` until the estimates stay inside ``band`` of the truth.
 
-    Args:
-        time: (N,) sample times [s]. estimates: (N, n). truth: (N, n) or (n,) true parameters.
-        t_change: time of the parameter change [s]. band: (n,) or scalar absolute tolerance.
+    Parameters
+    ----------
+    time : array_like
+        (N,) sample times [s].
+    estimates : array_like
+        (N, n) the estimates over time.
+    truth : array_like
+        (N, n) or (n,) true parameters.
+    t_change : float
+        Time of the parameter change [s].
+    band : array_like or float
+        (n,) or scalar absolute tolerance.
 
-    Returns:
+    Returns
+    -------
+    float
         The delay [s], or inf if the estimates are outside the band at the last sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(10.0)
+    >>> reconvergence_time(t, np.where(t < 4, 1.0, 0.0)[:, None], [0.0], 2.0, 0.1)
+    2.0
     """
     time = np.asarray(time, dtype=float)
     err = np.abs(np.asarray(estimates, dtype=float) - np.asarray(truth, dtype=float))
@@ -323,17 +361,33 @@ class RecursiveOLS(_Recursive):
     """Recursive least squares with constant or variable forgetting (Vaiopoulos 2017, eq.
     4.22-4.24, 4.98-4.115).
 
-    Args:
-        n_params: number of parameters n.
-        forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
-        theta0: initial estimate (n,), default zeros.
-        covariance0: prior covariance of theta0 (n, n) (hybrid start, Vaiopoulos 2017, eq.
-            4.122-4.124); None starts diffuse with P = p0 I.
-        noise_std0: observation-noise std [units of z] assumed until the data give one; with
-            ``covariance0`` it converts it to P = covariance0 / noise_std0^2.
-        p0: diffuse initial P (per unit regressor^2).
-        max_covariance_trace: if trace(P) exceeds this, the sample is not forgotten (lambda = 1),
-            which bounds the covariance wind-up of un-excited directions.
+    Parameters
+    ----------
+    n_params : int
+        Number of parameters n.
+    forgetting : float or VariableForgetting
+        Constant lambda in (0, 1] or a :class:`VariableForgetting`.
+    theta0 : array_like, optional
+        Initial estimate (n,), default zeros.
+    covariance0 : array_like, optional
+        Prior covariance of theta0 (n, n) (hybrid start, Vaiopoulos 2017, eq.
+        4.122-4.124); None starts diffuse with P = p0 I.
+    noise_std0 : float, optional
+        Observation-noise std [units of z] assumed until the data give one; with
+        ``covariance0`` it converts it to P = covariance0 / noise_std0^2.
+    p0 : float
+        Diffuse initial P (per unit regressor^2).
+    max_covariance_trace : float
+        If trace(P) exceeds this, the sample is not forgotten (lambda = 1), which bounds
+        the covariance wind-up of un-excited directions.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rls = RecursiveOLS(2)
+    >>> for x in np.linspace(-1.0, 1.0, 50):
+    ...     _ = rls.update([1.0, x], 0.5 + 2.0 * x)        # doctest: +SKIP
+    >>> np.round(rls.theta, 3)                              # doctest: +SKIP
     """
 
     _J = 5  # weighted residual sum of squares, after the common scalars
@@ -462,20 +516,35 @@ class RecursiveOLS(_Recursive):
 class RecursiveTLS(_Recursive):
     """Recursive PCA-GTLS by recursive SVD (Vaiopoulos 2017, Algorithms 1-2), with CFF or VFF.
 
-    Args:
-        n_params: number of parameters n.
-        error_std: (n+1,) positive error stds of the columns of [x | z] (Vaiopoulos 2017, eq.
-            4.40; give a small value such as 1e-6 for an exact column like the constant), or
-        error_cov: (n+1, n+1) error covariance W_T instead.
-        forgetting: constant lambda in (0, 1] or a :class:`VariableForgetting`.
-        snr_min: S/n of the excitation test (Vaiopoulos 2017, eq. 4.68).
-        weights: W of the minimum-norm choice under insufficient excitation (Vaiopoulos 2017,
-            eq. 4.76).
-        scale_from_data: estimate the error-variance scale from the smallest singular value.
-        theta0: initial estimate, kept until more than n rows arrived (unless a prior is given).
-        covariance0: prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq.
-            4.125, scaled sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1]
-            so that the prior alone carries exactly covariance0.
+    Parameters
+    ----------
+    n_params : int
+        Number of parameters n.
+    error_std : array_like, optional
+        (n+1,) positive error stds of the columns of [x | z] (Vaiopoulos 2017, eq. 4.40;
+        give a small value such as 1e-6 for an exact column like the constant), or
+    error_cov : array_like, optional
+        (n+1, n+1) error covariance W_T instead.
+    forgetting : float or VariableForgetting
+        Constant lambda in (0, 1] or a :class:`VariableForgetting`.
+    snr_min : float
+        S/n of the excitation test (Vaiopoulos 2017, eq. 4.68).
+    weights : array_like, optional
+        W of the minimum-norm choice under insufficient excitation (Vaiopoulos 2017,
+        eq. 4.76).
+    scale_from_data : bool
+        Estimate the error-variance scale from the smallest singular value.
+    theta0 : array_like, optional
+        Initial estimate, kept until more than n rows arrived (unless a prior is given).
+    covariance0 : array_like, optional
+        Prior covariance of theta0; adds the prior rows of Vaiopoulos 2017, eq. 4.125,
+        scaled sqrt(c0) covariance0^-1/2 with c0 = [theta0; -1]^T W_T [theta0; -1] so
+        that the prior alone carries exactly covariance0.
+
+    Raises
+    ------
+    ValueError
+        Without ``error_std`` or ``error_cov``.
 
     The nine constructor parameters are those of :func:`~.regression.tls` (the error
     model, the excitation test, the minimum-norm weights) plus the forgetting and the
