@@ -63,6 +63,7 @@ from drake_uav.identification.samples.flight_phases import (
     usable_spans,
 )
 from drake_uav.identification.samples.isolation import monte_carlo_sigmas
+from drake_uav.identification.samples.regressor_noise import smoothing_gains
 from drake_uav.identification.samples.segments import concatenate_samples
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
@@ -242,6 +243,14 @@ class IdentificationRun:
         derivatives (:func:`~drake_uav.identification.assessment.identifiability.
         derivative_warnings`)."""
         return tuple(derivative_warnings(self.params.derivatives, self.discovery.final))
+
+    @property
+    def smoothing_correlation_time(self) -> float:
+        """[s] the correlation time the isolation's smoothing gives white sensor noise: the
+        sample step over the smoothing's noise gain
+        (:func:`~drake_uav.identification.samples.regressor_noise.smoothing_gains`)."""
+        step = float(np.median(np.diff(self.samples.time)))
+        return step / smoothing_gains(step)[0]
 
     @functools.cached_property
     def near_ties(self) -> tuple[NearTie, ...]:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN, accepted_evidence
-from drake_uav.identification.assessment.noise_floor import NoiseFloor, smoothing_gains
+from drake_uav.identification.assessment.noise_floor import NoiseFloor
 from drake_uav.identification.discovery.plausibility import DerivativeWarning
 from drake_uav.identification.discovery.result import Evidence
 from drake_uav.identification.pipeline import RECONSTRUCTED_OUTPUTS as _OUTPUTS
@@ -232,10 +232,8 @@ def _add_figures(report: Report, run: IdentificationRun,
 def _add_residual_meaning(report: Report, run: IdentificationRun) -> None:
     """What the whiteness of each residual says about the result."""
     report.add_heading("What the residuals say")
-    step = float(np.median(np.diff(run.samples.time)))
-    smoothing_time = step / smoothing_gains(step)[0]
     lines = explanations.residual_meaning(
-        {k: f.diagnosis for k, f in run.discovery.final.items()}, smoothing_time)
+        {k: f.diagnosis for k, f in run.discovery.final.items()}, run.smoothing_correlation_time)
     report.add_text(explanations.RESIDUAL_MEANING + "\n\n"
                     + "\n".join(f"- {line}" for line in lines))
 
