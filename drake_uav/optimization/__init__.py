@@ -50,7 +50,7 @@ from drake_uav.optimization.min_snap import (
     optimize_segment_times,
 )
 from drake_uav.optimization.nmpc import NmpcResult, NmpcSettings, TrackingNmpc
-from drake_uav.optimization.recovery_tube import RecoveryTube, TubeSettings, recovery_tube
+from drake_uav.optimization.reachability import RecoveryTube, TubeSettings, recovery_tube
 from drake_uav.optimization.terminal_set import ReferenceTable, TerminalSet, terminal_set
 from drake_uav.optimization.trim import TrimError, TrimResult, trim
 
