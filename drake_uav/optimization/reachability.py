@@ -33,7 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.model.multirotor import BODY_RATES, QUATERNION, STATE_SIZE
+from drake_uav.model.multirotor import (
+    BODY_RATES,
+    QUATERNION,
+    STATE_SIZE,
+    body_rate_derivative,
+)
 from drake_uav.model.tilt import down_in_body, tilt_coordinates, tilt_dynamics
 from drake_uav.optimization.allocation import canonical_failed_motors
 from drake_uav.optimization.frame_symmetry import (
@@ -248,10 +253,12 @@ def solve_value_function(params: MultirotorParams, failed_motors: Iterable[int],
         return jnp.stack([d[0], d[1], d[2], d[3]])
 
     zero_torque = (0.0, 0.0, 0.0)
-    # d(p, q)/df: J^-1 times the torque rows (principal inertia), failed columns zero.
+    # d(p, q)/df: Euler's equation is affine in the torque, so column j is its response to
+    # motor j's torque column (zero for failed motors).
     control_jacobian = np.zeros((4, n))
-    control_jacobian[2] = torque[0] / params.inertia[0]
-    control_jacobian[3] = torque[1] / params.inertia[1]
+    for j in range(n):
+        control_jacobian[2:, j] = body_rate_derivative((0.0, 0.0, 0.0), torque[:, j],
+                                                       params)[:2]
     control_jacobian = jnp.asarray(control_jacobian)
     thrust_middle, thrust_spread = jnp.asarray(upper / 2.0), jnp.asarray(upper / 2.0)
 
