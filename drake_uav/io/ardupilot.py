@@ -19,7 +19,8 @@ XKF2/NKF2  VWN VWE                   m/s                             est_wind_n 
 RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
 AOA        AOA SSA                   deg -> rad (AHRS estimate)      ahrs_alpha ahrs_beta
 BAT        Volt Curr                 V, A (extra channels)           BAT.Volt BAT.Curr
-ESC        RPM                       rev/min -> rad/s (extra)        ESC.RPM
+ESC        RPM Volt Curr Temp        rpm->rad/s, V, A, degC->K       esc_rpm_<i>, esc_voltage_<i>,
+(ESC1..8)  per Instance i                                            esc_current_<i>, ... (extra)
 =========  ========================  ==============================  =====================
 
 IMU, ATT and RCOU are required streams: a gap or a hole of invalid samples
@@ -41,6 +42,7 @@ import numpy as np
 
 from drake_uav.io.ardupilot_params import imu_position, mode_name, servo_mapping, vehicle_type
 from drake_uav.io.dataflash import DataFlash
+from drake_uav.io.esc import esc_stream
 from drake_uav.io.extras import (
     AHRS_CHANNELS,
     ARDUPILOT_EXTRAS,
@@ -318,7 +320,8 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     if gps is not None:
         streams.append(gps[0])
         metadata["gps_origin_lat_lon_alt"] = gps[1]
-    streams += _extra_streams(log, extra) + _logged_extras(log, extra_channels)
+    streams += _esc_streams(log) + _extra_streams(log, extra) + _logged_extras(log,
+                                                                             extra_channels)
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata, span=segment)
 
@@ -353,6 +356,32 @@ def _imu_rate(log: DataFlash, base: Stream) -> float:
                       f"{_MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
                       "IMU faster (INS_LOG_BAT_* or the IMU rate of LOG_BITMASK)", stacklevel=3)
     return round(rate, 6)
+
+
+_ESC_FIELDS = {"rpm": "RPM", "voltage": "Volt", "current": "Curr", "temperature": "Temp"}
+
+
+def _esc_streams(log: DataFlash) -> list[Stream]:
+    """One optional stream per ESC: ``ESC`` messages per ``Instance`` (ESC[i]), or the
+    separate ``ESC1`` .. ``ESC8`` messages of older firmware (:mod:`drake_uav.io.esc`)."""
+    sources = []
+    if log.has("ESC") and "Instance" in log.fields("ESC"):
+        instances = np.unique(log.records("ESC")["Instance"]).astype(int)
+        sources = [("ESC", "Instance", int(i), f"ESC[{int(i)}]") for i in instances]
+    else:
+        sources = [(f"ESC{n}", None, None, f"ESC{n}") for n in range(1, 9)
+                   if log.has(f"ESC{n}")]
+    streams = []
+    for index, (message, column, instance, name) in enumerate(sources):
+        fields = {q: f for q, f in _ESC_FIELDS.items() if f in log.fields(message)}
+        got = log.read(message, list(fields.values()), column, instance) if fields else None
+        if got is None:
+            continue
+        time, raw = got
+        streams.append(esc_stream(name, index if instance is None else instance, time,
+                                  {q: raw[f] for q, f in fields.items()},
+                                  {q: f"{message}.{f}" for q, f in fields.items()}))
+    return streams
 
 
 def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Stream]:
