@@ -123,3 +123,41 @@ def test_esc_channel_names_are_checked():
         esc_channel("power", 0)
     with pytest.raises(ValueError, match="index: must be >= 0"):
         esc_channel("rpm", -1)
+
+
+def _rpm_bin(tmp_path, per_instance):
+    """A 3 s .bin with IMU, ATT, RCOU at 100 Hz and two RPM sensors at 20 Hz, the second
+    unhealthy (-1 rev/min) for its first 0.3 s."""
+    t = np.arange(300) * 0.01
+    us = np.round(1e6 + t * 1e6).astype(np.uint64)
+    w = DataFlashWriter()
+    w.define("IMU", "QBffffffIIfBB", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH")
+    w.define("ATT", "QccccCCffB",
+             "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF")
+    w.define("RCOU", "QHHHH", "TimeUS,C1,C2,C3,C4")
+    w.add("IMU", TimeUS=us, I=0, AccZ=-9.8, GH=1, AH=1)
+    w.add("ATT", TimeUS=us, Roll=0.0)
+    w.add("RCOU", TimeUS=us, C1=1500, C2=1500, C3=1500, C4=1500)
+    k = slice(None, None, 5)
+    first = 6000.0 + 10.0 * np.arange(60)
+    second = np.where(t[k] < 0.3, -1.0, 3000.0)
+    if per_instance:
+        w.define("RPM", "QBf", "TimeUS,I,RPM")
+        w.add("RPM", TimeUS=us[k], I=0, RPM=first)
+        w.add("RPM", TimeUS=us[k] + 3, I=1, RPM=second)
+    else:
+        w.define("RPM", "Qff", "TimeUS,rpm1,rpm2")
+        w.add("RPM", TimeUS=us[k], rpm1=first, rpm2=second)
+    return w.save(tmp_path / "rpm.bin"), first
+
+
+@pytest.mark.parametrize("per_instance", [False, True])
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_ardupilot_rpm_sensors_are_motor_speed_and_motor_speed_2(tmp_path, per_instance):
+    path, first = _rpm_bin(tmp_path, per_instance)
+    log = read_log(path)
+    assert log.unit("motor_speed") == log.unit("motor_speed_2") == "rad/s"
+    assert logged_rate(log, "motor_speed") == pytest.approx(20.0)
+    np.testing.assert_allclose(log["motor_speed"][::5], first * math.pi / 30.0, rtol=1e-6)
+    # The unhealthy samples (-1) are invalid: the first healthy value is held before them.
+    np.testing.assert_allclose(log["motor_speed_2"], 3000.0 * math.pi / 30.0, rtol=1e-6)

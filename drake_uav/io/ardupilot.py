@@ -16,7 +16,7 @@ ARSP       Airspeed DiffPress        m/s, Pa                         pitot_airsp
 BARO       Alt                       m                               baro_alt
 RCOU       C<n> (SERVOn_FUNCTION)    SERVOn_MIN/MAX/TRIM/REVERSED    cmd_*
 XKF2/NKF2  VWN VWE                   m/s                             est_wind_n est_wind_e
-RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
+RPM        rpm1 rpm2 (or RPM per I)  rev/min -> rad/s (< 0 invalid)  motor_speed motor_speed_2
 AOA        AOA SSA                   deg -> rad (AHRS estimate)      ahrs_alpha ahrs_beta
 BAT        Volt Curr                 V, A (extra channels)           BAT.Volt BAT.Curr
 ESC        RPM Volt Curr Temp        rpm->rad/s, V, A, degC->K       esc_rpm_<i>, esc_voltage_<i>,
@@ -176,15 +176,31 @@ def _optional_streams(log: DataFlash, instance: int) -> list[Stream | None]:
     streams = [_simple(log, "BARO", {"baro_alt": "Alt"}, instance, optional=True),
                _simple(log, "XKF2" if log.has("XKF2") else "NKF2",
                        {"est_wind_n": "VWN", "est_wind_e": "VWE"}, instance, optional=True)]
-    if log.has("RPM"):
-        field = "rpm1" if "rpm1" in log.fields("RPM") else "RPM"
-        streams.append(_simple(log, "RPM", {"motor_speed": field}, instance, _RPM,
-                               optional=True))
+    if log.has("RPM"):  # one message for both sensors (rpm1, rpm2), or one per sensor (I)
+        fields = log.fields("RPM")
+        one = "rpm1" in fields
+        streams.append(_rpm_stream(log, "motor_speed", "rpm1" if one else "RPM", instance))
+        if "rpm2" in fields or ("I" in fields and instance != 1):
+            streams.append(_rpm_stream(log, "motor_speed_2", "rpm2" if one else "RPM",
+                                       instance if one else 1))
     if log.has("AOA"):
         streams.append(_simple(log, "AOA", {"ahrs_alpha": "AOA", "ahrs_beta": "SSA"}, None,
                                _DEG, units={c: u for c, (u, _) in AHRS_CHANNELS.items()},
                                optional=True))
     return streams
+
+
+def _rpm_stream(log: DataFlash, channel: str, field: str, instance: int) -> Stream | None:
+    """An RPM sensor's optional stream [rad/s], a negative speed invalid (ArduPilot logs
+    -1 rev/min for an unhealthy sensor): ``motor_speed`` (the first sensor, or instance
+    ``instance``) or ``motor_speed_2`` (the second sensor)."""
+    stream = _simple(log, "RPM", {channel: field}, instance, _RPM, units={channel: "rad/s"})
+    if stream is None:
+        return None
+    name = stream.name if channel == "motor_speed" else f"{stream.name}.{field}[1]"
+    return Stream(name, stream.time, stream.channels, stream.units, fields=stream.fields,
+                  valid=stream.channels[channel] >= 0.0, optional=True,
+                  trims=channel == "motor_speed")  # the second is an extra channel
 
 
 def _actuator_stream(log: DataFlash, actuators: ActuatorMapping) -> Stream | None:
