@@ -51,14 +51,20 @@ from drake_uav.io.extras import (
     wanted_fields,
 )
 from drake_uav.io.flight_log import FlightLog, FlightLogError
-from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.io.streams import (
+    CHANNELS,
+    MIN_IMU_RATE_HZ,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+)
 from drake_uav.model.geodesy import ned_from_geodetic
 
 __all__ = ["AHRS_CHANNELS", "read_ardupilot", "read_ardupilot_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0  # rev/min -> rad/s
 _DEG = math.pi / 180.0
-_MIN_IMU_RATE_HZ = 100.0
 _INSTANCE_MESSAGES = {"IMU": ("IMU", "IMU2", "IMU3"), "GPS": ("GPS", "GPS2"),
                       "BARO": ("BARO", "BAR2", "BAR3"), "ARSP": ("ARSP", "ASP2"),
                       "XKF2": ("XKF2",), "NKF2": ("NKF2", "NKF7"), "RPM": ("RPM",)}
@@ -367,9 +373,9 @@ def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:
 def _imu_rate(log: DataFlash, base: Stream) -> float:
     """Median IMU logging rate [Hz]; warns below 100 Hz (too slow for identification)."""
     rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
-    if rate < _MIN_IMU_RATE_HZ:
+    if rate < MIN_IMU_RATE_HZ:
         warnings.warn(f"{log.source}: {base.name} logged at {rate:.3g} Hz (< "
-                      f"{_MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
+                      f"{MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
                       "IMU faster (INS_LOG_BAT_* or the IMU rate of LOG_BITMASK)", stacklevel=3)
     return round(rate, 6)
 

@@ -57,14 +57,18 @@ from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.px4_actuators import ACTUATOR_TOPICS, actuator_plan, actuator_streams
 from drake_uav.io.px4_metadata import MULTICOPTER_TYPES, px4_metadata
 from drake_uav.io.px4_ulog import ULogFile, channel_stream
-from drake_uav.io.streams import ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.io.streams import (
+    MIN_IMU_RATE_HZ,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+)
 from drake_uav.model.rotations import quat_to_euler
 
 __all__ = ["read_px4", "read_px4_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0
-_MIN_IMU_RATE_HZ = 100.0
-"""Below this IMU logging rate the reader warns: too slow for the fast dynamics [Hz]."""
 _MIN_OPTIONAL_RATE_HZ = 2.0
 """The validated airspeed is preferred unless logged slower than this [Hz]."""
 _AIRSPEED_FIELDS = {"true": "true_airspeed_m_s", "indicated": "indicated_airspeed_m_s"}
@@ -248,9 +252,9 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
                 **px4_metadata(log)}
     base, gyro = _imu(log, instance)
     metadata["imu_rate_hz"] = round(_rate(base.time), 3)
-    if metadata["imu_rate_hz"] < _MIN_IMU_RATE_HZ:
+    if metadata["imu_rate_hz"] < MIN_IMU_RATE_HZ:
         warnings.warn(f"{log.source}: IMU ({base.name} multi-id {instance}) logged at "
-                      f"{metadata['imu_rate_hz']:.3g} Hz, below {_MIN_IMU_RATE_HZ:g} Hz: "
+                      f"{metadata['imu_rate_hz']:.3g} Hz, below {MIN_IMU_RATE_HZ:g} Hz: "
                       "fast dynamics are aliased", stacklevel=3)
     mav_type = metadata["vehicle_type"]["mav_type"]
     sources, metadata["actuators"] = actuator_plan(log, actuators, mav_type, deflections)
