@@ -201,8 +201,9 @@ def _rpm_stream(log: DataFlash, channel: str, field: str, instance: int) -> Stre
     -1 rev/min for an unhealthy sensor): ``motor_speed`` (the first sensor, or instance
     ``instance``) or ``motor_speed_2`` (the second sensor)."""
     stream = _simple(log, "RPM", {channel: field}, instance, _RPM, units={channel: "rad/s"})
-    if stream is None:
-        return None
+    if stream is None or (channel == "motor_speed_2"
+                          and not np.any(stream.channels[channel] > 0.0)):
+        return None  # a second sensor that never reads a speed is not fitted
     name = stream.name if channel == "motor_speed" else f"{stream.name}.{field}[1]"
     return Stream(name, stream.time, stream.channels, stream.units, fields=stream.fields,
                   valid=stream.channels[channel] >= 0.0, optional=True,
