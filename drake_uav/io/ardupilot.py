@@ -374,7 +374,7 @@ def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:
 def _imu_rate(log: DataFlash, base: Stream) -> float:
     """Median IMU logging rate [Hz]; warns below 100 Hz (too slow for identification)."""
     rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
-    if rate < MIN_IMU_RATE_HZ:
+    if round(rate, 3) < MIN_IMU_RATE_HZ:
         warnings.warn(f"{log.source}: {base.name} logged at {rate:.3g} Hz (< "
                       f"{MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
                       "IMU faster (INS_LOG_BAT_* or the IMU rate of LOG_BITMASK)", stacklevel=3)

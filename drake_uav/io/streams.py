@@ -85,7 +85,8 @@ FORMATS = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet", "
 """File suffix (lower case) -> format name accepted by :func:`read_log`."""
 
 MIN_IMU_RATE_HZ = 100.0
-"""Below this IMU logging rate [Hz] every reader warns: the fast dynamics are aliased."""
+"""Below this IMU logging rate [Hz] every reader warns: the fast dynamics are aliased
+(the rate rounded to 1 mHz, so that a 100 Hz clock's rounding never warns)."""
 
 _HINTS = {
     "vane_alpha": "autopilot logs carry no vane angles unless mapped: pass "

@@ -492,7 +492,7 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
     streams = [attitude, *_command_streams(tel, mapping), *_air_streams(tel), *position,
                *_esc_streams(tel), *_named_extras(tel, named)]
     imu_rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
-    if imu_rate < MIN_IMU_RATE_HZ:
+    if round(imu_rate, 3) < MIN_IMU_RATE_HZ:
         warnings.warn(f"{source}: IMU ({base.name}) telemetry at {imu_rate:.3g} Hz, below "
                       f"{MIN_IMU_RATE_HZ:g} Hz: fast dynamics are aliased", stacklevel=3)
     metadata = {"format": "MAVLink telemetry", "system_component": list(aircraft), **vehicle,
