@@ -96,7 +96,7 @@ def test_esc_telemetry_and_multicopter_heartbeat(sample, tmp_path):
     np.testing.assert_allclose(log["esc_temperature_0"], 310.15)
     np.testing.assert_allclose(log["esc_temperature_1"], 273.15)  # not sent: 0 deg C
     assert log.metadata["vehicle_type"] == {"mav_type": 2, "name": "quadrotor"}
-    assert not any(n.startswith("cmd_") and n != "cmd_throttle" for n in log.names)
+    assert not any(n.startswith("cmd_") for n in log.names)
     with pytest.raises(FlightLogError, match="not a fixed-wing log .MAV_TYPE 2"):
         check_fixed_wing(log, str(path))
 
@@ -124,3 +124,23 @@ def test_named_extra_channels_and_their_units(sample, tmp_path):
     assert log.unit("VFR_HUD.alt") == "m" and log.unit("ATTITUDE.rollspeed") == "rad/s"
     with pytest.raises(FlightLogError, match="no field nope in VFR_HUD messages"):
         read_log(path, extra_channels=["VFR_HUD.nope"])
+
+
+def test_only_the_aircraft_messages_are_read(sample, tmp_path):
+    """A ground station's and a companion computer's heartbeats come first, and another
+    vehicle (system 2) sends its own attitude: the aircraft is system 1, component 1."""
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    raw = write_tlog(sample.resample(time=sample.time[:301]), tmp_path / "a.tlog").read_bytes()
+    foreign = bytearray()
+    for system, component, autopilot, kind in ((255, 190, 8, 6), (1, 191, 0, 18),
+                                               (2, 1, 3, 1)):
+        link = dialect.MAVLink(None, srcSystem=system, srcComponent=component)
+        stamp = int(1.7e9 * 1e6).to_bytes(8, "big")
+        foreign += stamp + link.heartbeat_encode(kind, autopilot, 0, 0, 4).pack(link)
+        foreign += stamp + link.attitude_encode(0, 3.0, 1.0, 1.0, 0, 0, 0).pack(link)
+    path = tmp_path / "mixed.tlog"
+    path.write_bytes(bytes(foreign) + raw)
+    log, _ = _read(path)
+    assert log.metadata["system_component"] == [1, 1]
+    np.testing.assert_allclose(log["att_roll"], sample["att_roll"][:301], atol=1e-6)

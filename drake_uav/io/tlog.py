@@ -17,7 +17,7 @@ ATTITUDE                roll pitch yaw                  att_roll att_pitch att_y
 SERVO_OUTPUT_RAW        servo<n>_raw (SERVOn_* params   cmd_* (ArduPilot; held)
                         from PARAM_VALUE)
 VFR_HUD (opt.)          airspeed; throttle (%)          pitot_airspeed; cmd_throttle when
-                                                        no servo gives it
+                                                        no servo gives it (winged)
 SCALED_PRESSURE (opt.)  press_diff (hPa)                pitot_qbar (when not all zero)
 GLOBAL_POSITION_INT     lat lon alt, vx vy vz           gps_pn gps_pe gps_pd, gps_vn ...
 (opt.)                  (valid where lat, lon != 0)     (NED about the first fix)
@@ -31,8 +31,9 @@ HEARTBEAT               type, autopilot, custom_mode    metadata vehicle_type, f
 Time: a message's own autopilot time where it has one (``time_boot_ms``; ``time_usec``
 when it agrees with the boot clock within 1 s), else its arrival time moved onto the
 autopilot's boot clock by the median offset of the ``time_boot_ms`` messages (arrival
-times jitter with the link). Only the aircraft's messages are read: the system and
-component of the first autopilot HEARTBEAT. A message repeated or arriving out of order
+times jitter with the link). Only the aircraft's messages are read: the source (system,
+component) of an autopilot HEARTBEAT, component 1 first, then the one sending the most
+IMU messages (``metadata["system_component"]``). A message repeated or arriving out of order
 (time not above the stream's latest) is dropped and counted in ``metadata["out_of_order"]``;
 damaged bytes are skipped (``metadata["skipped_bytes"]``).
 ``VFR_HUD.airspeed`` is the autopilot's airspeed, its sensor's when it uses one (ArduPilot
@@ -77,7 +78,8 @@ _ESC_BLOCKS = {"ESC_TELEMETRY_1_TO_4": 0, "ESC_TELEMETRY_5_TO_8": 4,
 _DEFAULT_MESSAGES = {"HEARTBEAT", "PARAM_VALUE", "ATTITUDE", "SERVO_OUTPUT_RAW", "VFR_HUD",
                      "SCALED_PRESSURE", "GLOBAL_POSITION_INT", "WIND", "RPM", *_IMUS,
                      *_ESC_BLOCKS}
-_AUTOPILOT_INVALID = 8
+_AUTOPILOT_INVALID = 8  # MAV_AUTOPILOT_INVALID: a ground station, a gimbal, ...
+_AUTOPILOT_COMPONENT = 1  # MAV_COMP_ID_AUTOPILOT1
 _STAMP = 8  # bytes of a record's arrival time
 _MAVLINK1, _MAVLINK2 = 0xFE, 0xFD
 _ARDUPILOT, _PX4 = 3, 12
@@ -147,17 +149,22 @@ def _decode(path: Path, wanted: set[str]) -> tuple[dict[str, dict], int]:
 
 
 def _aircraft(found: dict[str, dict], source: str) -> tuple[tuple[int, int], object | None]:
-    """(system, component) of the aircraft and its first HEARTBEAT (None without one): the
-    first HEARTBEAT of an autopilot, else the source of most IMU messages."""
+    """(system, component) of the aircraft and its first HEARTBEAT (None without one): of
+    the sources of an autopilot HEARTBEAT, component 1 (the autopilot's) first, then the
+    one sending the most IMU messages, then the first heard; without one, the source of
+    the most IMU messages."""
+    counts = Counter()
+    for kind in _IMUS:
+        for key, group in found.get(kind, {}).items():
+            counts[key] += len(group.items)
     first = None
     for key, group in found.get("HEARTBEAT", {}).items():
         for arrival, beat in zip(group.arrival, group.items, strict=True):
-            if beat.autopilot != _AUTOPILOT_INVALID and (first is None or arrival < first[0]):
-                first = (arrival, key, beat)
+            rank = (key[1] != _AUTOPILOT_COMPONENT, -counts[key], arrival)
+            if beat.autopilot != _AUTOPILOT_INVALID and (first is None or rank < first[0]):
+                first = (rank, key, beat)
     if first is not None:
         return first[1], first[2]
-    counts = Counter({key: len(group.items) for kind in _IMUS
-                      for key, group in found.get(kind, {}).items()})
     if not counts:
         raise FlightLogError(f"{source}: no MAVLink IMU messages (HIGHRES_IMU, SCALED_IMU or "
                              "RAW_IMU) and no autopilot HEARTBEAT: not a telemetry log of an "
@@ -405,9 +412,10 @@ def _actuators(tel: _Telemetry, actuators, params, deflections, vehicle: dict
     return mapping, {"source": "default (no SERVOn parameters)", **mapping.describe()}
 
 
-def _command_streams(tel: _Telemetry, mapping: ActuatorMapping | None) -> list[Stream]:
-    """The ``cmd_*`` channels (held; required), and ``cmd_throttle`` from VFR_HUD's
-    throttle (%) when no servo gives it."""
+def _command_streams(tel: _Telemetry, mapping: ActuatorMapping | None, winged: bool
+                     ) -> list[Stream]:
+    """The ``cmd_*`` channels (held; required), and on a winged aircraft ``cmd_throttle``
+    from VFR_HUD's throttle (%) when no servo gives it."""
     streams = []
     commands = mapping.channels() if mapping is not None else {}
     if commands:
@@ -427,7 +435,7 @@ def _command_streams(tel: _Telemetry, mapping: ActuatorMapping | None) -> list[S
                                    {c: m.apply(f[m.field]) for c, m in commands.items()},
                                    {c: m.field for c, m in commands.items()}, hold=True,
                                    valid=valid))
-    if "cmd_throttle" not in commands and tel.has("VFR_HUD"):
+    if winged and "cmd_throttle" not in commands and tel.has("VFR_HUD"):
         got = tel.get("VFR_HUD", ["throttle"])
         streams.append(_stream("VFR_HUD.throttle", got,
                                {"cmd_throttle": got[1]["throttle"] / 100.0},
@@ -489,7 +497,8 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
     vehicle = _vehicle(tel, heartbeat)
     mapping, described = _actuators(tel, actuators, params, deflections, vehicle)
     position, origin = _position(tel)
-    streams = [attitude, *_command_streams(tel, mapping), *_air_streams(tel), *position,
+    winged = (vehicle.get("vehicle_type") or {}).get("mav_type") not in MULTICOPTER_TYPES
+    streams = [attitude, *_command_streams(tel, mapping, winged), *_air_streams(tel), *position,
                *_esc_streams(tel), *_named_extras(tel, named)]
     imu_rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
     if round(imu_rate, 3) < MIN_IMU_RATE_HZ:
