@@ -15,6 +15,7 @@ import pytest
 from log_writers import DataFlashWriter
 from pyulog import ULog
 
+from drake_uav.cli import main
 from drake_uav.identification.main_job import check_fixed_wing
 from drake_uav.io import FlightLogError, extra_channels, read_log
 from drake_uav.io.esc import esc_channel, esc_channels
@@ -62,6 +63,17 @@ def test_multicopter_log_is_read_but_refused_for_the_fixed_wing_job(quad):
     assert not any(name.startswith("cmd_") for name in quad.names)
     with pytest.raises(FlightLogError, match="not a fixed-wing log .MAV_TYPE 2, quadrotor"):
         check_fixed_wing(quad, str(QUAD))
+
+
+def test_identify_refuses_the_multicopter_log(tmp_path, capsys):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        code = main(["identify", str(QUAD), "--out", str(tmp_path / "report")])
+    assert code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error")]
+    assert errors == [f"error: {QUAD}: not a fixed-wing log (MAV_TYPE 2, quadrotor); identify "
+                      "works on fixed-wing and VTOL flights"]
+    assert not (tmp_path / "report").exists()
 
 
 def _esc_bin(tmp_path, old_format=False):
