@@ -111,3 +111,13 @@ def test_grouped_layout_errors_name_the_column_and_line(tmp_path):
     path.write_text("time [s],imu_p [rad/s],time_gps [s],gps_vn [m/s]\n0,1,0,1\n1,1,0,1\n")
     with pytest.raises(FlightLogError, match="bad.csv: time_gps repeats at line 3"):
         read_log(path)
+
+
+def test_voltage_and_current_units_convert_to_si(tmp_path):
+    path = tmp_path / "battery.csv"
+    path.write_text("time [s],bat_v [mV],bat_i [cA],esc [mA]\n0,12000,250,5\n0.1,11990,260,6\n")
+    log = read_log(path)
+    assert (log.unit("bat_v"), log.unit("bat_i"), log.unit("esc")) == ("V", "A", "A")
+    np.testing.assert_allclose(log["bat_v"], [12.0, 11.99])
+    np.testing.assert_allclose(log["bat_i"], [2.5, 2.6])
+    np.testing.assert_allclose(log["esc"], [0.005, 0.006])

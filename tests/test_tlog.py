@@ -144,3 +144,26 @@ def test_only_the_aircraft_messages_are_read(sample, tmp_path):
     log, _ = _read(path)
     assert log.metadata["system_component"] == [1, 1]
     np.testing.assert_allclose(log["att_roll"], sample["att_roll"][:301], atol=1e-6)
+
+
+def test_battery_of_sys_status_is_an_extra_channel_in_si_units(sample, tmp_path):
+    """SYS_STATUS at 2 Hz: the voltage [mV] is read in V; the current, sent as -1 (not
+    measured) throughout, is no channel."""
+    from pymavlink.dialects.v20 import ardupilotmega as dialect
+
+    raw = write_tlog(sample.resample(time=sample.time[:301]), tmp_path / "a.tlog").read_bytes()
+    link = dialect.MAVLink(None, srcSystem=1, srcComponent=1)
+    status = bytearray()
+    for k in range(7):
+        stamp = int(round((1.7e9 + 0.02 + 0.5 * k) * 1e6)).to_bytes(8, "big")
+        status += stamp + link.sys_status_encode(0, 0, 0, 0, 12000 - 10 * k, -1, 80, 0, 0, 0,
+                                                 0, 0, 0).pack(link)
+    path = tmp_path / "battery.tlog"
+    path.write_bytes(raw + bytes(status))
+    log, messages = _read(path)
+    assert log.unit("SYS_STATUS.voltage_battery") == "V"
+    assert logged_rate(log, "SYS_STATUS.voltage_battery") == pytest.approx(2.0)
+    held = np.floor(log.time / 0.5 + 1e-9)
+    np.testing.assert_allclose(log["SYS_STATUS.voltage_battery"], 12.0 - 0.01 * held)
+    assert "SYS_STATUS.current_battery" not in log
+    assert not any("SYS_STATUS" in m for m in messages)

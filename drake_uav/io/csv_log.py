@@ -72,6 +72,8 @@ UNIT_VARIANTS: dict[str, tuple[str, float]] = {
     "mph": ("m/s", 0.44704), "ft/s": ("m/s", 0.3048),
     "m": ("m", 1.0), "ft": ("m", 0.3048),
     "Pa": ("Pa", 1.0), "hPa": ("Pa", 100.0), "mbar": ("Pa", 100.0), "kPa": ("Pa", 1000.0),
+    "V": ("V", 1.0), "mV": ("V", 1e-3), "cV": ("V", 1e-2),
+    "A": ("A", 1.0), "mA": ("A", 1e-3), "cA": ("A", 1e-2),
     "1": ("1", 1.0), "-": ("1", 1.0), "%": ("1", 0.01), "percent": ("1", 0.01),
 }
 """Accepted unit symbol -> (SI symbol, factor): ``value_SI = factor * value``."""

@@ -25,6 +25,8 @@ WIND (opt., ArduPilot)  direction (from), speed         est_wind_n est_wind_e
 RPM (opt., ArduPilot)   rpm1                            motor_speed
 ESC_TELEMETRY_1_TO_4    rpm, voltage (cV), current      esc_rpm_<i>, esc_voltage_<i>, ...
 .. _9_TO_12 (opt.)      (cA), temperature (deg C)       (:mod:`drake_uav.io.esc`)
+SYS_STATUS (opt.)       voltage_battery (mV),           SYS_STATUS.voltage_battery (V),
+                        current_battery (cA)            SYS_STATUS.current_battery (A)
 HEARTBEAT               type, autopilot, custom_mode    metadata vehicle_type, flight_modes
 ======================  ==============================  ==================================
 
@@ -66,7 +68,7 @@ from drake_uav.io.streams import (
 )
 from drake_uav.model.geodesy import ned_from_geodetic
 
-__all__ = ["read_tlog"]
+__all__ = ["TLOG_EXTRAS", "read_tlog"]
 
 _G = 9.80665
 _RPM = math.pi / 30.0
@@ -76,7 +78,7 @@ _IMUS = {"HIGHRES_IMU": (1.0, 1.0), "SCALED_IMU": (_G / 1000.0, 1e-3),
 _ESC_BLOCKS = {"ESC_TELEMETRY_1_TO_4": 0, "ESC_TELEMETRY_5_TO_8": 4,
                "ESC_TELEMETRY_9_TO_12": 8}
 _DEFAULT_MESSAGES = {"HEARTBEAT", "PARAM_VALUE", "ATTITUDE", "SERVO_OUTPUT_RAW", "VFR_HUD",
-                     "SCALED_PRESSURE", "GLOBAL_POSITION_INT", "WIND", "RPM", *_IMUS,
+                     "SCALED_PRESSURE", "GLOBAL_POSITION_INT", "WIND", "RPM", "SYS_STATUS", *_IMUS,
                      *_ESC_BLOCKS}
 _AUTOPILOT_INVALID = 8  # MAV_AUTOPILOT_INVALID: a ground station, a gimbal, ...
 _AUTOPILOT_COMPONENT = 1  # MAV_COMP_ID_AUTOPILOT1
@@ -443,13 +445,37 @@ def _command_streams(tel: _Telemetry, mapping: ActuatorMapping | None, winged: b
     return streams
 
 
-def _named_extras(tel: _Telemetry, named: Sequence[str]) -> list[Stream]:
-    """Optional streams of the ``named`` ``MESSAGE.field`` extra channels (unit from the
-    MAVLink definition where the FlightLog knows it, else the raw number)."""
-    pairs = parse_extra_fields(named)
-    wanted = wanted_fields((), pairs, lambda k, f: f.split("[")[0] in tel.fieldnames(k),
-                           tel.unit, tel.source)
-    return extra_streams(wanted, lambda kind, fields: tel.get(kind, fields))
+TLOG_EXTRAS = (("SYS_STATUS", "voltage_battery", "mV"), ("SYS_STATUS", "current_battery", "cA"))
+"""(message, field, unit) of the extra channels a ``.tlog`` gives by default: the battery
+voltage and current (the channels ``SYS_STATUS.voltage_battery`` [V],
+``SYS_STATUS.current_battery`` [A])."""
+_NOT_MEASURED = {("SYS_STATUS", "voltage_battery"): 65535.0,
+                 ("SYS_STATUS", "current_battery"): -1.0}
+"""The value MAVLink sends for a quantity the autopilot does not measure."""
+
+
+def _extras(tel: _Telemetry, named: Sequence[str]) -> list[Stream]:
+    """Optional streams of the default extra channels the log has (:data:`TLOG_EXTRAS`)
+    and of the ``named`` ``MESSAGE.field`` ones (unit from the MAVLink definition where
+    the FlightLog knows it, else the raw number); a value sent for "not measured" is an
+    invalid sample, and a field that is never measured no channel."""
+
+    def read(kind, fields):
+        got = tel.get(kind, fields)
+        if got is None:
+            return None
+        time, values = got
+        return time, {f: np.where(values[f] == _NOT_MEASURED.get((kind, f), np.nan), np.nan,
+                                  values[f]) for f in fields}
+
+    wanted = wanted_fields(TLOG_EXTRAS, parse_extra_fields(named),
+                           lambda k, f: f.split("[")[0] in tel.fieldnames(k), tel.unit,
+                           tel.source)
+    for (kind, field), sentinel in _NOT_MEASURED.items():  # a quantity never measured
+        got = tel.get(kind, [field]) if field in wanted.get(kind, {}) else None
+        if got is not None and np.all(got[1][field] == sentinel):
+            del wanted[kind][field]
+    return extra_streams({k: f for k, f in wanted.items() if f}, read)
 
 
 def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
@@ -499,7 +525,7 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
     position, origin = _position(tel)
     winged = (vehicle.get("vehicle_type") or {}).get("mav_type") not in MULTICOPTER_TYPES
     streams = [attitude, *_command_streams(tel, mapping, winged), *_air_streams(tel), *position,
-               *_esc_streams(tel), *_named_extras(tel, named)]
+               *_esc_streams(tel), *_extras(tel, named)]
     imu_rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
     if round(imu_rate, 3) < MIN_IMU_RATE_HZ:
         warnings.warn(f"{source}: IMU ({base.name}) telemetry at {imu_rate:.3g} Hz, below "
