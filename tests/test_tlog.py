@@ -55,6 +55,7 @@ def test_a_written_tlog_reads_back_within_the_mavlink_resolution(sample, tmp_pat
     assert meta["actuators"]["source"] == "SERVOn parameters"
     assert meta["clock_offset_s"] == pytest.approx(-(1.7e9 + 0.02), abs=1e-5)
     assert meta["out_of_order"] == {} and meta["skipped_bytes"] == 0
+    assert "imu_position" not in meta  # no INS_POS1_* parameters sent
 
 
 def test_decimated_telemetry_keeps_each_stream_native_rate(sample, tmp_path):
@@ -167,3 +168,12 @@ def test_battery_of_sys_status_is_an_extra_channel_in_si_units(sample, tmp_path)
     np.testing.assert_allclose(log["SYS_STATUS.voltage_battery"], 12.0 - 0.01 * held)
     assert "SYS_STATUS.current_battery" not in log
     assert not any("SYS_STATUS" in m for m in messages)
+
+
+def test_parameters_sent_give_the_imu_position(sample, tmp_path):
+    path = write_tlog(sample.resample(time=sample.time[:101]), tmp_path / "a.tlog",
+                      parameters={"INS_POS1_X": 0.25, "INS_POS1_Z": -0.05})
+    log, _ = _read(path)
+    assert log.metadata["imu_position"] == {"position": [0.25, 0.0, pytest.approx(-0.05)],
+                                            "source": "INS_POS1_X/Y/Z"}
+    assert log.metadata["parameters"]["SERVO2_FUNCTION"] == 19.0

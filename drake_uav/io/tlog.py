@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.io.ardupilot_params import mode_name, servo_mapping
+from drake_uav.io.ardupilot_params import imu_position, mode_name, servo_mapping
 from drake_uav.io.esc import esc_stream
 from drake_uav.io.extras import extra_streams, parse_extra_fields, wanted_fields
 from drake_uav.io.flight_log import FlightLog, FlightLogError
@@ -496,7 +496,8 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
         extra_channels: more fields as extra channels, ``"MESSAGE.field"``.
 
     Metadata: ``format``, ``vehicle_type`` (from HEARTBEAT), ``firmware``, ``flight_modes``
-    (ArduPilot), ``parameters``, ``actuators``, ``imu_rate_hz``, ``clock_offset_s`` (boot
+    (ArduPilot), ``parameters``, ``imu_position`` (ArduPilot's ``INS_POS1_X/Y/Z`` when
+    received), ``actuators``, ``imu_rate_hz``, ``clock_offset_s`` (boot
     time minus arrival time), ``out_of_order`` (messages dropped per type),
     ``gps_origin_lat_lon_alt`` and the alignment's ``streams`` with each native rate.
 
@@ -533,7 +534,8 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
     metadata = {"format": "MAVLink telemetry", "system_component": list(aircraft), **vehicle,
                 "parameters": params, "actuators": described,
                 "imu_rate_hz": round(imu_rate, 6), "clock_offset_s": tel.offset,
-                "out_of_order": tel.out_of_order, "skipped_bytes": bad}
+                "out_of_order": tel.out_of_order, "skipped_bytes": bad,
+                **(imu_position(params, 0) if vehicle["firmware"].startswith("Ardu") else {})}
     if origin is not None:
         metadata["gps_origin_lat_lon_alt"] = origin
     return align_streams(base, [s for s in streams if s is not None], source=source,

@@ -102,7 +102,7 @@ def write_tlog(log: FlightLog, path: str | Path, *, rates: Mapping[str, float] |
                deflections: Mapping[str, float] | None = None,
                origin: tuple[float, float, float] = (47.0, 8.0, 500.0), mav_type: int = 1,
                custom_mode: int = 0, link_delay: float = 0.02,
-               epoch: float = 1.7e9) -> Path:
+               epoch: float = 1.7e9, parameters: Mapping[str, float] | None = None) -> Path:
     """Writes ``log`` as a MAVLink 2 telemetry log of ArduPlane (module docstring).
 
     Args:
@@ -117,6 +117,8 @@ def write_tlog(log: FlightLog, path: str | Path, *, rates: Mapping[str, float] |
         custom_mode: ArduPilot mode number of the HEARTBEAT (0: MANUAL).
         link_delay: arrival time after the autopilot's time [s].
         epoch: arrival time of the log's time 0 [s since 1970].
+        parameters: more parameters to send as PARAM_VALUE (``INS_POS1_X``, ...), beside
+            :data:`SERVO_PARAMETERS`.
 
     Returns:
         The path written.
@@ -148,9 +150,9 @@ def write_tlog(log: FlightLog, path: str | Path, *, rates: Mapping[str, float] |
     for t in _at(log, 1.0)[0]:
         send(t, link.heartbeat_encode(mav_type, _ARDUPILOT, 0, custom_mode,
                                          _MAV_STATE_ACTIVE))
-    for i, (name, value) in enumerate(SERVO_PARAMETERS.items()):
-        send(log.time[0], link.param_value_encode(name.encode(), value, _REAL32,
-                                                  len(SERVO_PARAMETERS), i))
+    sent = {**SERVO_PARAMETERS, **(parameters or {})}
+    for i, (name, value) in enumerate(sent.items()):
+        send(log.time[0], link.param_value_encode(name.encode(), value, _REAL32, len(sent), i))
     has = set(log.names)
     if {"imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r"} <= has:
         acc = [_int(log[c] * 1000.0 / _G, -32768, 32767) for c in ("imu_ax", "imu_ay", "imu_az")]
