@@ -152,6 +152,15 @@ def test_bin_battery_esc_and_named_fields_are_extra_channels(tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_field_of_the_imu_message_is_an_extra_channel_too(tmp_path):
+    path, _, _ = _autopilot_log(tmp_path)
+    log = read_log(path, extra_channels=["IMU.T"])
+    np.testing.assert_array_equal(log["IMU.T"], 0.0)  # the temperature not written
+    assert log.metadata["streams"]["IMU.extra"]["channels"] == ["IMU.T"]
+    assert log.metadata["time_base"] == "IMU"
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
 def test_ulg_battery_and_named_fields_are_extra_channels(tmp_path):
     t = np.arange(500) * 0.01
     us = np.round(1e6 + t * 1e6).astype(np.uint64)

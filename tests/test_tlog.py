@@ -121,8 +121,11 @@ def test_damaged_repeated_and_foreign_bytes(sample, tmp_path):
 
 def test_named_extra_channels_and_their_units(sample, tmp_path):
     path = write_tlog(sample.resample(time=sample.time[:301]), tmp_path / "a.tlog")
-    log, _ = _read(path, extra_channels=["VFR_HUD.alt", "ATTITUDE.rollspeed"])
+    log, _ = _read(path, extra_channels=["VFR_HUD.alt", "ATTITUDE.rollspeed",
+                                         "RAW_IMU.xgyro"])
     assert log.unit("VFR_HUD.alt") == "m" and log.unit("ATTITUDE.rollspeed") == "rad/s"
+    assert log.unit("RAW_IMU.xgyro") == "1"  # mrad/s: not a unit the FlightLog knows
+    np.testing.assert_allclose(log["RAW_IMU.xgyro"], np.rint(log["imu_p"] * 1000.0))
     with pytest.raises(FlightLogError, match="no field nope in VFR_HUD messages"):
         read_log(path, extra_channels=["VFR_HUD.nope"])
 

@@ -343,8 +343,9 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     if gps is not None:
         streams.append(gps[0])
         metadata["gps_origin_lat_lon_alt"] = gps[1]
-    streams += _esc_streams(log) + _extra_streams(log, extra) + _logged_extras(log,
-                                                                             extra_channels)
+    streams += _esc_streams(log) + _extra_streams(log, extra)
+    streams += _logged_extras(log, extra_channels,
+                              {base.name, *(s.name for s in streams if s is not None)})
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata, span=segment)
 
@@ -429,9 +430,10 @@ def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Str
     return streams
 
 
-def _logged_extras(log: DataFlash, named: Sequence[str]) -> list[Stream]:
+def _logged_extras(log: DataFlash, named: Sequence[str], taken: set[str]) -> list[Stream]:
     """Optional streams of the default extra channels the log has and of the ``named``
-    fields (FlightLogError naming one the log lacks), one per message, first instance."""
+    fields (FlightLogError naming one the log lacks), one per message, first instance;
+    ``taken``: the names of the reader's other streams."""
 
     def has(message, field):
         return log.has(message) and field in log.fields(message)
@@ -447,4 +449,4 @@ def _logged_extras(log: DataFlash, named: Sequence[str]) -> list[Stream]:
         return log.read(message, fields, column, None if column is None else 0)
 
     wanted = wanted_fields(ARDUPILOT_EXTRAS, parse_extra_fields(named), has, unit, log.source)
-    return extra_streams(wanted, read)
+    return extra_streams(wanted, read, taken)

@@ -113,14 +113,16 @@ def wanted_fields(defaults: Sequence[tuple[str, str, str]], named: Sequence[tupl
 
 
 def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
-                  read: Callable[[str, list[str]], tuple[np.ndarray, dict] | None]
-                  ) -> list[Stream]:
+                  read: Callable[[str, list[str]], tuple[np.ndarray, dict] | None],
+                  taken: Iterable[str] = ()) -> list[Stream]:
     """One optional stream per message of ``wanted`` (message -> field -> logged unit or
     None), its fields as extra channels (:func:`extra_channel_name`, :func:`logged_unit`);
     ``read(message, fields)`` gives (time [s], field -> raw values) or None (the message
     left out). A sample with a non-finite value is invalid; the streams never trim the
-    canonical channels' segments (:attr:`~drake_uav.io.streams.Stream.trims`)."""
-    streams = []
+    canonical channels' segments (:attr:`~drake_uav.io.streams.Stream.trims`). A stream is
+    named after its message, ``<message>.extra`` where the reader's other streams
+    (``taken``) have that name (an extra field of the IMU message)."""
+    streams, taken = [], set(taken)
     for message, fields in wanted.items():
         got = read(message, list(fields))
         if got is None:
@@ -132,6 +134,7 @@ def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
             units[channel], factor = logged_unit(logged)
             values[channel], sources[channel] = factor * raw[field], f"{message}.{field}"
         valid = np.logical_and.reduce([np.isfinite(v) for v in values.values()])
-        streams.append(Stream(message, time, values, units, fields=sources, valid=valid,
+        name = f"{message}.extra" if message in taken else message
+        streams.append(Stream(name, time, values, units, fields=sources, valid=valid,
                               optional=True, trims=False))
     return streams

@@ -260,8 +260,9 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
     sources, metadata["actuators"] = actuator_plan(log, actuators, mav_type, deflections)
     streams = [gyro, _attitude(log), *actuator_streams(log, sources),
                *_air_and_position_streams(log, airspeed, mav_type not in MULTICOPTER_TYPES),
-               *_esc_streams(log), *_extra_streams(log, extra, instance),
-               *_logged_extras(log, named)]
+               *_esc_streams(log), *_extra_streams(log, extra, instance)]
+    streams += _logged_extras(log, named,
+                              {base.name, *(s.name for s in streams if s is not None)})
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
 
@@ -329,10 +330,11 @@ def _extra_streams(log: ULogFile, extra: Mapping[str, FieldSource], instance: in
     return streams
 
 
-def _logged_extras(log: ULogFile, named: Sequence[tuple[str, str]]) -> list[Stream]:
+def _logged_extras(log: ULogFile, named: Sequence[tuple[str, str]], taken: set[str]
+                   ) -> list[Stream]:
     """Optional streams of the default extra channels the log has and of the ``named``
     (topic, field) pairs (FlightLogError naming one the log lacks), multi-id 0."""
     wanted = wanted_fields(PX4_EXTRAS, named,
                            lambda topic, field: log.has(topic) and field in log.fields(topic),
                            lambda topic, field: None, log.source)
-    return extra_streams(wanted, lambda topic, fields: log.get(topic, fields))
+    return extra_streams(wanted, lambda topic, fields: log.get(topic, fields), taken)

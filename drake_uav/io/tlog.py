@@ -197,7 +197,8 @@ class _Telemetry:
     def unit(self, kind: str, field: str) -> str | None:
         if not self.has(kind):
             return None
-        return getattr(self.messages[kind].items[0], "fieldunits_by_name", {}).get(field)
+        units = getattr(self.messages[kind].items[0], "fieldunits_by_name", {})
+        return units.get(field.split("[")[0])  # an array's element: the array's unit
 
     def get(self, kind: str, fields: Sequence[str], keep=None
             ) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
@@ -454,11 +455,12 @@ _NOT_MEASURED = {("SYS_STATUS", "voltage_battery"): 65535.0,
 """The value MAVLink sends for a quantity the autopilot does not measure."""
 
 
-def _extras(tel: _Telemetry, named: Sequence[str]) -> list[Stream]:
+def _extras(tel: _Telemetry, named: Sequence[str], taken: set[str]) -> list[Stream]:
     """Optional streams of the default extra channels the log has (:data:`TLOG_EXTRAS`)
     and of the ``named`` ``MESSAGE.field`` ones (unit from the MAVLink definition where
     the FlightLog knows it, else the raw number); a value sent for "not measured" is an
-    invalid sample, and a field that is never measured no channel."""
+    invalid sample, and a field that is never measured no channel; ``taken``: the names
+    of the other streams."""
 
     def read(kind, fields):
         got = tel.get(kind, fields)
@@ -475,7 +477,7 @@ def _extras(tel: _Telemetry, named: Sequence[str]) -> list[Stream]:
         got = tel.get(kind, [field]) if field in wanted.get(kind, {}) else None
         if got is not None and np.all(got[1][field] == sentinel):
             del wanted[kind][field]
-    return extra_streams({k: f for k, f in wanted.items() if f}, read)
+    return extra_streams({k: f for k, f in wanted.items() if f}, read, taken)
 
 
 def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
@@ -526,7 +528,8 @@ def read_tlog(path: str | Path, *, actuators: ActuatorMapping | None = None,
     position, origin = _position(tel)
     winged = (vehicle.get("vehicle_type") or {}).get("mav_type") not in MULTICOPTER_TYPES
     streams = [attitude, *_command_streams(tel, mapping, winged), *_air_streams(tel), *position,
-               *_esc_streams(tel), *_extras(tel, named)]
+               *_esc_streams(tel)]
+    streams += _extras(tel, named, {base.name, *(s.name for s in streams if s is not None)})
     imu_rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
     if round(imu_rate, 3) < MIN_IMU_RATE_HZ:
         warnings.warn(f"{source}: IMU ({base.name}) telemetry at {imu_rate:.3g} Hz, below "
