@@ -232,7 +232,7 @@ def _parse_coefficients(text: str) -> tuple[str, ...]:
 
 
 _LOG_SUFFIXES = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet",
-                 ".pq": "parquet"}
+                 ".pq": "parquet", ".tlog": "tlog"}
 """Log suffix -> format (the readers' table, repeated here so that the checks stay light;
 tests/test_cli.py checks the two agree)."""
 
