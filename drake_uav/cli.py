@@ -137,13 +137,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         options["max_gap"] = args.max_gap
     kind = args.format or _LOG_SUFFIXES[path.suffix.lower()]
     segment = None if args.segment == "auto" else _parse_segment(args.segment)
-    if kind in ("bin", "ulg"):
+    if kind in ("bin", "ulg", "tlog"):
         # A servo's full throw is the aircraft's full deflection (docs/flight_logs.md).
         options["deflections"] = params.limits.deflections()
         options["extra_channels"] = [f for f in (args.extra_channels or "").split(",") if f]
-    elif args.extra_channels:
-        raise ValueError("--extra-channels: names fields of .bin and .ulg logs; every "
-                         "non-canonical column of a CSV or Parquet log is an extra channel")
     if kind == "bin" and segment is not None:
         options["segment"] = segment  # optional streams are judged inside it
     log = read_log(path, format=args.format, **options)
@@ -183,15 +180,27 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
     """Raises ValueError for a bad argument before the analysis stack is imported."""
     _check_log(log, args.format)
     check_output_folder(args.out, inputs=[log])
+    kind = args.format or _LOG_SUFFIXES[log.suffix.lower()]
     if args.vanes:
         _vane_fields(args.vanes)
+        if kind not in ("bin", "ulg"):
+            raise ValueError(f"--vanes: names fields of .bin and .ulg logs, not of a {kind} "
+                             "log; in a CSV or Parquet log the vanes are the vane_alpha and "
+                             "vane_beta columns")
     if args.extra_channels:
         _extra_fields(args.extra_channels)
+        if kind not in ("bin", "ulg", "tlog"):
+            raise ValueError("--extra-channels: names fields of .bin, .ulg and .tlog logs; "
+                             "every non-canonical column of a CSV or Parquet log is an extra "
+                             "channel")
     _check_aircraft(args.aircraft)
     if args.sensor_spec:
         _check_toml(Path(args.sensor_spec), "--sensor-spec")
     if args.max_gap is not None and not args.max_gap > 0:
         raise ValueError(f"--max-gap: must be positive, got {args.max_gap:g}")
+    if args.max_gap is not None and kind == "parquet":
+        raise ValueError("--max-gap: a Parquet log is a saved FlightLog, already on one time "
+                         "base; the option cuts the streams of csv, bin, ulg and tlog logs")
     if args.segment != "auto":
         _parse_segment(args.segment)
     _parse_coefficients(args.coefficients)
@@ -231,7 +240,7 @@ def _parse_coefficients(text: str) -> tuple[str, ...]:
 
 
 _LOG_SUFFIXES = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet",
-                 ".pq": "parquet"}
+                 ".pq": "parquet", ".tlog": "tlog"}
 """Log suffix -> format (the readers' table, repeated here so that the checks stay light;
 tests/test_cli.py checks the two agree)."""
 
@@ -369,8 +378,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
 def _add_log_arguments(command: argparse.ArgumentParser, optional: bool) -> None:
     """The flight-log argument and its ``--format`` option of a sub-command."""
     command.add_argument("log", nargs="?" if optional else None,
-                         help="flight log (.csv, .bin, .ulg, .parquet)")
-    command.add_argument("--format", choices=("csv", "bin", "ulg", "parquet"),
+                         help="flight log (.csv, .bin, .ulg, .tlog, .parquet)")
+    command.add_argument("--format", choices=("csv", "bin", "ulg", "tlog", "parquet"),
                          help="log format (default: from the file extension)")
 
 

@@ -17,7 +17,7 @@ from drake_uav.io.writers import DataFlashWriter, ULogWriter
 from drake_uav.model.geodesy import geodetic_from_ned
 
 __all__ = ["DataFlashWriter", "ULogWriter", "px4_imu_writer", "ORIGIN", "FULL_DEFLECTION",
-           "dataflash_from_log", "ulog_from_log"]
+           "dataflash_from_log", "grouped_csv_from_log", "ulog_from_log"]
 
 # ------------------------------------------------- canonical FlightLog -> native logs
 ORIGIN = (47.0, 8.0, 500.0)
@@ -142,3 +142,29 @@ def ulog_from_log(log, path, parameters: dict[str, float] | None = None) -> Path
     for topic, values in columns.items():
         w.data(topic, w.subscribe(topic), timestamp=us, **values)
     return w.save(path)
+
+
+def grouped_csv_from_log(log, path, rates: dict[str, float]) -> Path:
+    """A CSV of a FlightLog with a time column per group (the export layout of
+    drake_uav.io.csv_log): ``time`` (the IMU and every channel but the commands and GPS),
+    ``time_commands`` (cmd_*) and ``time_gps`` (gps_*), each group's samples every
+    ``1 / rates[group]`` s (groups "imu", "commands", "gps"), shorter groups padded with
+    empty cells."""
+    groups = {"imu": [n for n in log.measured_names if not n.startswith(("cmd_", "gps_"))],
+              "commands": [n for n in log.measured_names if n.startswith("cmd_")],
+              "gps": [n for n in log.measured_names if n.startswith("gps_")]}
+    step = 1.0 / float(np.median(np.diff(log.time)))
+    header, columns = [], []
+    for group, names in groups.items():
+        if not names:
+            continue
+        index = np.arange(0, log.time.size, max(1, int(round(step / rates[group]))))
+        header += ["time [s]" if group == "imu" else f"time_{group} [s]",
+                   *(f"{n} [{log.unit(n)}]" for n in names)]
+        columns += [log.time[index], *(log[n][index] for n in names)]
+    rows = max(c.size for c in columns)
+    lines = [",".join("" if i >= c.size else repr(float(c[i])) for c in columns)
+             for i in range(rows)]
+    path = Path(path)
+    path.write_text(",".join(header) + "\n" + "\n".join(lines) + "\n")
+    return path

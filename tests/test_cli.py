@@ -142,3 +142,46 @@ def test_the_cli_suffix_table_is_the_readers_table():
     from drake_uav.io.streams import FORMATS
 
     assert _LOG_SUFFIXES == FORMATS
+
+
+class _ReadDone(Exception):
+    """Raised in place of the analysis: the test stops once the log is read."""
+
+
+@pytest.mark.parametrize("kind", ["csv", "parquet", "tlog", "bin", "ulg"])
+@pytest.mark.parametrize("option", [["--vanes", "VANE.AoA,VANE.SSA"], ["--max-gap", "0.3"],
+                                    ["--extra-channels", "BAT.Temp"], ["--segment", "5:20"]])
+def test_every_reading_option_reaches_the_reader_or_is_refused(kind, option, short_log,
+                                                              tmp_path, capsys, monkeypatch):
+    """Each reading option is either taken by the format's reader (which may refuse a field
+    the log lacks, naming the file) or refused in one line before any work; none ends in a
+    reader's TypeError."""
+    from drake_uav.identification import main_job
+    from drake_uav.io.tlog_writer import write_tlog
+
+    path = tmp_path / f"flight.{kind}"
+    log = short_log.slice(0.0, 25.0)
+    {"csv": log.save, "parquet": log.save, "tlog": lambda p: write_tlog(log, p),
+     "bin": lambda p: dataflash_from_log(log, p), "ulg": lambda p: ulog_from_log(log, p),
+     }[kind](path)
+
+    def stop(*args, **kwargs):
+        raise _ReadDone
+
+    monkeypatch.setattr(main_job, "identify", stop)
+    refused = {("--vanes", "csv"), ("--vanes", "parquet"), ("--vanes", "tlog"),
+               ("--max-gap", "parquet"), ("--extra-channels", "csv"),
+               ("--extra-channels", "parquet")}
+    argv = ["identify", str(path), "--out", str(tmp_path / "report"), *option]
+    if (option[0], kind) in refused:
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"error: {option[0]}:"), err
+    else:  # read, or refused by the reader itself for a field this log lacks
+        try:
+            code = main(argv)
+        except _ReadDone:
+            return
+        errors = [line for line in capsys.readouterr().err.splitlines()
+                  if line.startswith("error:")]
+        assert code == 2 and len(errors) == 1 and errors[0].startswith(f"error: {path}: ")

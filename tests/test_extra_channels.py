@@ -134,21 +134,30 @@ def test_bin_battery_esc_and_named_fields_are_extra_channels(tmp_path):
     path, t, rpm = _autopilot_log(tmp_path)
     log = read_log(path, extra_channels=["BAT.Temp"])
     assert extra_channels(log) == {"BAT.Volt": "V", "BAT.Curr": "A", "BAT.Temp": "1",
-                                   "ESC.RPM": "rad/s"}
+                                   "esc_rpm_0": "rad/s", "esc_current_0": "A"}
     # Instance 0 only, held between its 10 Hz samples (a slow sensor, as logged).
     held = np.floor(np.round((log.time - 1.0) / 0.1, 9)) * 0.1
     np.testing.assert_allclose(log["BAT.Volt"], 12.0 - held, atol=1e-6)
     np.testing.assert_array_equal(log["BAT.Temp"], 30.0)
     # rev/min -> rad/s; the NaN sample is invalid: the one before it is held over it.
     at_nan = np.flatnonzero(np.isclose(log.time, 1.0 + t[200]))[0]
-    assert log["ESC.RPM"][at_nan] == pytest.approx(rpm[35] * math.pi / 30.0, rel=1e-6)
+    assert log["esc_rpm_0"][at_nan] == pytest.approx(rpm[35] * math.pi / 30.0, rel=1e-6)
     # An extra channel never shortens the log: the ESC's first value is held before it.
-    assert log.time[0] == 1.0 and log["ESC.RPM"][0] == pytest.approx(rpm[0] * math.pi / 30.0)
+    assert log.time[0] == 1.0 and log["esc_rpm_0"][0] == pytest.approx(rpm[0] * math.pi / 30.0)
     assert read_log(log.save(tmp_path / "saved.csv")).equals(log)
     with pytest.raises(FlightLogError, match="no field Nope in BAT messages"):
         read_log(path, extra_channels=["BAT.Nope"])
     with pytest.raises(ValueError, match="'BATVolt' is not MESSAGE.FIELD"):
         read_log(path, extra_channels=["BATVolt"])
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_field_of_the_imu_message_is_an_extra_channel_too(tmp_path):
+    path, _, _ = _autopilot_log(tmp_path)
+    log = read_log(path, extra_channels=["IMU.T"])
+    np.testing.assert_array_equal(log["IMU.T"], 0.0)  # the temperature not written
+    assert log.metadata["streams"]["IMU.extra"]["channels"] == ["IMU.T"]
+    assert log.metadata["time_base"] == "IMU"
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")

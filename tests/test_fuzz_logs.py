@@ -1,11 +1,13 @@
 """Corrupt and truncated logs: every outcome is a FlightLog or one clear error, never a traceback.
 
 Property-based (hypothesis): logs of every format the readers take (ArduPilot ``.bin``,
-PX4 ``.ulg``, CSV, Parquet), seeded from real logs (tests/data) and the bundled sample
-flight, are damaged as an SD card, a copy or a hand edit damages them: truncated at any
-byte, bytes flipped, the header overwritten, records duplicated or swapped; CSV columns
-dropped, cells made empty, NaN or text, rows out of time order; Parquet columns of the
-wrong type, a unit lost, the footer cut. Then
+PX4 ``.ulg``, MAVLink ``.tlog``, CSV, Parquet), seeded from real logs (tests/data) and the
+bundled sample flight, are damaged as an SD card, a copy or a hand edit damages them:
+truncated at any byte, bytes flipped, the header overwritten, records duplicated or
+swapped (a telemetry log's records too: a radio link repeats and reorders them); CSV
+columns dropped, cells made empty, NaN or text, rows out of time order, in the
+single-time and the time-per-group layouts; Parquet columns of the wrong type, a unit
+lost, the footer cut. Then
 
 * ``read_log`` returns a FlightLog or raises FlightLogError with one line naming the file,
   and the parsers print nothing (their reports become at most a few warnings);
@@ -32,18 +34,19 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from log_writers import dataflash_from_log, ulog_from_log
+from log_writers import dataflash_from_log, grouped_csv_from_log, ulog_from_log
 
 import drake_uav
 from drake_uav.cli import main
 from drake_uav.io import FlightLog, FlightLogError, read_log
 from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_px4 import write_px4_log
+from drake_uav.io.tlog_writer import write_tlog
 from drake_uav.vehicles import aerosonde
 
 DATA = Path(__file__).parent / "data"
 SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
-FORMATS = ("bin", "ulg", "csv", "parquet")
+FORMATS = ("bin", "ulg", "tlog", "csv", "parquet")
 MAX_WARNINGS = 12
 """Warnings one read may give: one per problem found, never one per corrupt byte."""
 
@@ -61,7 +64,9 @@ def corpus(tmp_path_factory) -> dict[str, list[Path]]:
     """Seed logs per format: real autopilot logs and a 30 s slice of the bundled sample
     written in each format (a fixed-wing flight every reader accepts), for ``.bin`` and
     ``.ulg`` both with every channel at one rate and as a realistic autopilot log (ground
-    segment, servo parameters, flight modes, sensors at their own rates)."""
+    segment, servo parameters, flight modes, sensors at their own rates), for ``.tlog``
+    at the log's rate and at telemetry rates, for CSV with one time column and with a time
+    column per group."""
     folder = tmp_path_factory.mktemp("corpus")
     sample = FlightLog.load(SAMPLE).slice(0.0, 30.0)
     return {
@@ -69,7 +74,13 @@ def corpus(tmp_path_factory) -> dict[str, list[Path]]:
                 write_ardupilot_log(sample, folder / "r.bin", seed=3).path],
         "ulg": [DATA / "px4_sample_log_small.ulg", ulog_from_log(sample, folder / "s.ulg"),
                 write_px4_log(sample, folder / "r.ulg", seed=3).path],
-        "csv": [sample.save(folder / "s.csv")],
+        "tlog": [write_tlog(sample.slice(0.0, 10.0), folder / "s.tlog"),
+                 write_tlog(sample, folder / "low.tlog",
+                            rates={"imu": 10, "attitude": 10, "commands": 3, "air": 5,
+                                   "position": 2})],
+        "csv": [sample.save(folder / "s.csv"),
+                grouped_csv_from_log(sample.slice(0.0, 10.0), folder / "g.csv",
+                                     {"imu": 100, "commands": 3, "gps": 5})],
         "parquet": [sample.save(folder / "s.parquet")],
     }
 

@@ -158,8 +158,8 @@ def test_read_log_dispatch_and_file_errors(tmp_path):
     with pytest.raises(FlightLogError, match=r"log\.txt: unknown log format '\.txt' "
                                              r"\(known: \.csv, \.bin, \.ulg, \.parquet"):
         read_log(other)
-    with pytest.raises(FlightLogError, match=r"unknown log format 'tlog'"):
-        read_log(other, format="tlog")
+    with pytest.raises(FlightLogError, match=r"unknown log format 'txt'"):
+        read_log(other, format="txt")
     with pytest.raises(FlightLogError, match=r"nothere\.bin: no such file"):
         read_log(tmp_path / "nothere.bin")
     with pytest.raises(FlightLogError, match=r": not a file"):

@@ -4,10 +4,13 @@
   apart; ``FlightLog.save`` / ``FlightLog.load`` write and read ``.csv`` and
   ``.parquet`` (a CSV round trip is exact).
 * :func:`read_log`: one entry point for CSV, ArduPilot DataFlash ``.bin``, PX4
-  ``.ulg`` and Parquet; the measured channels get the canonical names and SI
-  units of :data:`CHANNELS`. The ``.bin`` and ``.ulg`` readers
-  (:mod:`drake_uav.io.ardupilot`, :mod:`drake_uav.io.px4`) load on first use,
-  because pymavlink and pyulog are slow to import.
+  ``.ulg``, MAVLink telemetry ``.tlog`` and Parquet; the measured channels get the
+  canonical names and SI units of :data:`CHANNELS`, and the autopilot readers record
+  each stream's native rate (``metadata["streams"]``). The ``.bin``, ``.ulg`` and
+  ``.tlog`` readers (:mod:`drake_uav.io.ardupilot`, :mod:`drake_uav.io.px4`,
+  :mod:`drake_uav.io.tlog`) load on first use, because pymavlink and pyulog are slow
+  to import. :func:`drake_uav.io.tlog_writer.write_tlog` writes a FlightLog as a
+  ``.tlog``; :mod:`drake_uav.io.esc` names the ESC telemetry channels.
 * :func:`extra_channels`: the measured channels beyond the canonical ones (a tension,
   a battery voltage, ...) with their units; every non-canonical CSV column, a default
   set of physical signals of ``.bin`` and ``.ulg`` logs and the fields named with

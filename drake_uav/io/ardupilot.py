@@ -16,10 +16,11 @@ ARSP       Airspeed DiffPress        m/s, Pa                         pitot_airsp
 BARO       Alt                       m                               baro_alt
 RCOU       C<n> (SERVOn_FUNCTION)    SERVOn_MIN/MAX/TRIM/REVERSED    cmd_*
 XKF2/NKF2  VWN VWE                   m/s                             est_wind_n est_wind_e
-RPM        rpm1 (or RPM)             rev/min -> rad/s                motor_speed
+RPM        rpm1 rpm2 (or RPM per I)  rev/min -> rad/s (< 0 invalid)  motor_speed motor_speed_2
 AOA        AOA SSA                   deg -> rad (AHRS estimate)      ahrs_alpha ahrs_beta
 BAT        Volt Curr                 V, A (extra channels)           BAT.Volt BAT.Curr
-ESC        RPM                       rev/min -> rad/s (extra)        ESC.RPM
+ESC        RPM Volt Curr Temp        rpm->rad/s, V, A, degC->K       esc_rpm_<i>, esc_voltage_<i>,
+(ESC1..8)  per Instance i                                            esc_current_<i>, ... (extra)
 =========  ========================  ==============================  =====================
 
 IMU, ATT and RCOU are required streams: a gap or a hole of invalid samples
@@ -41,6 +42,7 @@ import numpy as np
 
 from drake_uav.io.ardupilot_params import imu_position, mode_name, servo_mapping, vehicle_type
 from drake_uav.io.dataflash import DataFlash
+from drake_uav.io.esc import esc_stream
 from drake_uav.io.extras import (
     AHRS_CHANNELS,
     ARDUPILOT_EXTRAS,
@@ -49,14 +51,20 @@ from drake_uav.io.extras import (
     wanted_fields,
 )
 from drake_uav.io.flight_log import FlightLog, FlightLogError
-from drake_uav.io.streams import CHANNELS, ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.io.streams import (
+    CHANNELS,
+    MIN_IMU_RATE_HZ,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+)
 from drake_uav.model.geodesy import ned_from_geodetic
 
 __all__ = ["AHRS_CHANNELS", "read_ardupilot", "read_ardupilot_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0  # rev/min -> rad/s
 _DEG = math.pi / 180.0
-_MIN_IMU_RATE_HZ = 100.0
 _INSTANCE_MESSAGES = {"IMU": ("IMU", "IMU2", "IMU3"), "GPS": ("GPS", "GPS2"),
                       "BARO": ("BARO", "BAR2", "BAR3"), "ARSP": ("ARSP", "ASP2"),
                       "XKF2": ("XKF2",), "NKF2": ("NKF2", "NKF7"), "RPM": ("RPM",)}
@@ -174,15 +182,32 @@ def _optional_streams(log: DataFlash, instance: int) -> list[Stream | None]:
     streams = [_simple(log, "BARO", {"baro_alt": "Alt"}, instance, optional=True),
                _simple(log, "XKF2" if log.has("XKF2") else "NKF2",
                        {"est_wind_n": "VWN", "est_wind_e": "VWE"}, instance, optional=True)]
-    if log.has("RPM"):
-        field = "rpm1" if "rpm1" in log.fields("RPM") else "RPM"
-        streams.append(_simple(log, "RPM", {"motor_speed": field}, instance, _RPM,
-                               optional=True))
+    if log.has("RPM"):  # one message for both sensors (rpm1, rpm2), or one per sensor (I)
+        fields = log.fields("RPM")
+        one = "rpm1" in fields
+        streams.append(_rpm_stream(log, "motor_speed", "rpm1" if one else "RPM", instance))
+        if "rpm2" in fields or ("I" in fields and instance != 1):
+            streams.append(_rpm_stream(log, "motor_speed_2", "rpm2" if one else "RPM",
+                                       instance if one else 1))
     if log.has("AOA"):
         streams.append(_simple(log, "AOA", {"ahrs_alpha": "AOA", "ahrs_beta": "SSA"}, None,
                                _DEG, units={c: u for c, (u, _) in AHRS_CHANNELS.items()},
                                optional=True))
     return streams
+
+
+def _rpm_stream(log: DataFlash, channel: str, field: str, instance: int) -> Stream | None:
+    """An RPM sensor's optional stream [rad/s], a negative speed invalid (ArduPilot logs
+    -1 rev/min for an unhealthy sensor): ``motor_speed`` (the first sensor, or instance
+    ``instance``) or ``motor_speed_2`` (the second sensor)."""
+    stream = _simple(log, "RPM", {channel: field}, instance, _RPM, units={channel: "rad/s"})
+    if stream is None or (channel == "motor_speed_2"
+                          and not np.any(stream.channels[channel] > 0.0)):
+        return None  # a second sensor that never reads a speed is not fitted
+    name = stream.name if channel == "motor_speed" else f"{stream.name}.{field}[1]"
+    return Stream(name, stream.time, stream.channels, stream.units, fields=stream.fields,
+                  valid=stream.channels[channel] >= 0.0, optional=True,
+                  trims=channel == "motor_speed")  # the second is an extra channel
 
 
 def _actuator_stream(log: DataFlash, actuators: ActuatorMapping) -> Stream | None:
@@ -318,7 +343,9 @@ def read_ardupilot(path: str | Path, *, actuators: ActuatorMapping | str | None 
     if gps is not None:
         streams.append(gps[0])
         metadata["gps_origin_lat_lon_alt"] = gps[1]
-    streams += _extra_streams(log, extra) + _logged_extras(log, extra_channels)
+    streams += _esc_streams(log) + _extra_streams(log, extra)
+    streams += _logged_extras(log, extra_channels,
+                              {base.name, *(s.name for s in streams if s is not None)})
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata, span=segment)
 
@@ -348,11 +375,37 @@ def _deflections(given: Mapping[str, float] | None) -> dict[str, float]:
 def _imu_rate(log: DataFlash, base: Stream) -> float:
     """Median IMU logging rate [Hz]; warns below 100 Hz (too slow for identification)."""
     rate = 1.0 / float(np.median(np.diff(base.time))) if base.time.size > 1 else 0.0
-    if rate < _MIN_IMU_RATE_HZ:
+    if round(rate, 3) < MIN_IMU_RATE_HZ:
         warnings.warn(f"{log.source}: {base.name} logged at {rate:.3g} Hz (< "
-                      f"{_MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
+                      f"{MIN_IMU_RATE_HZ:g} Hz): fast manoeuvres are under-sampled; log the "
                       "IMU faster (INS_LOG_BAT_* or the IMU rate of LOG_BITMASK)", stacklevel=3)
     return round(rate, 6)
+
+
+_ESC_FIELDS = {"rpm": "RPM", "voltage": "Volt", "current": "Curr", "temperature": "Temp"}
+
+
+def _esc_streams(log: DataFlash) -> list[Stream]:
+    """One optional stream per ESC: ``ESC`` messages per ``Instance`` (ESC[i]), or the
+    separate ``ESC1`` .. ``ESC8`` messages of older firmware (:mod:`drake_uav.io.esc`)."""
+    sources = []
+    if log.has("ESC") and "Instance" in log.fields("ESC"):
+        instances = np.unique(log.records("ESC")["Instance"]).astype(int)
+        sources = [("ESC", "Instance", int(i), f"ESC[{int(i)}]") for i in instances]
+    else:
+        sources = [(f"ESC{n}", None, None, f"ESC{n}") for n in range(1, 9)
+                   if log.has(f"ESC{n}")]
+    streams = []
+    for index, (message, column, instance, name) in enumerate(sources):
+        fields = {q: f for q, f in _ESC_FIELDS.items() if f in log.fields(message)}
+        got = log.read(message, list(fields.values()), column, instance) if fields else None
+        if got is None:
+            continue
+        time, raw = got
+        streams.append(esc_stream(name, index if instance is None else instance, time,
+                                  {q: raw[f] for q, f in fields.items()},
+                                  {q: f"{message}.{f}" for q, f in fields.items()}))
+    return streams
 
 
 def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Stream]:
@@ -377,9 +430,10 @@ def _extra_streams(log: DataFlash, extra: Mapping[str, FieldSource]) -> list[Str
     return streams
 
 
-def _logged_extras(log: DataFlash, named: Sequence[str]) -> list[Stream]:
+def _logged_extras(log: DataFlash, named: Sequence[str], taken: set[str]) -> list[Stream]:
     """Optional streams of the default extra channels the log has and of the ``named``
-    fields (FlightLogError naming one the log lacks), one per message, first instance."""
+    fields (FlightLogError naming one the log lacks), one per message, first instance;
+    ``taken``: the names of the reader's other streams."""
 
     def has(message, field):
         return log.has(message) and field in log.fields(message)
@@ -395,4 +449,4 @@ def _logged_extras(log: DataFlash, named: Sequence[str]) -> list[Stream]:
         return log.read(message, fields, column, None if column is None else 0)
 
     wanted = wanted_fields(ARDUPILOT_EXTRAS, parse_extra_fields(named), has, unit, log.source)
-    return extra_streams(wanted, read)
+    return extra_streams(wanted, read, taken)

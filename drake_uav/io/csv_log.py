@@ -21,6 +21,25 @@
 * Every cell must be a number: empty cells, ``nan``/``inf``, a row with a
   different number of fields (a cut last line), or time that does not strictly
   increase raise :class:`FlightLogError` naming the file, column and line.
+* IMU columns logged below 100 Hz give a warning (fast dynamics are aliased).
+
+Several time columns (ground-station and ROS-bridge exports, where each message group
+keeps its own time stamps)::
+
+    time [s], imu_ax [m/s^2], ..., att_yaw [rad], time_cmd [ms], cmd_elevator [deg], ...
+    0.00,     0.12,           ..., 0.5,           5,             1.2,                ...
+    0.01,     0.11,           ..., 0.5,           338,           1.4,                ...
+    0.02,     0.13,           ..., 0.5,           ,              ,                   ...
+
+* The first column is a time column; each ``time`` or ``time_<group>`` column times
+  the columns to its right up to the next time column. A group ends at its time
+  column's first empty cell: its rows below are empty (padding), its rows above full.
+* Each group is a stream at its own native rate (``metadata["streams"]``), aligned
+  on the IMU's group as the autopilot readers do
+  (:func:`~drake_uav.io.streams.align_streams`): commands held, slow sensors held,
+  others interpolated; a group of IMU, attitude or command columns is required (its
+  gaps cut the log), any other group optional (dropped with a warning when sparse).
+  Truth columns need the single-time layout.
 """
 
 from __future__ import annotations
@@ -29,13 +48,14 @@ import codecs
 import json
 import math
 import re
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from drake_uav.io.flight_log import UNITS, FlightLog, FlightLogError
-from drake_uav.io.streams import CHANNELS
+from drake_uav.io.streams import CHANNELS, MIN_IMU_RATE_HZ, Stream, align_streams
 
 __all__ = ["UNIT_VARIANTS", "channel_name", "read_csv", "resolve_unit"]
 
@@ -52,6 +72,8 @@ UNIT_VARIANTS: dict[str, tuple[str, float]] = {
     "mph": ("m/s", 0.44704), "ft/s": ("m/s", 0.3048),
     "m": ("m", 1.0), "ft": ("m", 0.3048),
     "Pa": ("Pa", 1.0), "hPa": ("Pa", 100.0), "mbar": ("Pa", 100.0), "kPa": ("Pa", 1000.0),
+    "V": ("V", 1.0), "mV": ("V", 1e-3), "cV": ("V", 1e-2),
+    "A": ("A", 1.0), "mA": ("A", 1e-3), "cA": ("A", 1e-2),
     "1": ("1", 1.0), "-": ("1", 1.0), "%": ("1", 0.01), "percent": ("1", 0.01),
 }
 """Accepted unit symbol -> (SI symbol, factor): ``value_SI = factor * value``."""
@@ -128,13 +150,14 @@ def _header(line: str, source: str) -> list[tuple[str, str]]:
 
 
 def _locate_bad_row(lines: list[str], first_line: int, names: list[str], source: str,
-                    ends_with_newline: bool, reason: str) -> FlightLogError:
+                    ends_with_newline: bool, reason: str,
+                    allow_empty: bool = False) -> FlightLogError:
     """The error of the first malformed data line (slow path, only after a failure)."""
     numbered = [(first_line + i, line) for i, line in enumerate(lines) if line]
     if not numbered:
         return FlightLogError(f"{source}: no data rows after the header")
     for k, (number, line) in enumerate(numbered):
-        problem = _row_problem(line.split(","), names)
+        problem = _row_problem(line.split(","), names, allow_empty)
         if problem is None:
             continue
         last = k == len(numbered) - 1
@@ -144,14 +167,18 @@ def _locate_bad_row(lines: list[str], first_line: int, names: list[str], source:
     return FlightLogError(f"{source}: unreadable data ({reason})")
 
 
-def _row_problem(cells: list[str], names: list[str]) -> str | None:
-    """What is wrong with one split data line, or None."""
+def _row_problem(cells: list[str], names: list[str], allow_empty: bool = False
+                 ) -> str | None:
+    """What is wrong with one split data line, or None (an empty cell is fine where
+    ``allow_empty``: the padding of a time group)."""
     if len(cells) < len(names):
         return f"{len(cells)} of {len(names)} fields"
     if len(cells) > len(names):
         return f"{len(cells)} fields, the header has {len(names)}"
     for name, cell in zip(names, cells, strict=True):
         if not cell.strip():
+            if allow_empty:
+                continue
             return f"column '{name}': empty cell"
         try:
             float(cell)
@@ -160,9 +187,11 @@ def _row_problem(cells: list[str], names: list[str]) -> str | None:
     return None
 
 
-def _numbers(body: memoryview, n_columns: int) -> list[np.ndarray] | str:
-    """The columns of ``body`` as float arrays, or the parser's complaint when a cell is
-    empty or not a number, or a row has another number of fields (pyarrow's parser)."""
+def _numbers(body: memoryview, n_columns: int, allow_empty: bool = False
+             ) -> tuple[list[np.ndarray], list[np.ndarray]] | str:
+    """(the columns of ``body`` as float arrays, each column's empty cells), or the
+    parser's complaint when a cell is not a number, a row has another number of fields
+    (pyarrow's parser) or, unless ``allow_empty``, a cell is empty."""
     pa, csv = _pyarrow_csv()
     names = [f"c{i}" for i in range(n_columns)]
     try:
@@ -173,9 +202,12 @@ def _numbers(body: memoryview, n_columns: int) -> list[np.ndarray] | str:
                 strings_can_be_null=False, quoted_strings_can_be_null=False))
     except pa.ArrowInvalid as err:
         return str(err)
-    if any(column.null_count for column in table.columns):
+    if not allow_empty and any(column.null_count for column in table.columns):
         return "empty cell"
-    return [column.to_numpy() for column in table.columns]
+    empty = [column.is_null().to_numpy(zero_copy_only=False) for column in table.columns]
+    values = [column.to_numpy() if not column.null_count
+              else column.fill_null(math.nan).to_numpy() for column in table.columns]
+    return values, empty
 
 
 def _pyarrow_csv():
@@ -247,14 +279,16 @@ def _check_finite(data: list[np.ndarray], names: list[str], source: str,
             f"{int(np.count_nonzero(~np.isfinite(data[col])))} non-finite cells in this column")
 
 
-def _check_time(time: np.ndarray, source: str, line_number: Callable[[int], int]) -> None:
-    """FlightLogError at the first sample whose time [s] does not strictly increase."""
+def _check_time(time: np.ndarray, source: str, line_number: Callable[[int], int],
+                column: str = "time") -> None:
+    """FlightLogError at the first sample whose time [s] (of ``column``) does not strictly
+    increase."""
     step = np.diff(time)
     wrong = np.flatnonzero(step <= 0)
     if wrong.size:
         row = int(wrong[0]) + 1
         what = "repeats" if step[row - 1] == 0 else "goes backwards"
-        raise FlightLogError(f"{source}: time {what} at line {line_number(row)} "
+        raise FlightLogError(f"{source}: {column} {what} at line {line_number(row)} "
                              f"(t = {time[row]:.9g} s after {time[row - 1]:.9g} s)")
 
 
@@ -275,16 +309,105 @@ def _channels(columns: list[tuple[str, str]], units: list[tuple[str, float]],
     return measured, truth, unit_of
 
 
-def read_csv(path: str | Path) -> FlightLog:
+def _time_groups(names: list[str], source: str) -> list[tuple[int, list[int]]]:
+    """(time column, its data columns) per time group: one group of every column when the
+    file has one time column; else each ``time`` / ``time_<group>`` column and the columns
+    to its right up to the next time column."""
+    times = [i for i, n in enumerate(names) if n == "time" or n.startswith("time_")]
+    if len(times) < 2:
+        t = names.index("time")
+        return [(t, [i for i in range(len(names)) if i != t])]
+    if times[0] != 0:
+        raise FlightLogError(f"{source}: column '{names[0]}' comes before the first time "
+                             f"column '{names[times[0]]}'; with several time columns, each "
+                             "one times the columns to its right")
+    groups = [(t, list(range(t + 1, end))) for t, end in zip(times, [*times[1:], len(names)],
+                                                             strict=True)]
+    for t, columns in groups:
+        if not columns:
+            raise FlightLogError(f"{source}: time column '{names[t]}' times no column")
+        truth = [names[c] for c in columns if names[c].startswith(_TRUTH)]
+        if truth:
+            raise FlightLogError(f"{source}: column '{truth[0]}': truth channels need the "
+                                 "single-time layout (one time column)")
+    return groups
+
+
+def _imu_rate_note(rate: float, source: str, what: str) -> None:
+    """Warns when the IMU columns are logged below :data:`MIN_IMU_RATE_HZ`."""
+    if round(rate, 3) < MIN_IMU_RATE_HZ:
+        warnings.warn(f"{source}: IMU columns ({what}) logged at {rate:.3g} Hz, below "
+                      f"{MIN_IMU_RATE_HZ:g} Hz: fast dynamics are aliased", stacklevel=4)
+
+
+def _group_length(group: tuple[int, list[int]], empty: list[np.ndarray], names: list[str],
+                  source: str, line_number: Callable[[int], int]) -> int:
+    """Rows of a time group: up to its time column's first empty cell; FlightLogError at
+    an empty cell inside the group or a value in its padding."""
+    t, columns = group
+    n = int(np.argmax(empty[t])) if empty[t].any() else empty[t].size
+    if n < 2:
+        raise FlightLogError(f"{source}: time column '{names[t]}' has {n} sample(s); a time "
+                             "group needs 2")
+    for c in (t, *columns):
+        inside = np.flatnonzero(empty[c][:n])
+        if inside.size:
+            raise FlightLogError(f"{source}: column '{names[c]}': empty cell at line "
+                                 f"{line_number(int(inside[0]))}, inside its time group "
+                                 f"'{names[t]}' (rows up to line {line_number(n - 1)})")
+        after = np.flatnonzero(~empty[c][n:])
+        if after.size:
+            raise FlightLogError(f"{source}: column '{names[c]}': a value at line "
+                                 f"{line_number(n + int(after[0]))} after the end of its time "
+                                 f"group '{names[t]}' (its last time at line "
+                                 f"{line_number(n - 1)})")
+    return n
+
+
+def _grouped_log(groups, names, units, data, empty, source: str, metadata: dict,
+                 line_number: Callable[[int], int], max_gap: float) -> FlightLog:
+    """The FlightLog of a CSV with several time columns, its groups aligned as streams on
+    the IMU's time base (:func:`~drake_uav.io.streams.align_streams`)."""
+    streams = []
+    for group in groups:
+        t, columns = group
+        n = _group_length(group, empty, names, source, line_number)
+        _check_finite([data[c][:n] for c in (t, *columns)], [names[c] for c in (t, *columns)],
+                      source, line_number)
+        scaled = {c: data[c][:n] * units[c][1] for c in (t, *columns)}
+        _check_time(scaled[t], source, line_number, names[t])
+        channels = {names[c]: scaled[c] for c in columns}
+        canonical = [c for c in channels if c in CHANNELS]
+        required = any(c.startswith(("imu_", "att_", "cmd_")) for c in canonical)
+        streams.append(Stream(
+            names[t], scaled[t], channels, {names[c]: units[c][0] for c in columns},
+            fields={c: f"column {c}" for c in channels},
+            angles=tuple(c for c in ("att_roll", "att_yaw") if c in channels),
+            hold=all(c.startswith("cmd_") for c in channels), optional=not required,
+            trims=bool(canonical)))
+    base = next((s for s in streams if "imu_ax" in s.channels), streams[0])
+    rate = 1.0 / float(np.median(np.diff(base.time)))
+    if any(c.startswith("imu_") for c in base.channels):
+        _imu_rate_note(rate, source, f"time column '{base.name}'")
+    return align_streams(base, [s for s in streams if s is not base], source=source,
+                         max_gap=max_gap, metadata=metadata)
+
+
+def read_csv(path: str | Path, *, max_gap: float = 1.0) -> FlightLog:
     """Reads a CSV flight log (see the module docstring) into a FlightLog in SI units.
 
     The cells are parsed by pyarrow's multi-threaded CSV reader; only when that
     fails is the file scanned line by line to name the first bad cell.
 
+    Args:
+        path: the file.
+        max_gap: with several time columns, the longest interval between two samples of
+            an IMU, attitude or command group before the log is cut into segments [s].
+
     Raises:
         FlightLogError: naming the file and the column/line of a bad header,
             unknown or wrong unit, empty/NaN/non-numeric cell, truncated line,
-            or time not strictly increasing.
+            time not strictly increasing, or a time group's padding that is not empty.
     """
     path = Path(path)
     source = str(path)
@@ -293,24 +416,31 @@ def read_csv(path: str | Path) -> FlightLog:
     columns = _header(header, source)
     names = [n for n, _ in columns]
     units = _units(columns, source)
+    groups = _time_groups(names, source)
     body = memoryview(raw)[min(pos, len(raw)):]
     first_line = line_count + 1  # 1-based line number of the body's first line
-    data = _numbers(body, len(names))
-    if isinstance(data, str):
+    parsed = _numbers(body, len(names), allow_empty=len(groups) > 1)
+    if isinstance(parsed, str):
         raise _locate_bad_row(_body_lines(body), first_line, names, source,
-                              raw.endswith(b"\n"), data)
+                              raw.endswith(b"\n"), parsed, allow_empty=len(groups) > 1)
+    data, empty = parsed
     if data[0].size == 0:
         raise FlightLogError(f"{source}: no data rows after the header")
 
     def line_number(row: int) -> int:
         return _line_number(body, first_line, row)
 
+    if len(groups) > 1:
+        return _grouped_log(groups, names, units, data, empty, source, metadata,
+                            line_number, max_gap)
     _check_finite(data, names, source, line_number)
     data = [column if factor == 1.0 else column * factor
             for column, (_, factor) in zip(data, units, strict=True)]
     time = data[names.index("time")]
     _check_time(time, source, line_number)
     measured, truth, unit_of = _channels(columns, units, data)
+    if time.size > 1 and any(n.startswith("imu_") for n in measured):
+        _imu_rate_note(1.0 / float(np.median(np.diff(time))), source, "column 'time'")
     try:
         return FlightLog(time, measured, truth, unit_of, metadata)
     except FlightLogError as err:

@@ -11,12 +11,13 @@ and its unit, and the main job tests it as a candidate explanation of the residu
   ``payload``, gets the unit ``1``).
 * ArduPilot ``.bin`` and PX4 ``.ulg``: a small default set of physical signals when the
   log has them (:data:`ARDUPILOT_EXTRAS`, :data:`PX4_EXTRAS`: battery voltage and
-  current, the first ESC's shaft speed), plus the fields the user names
-  (``extra_channels=["BAT.Temp", ...]``, ``drake-uav identify --extra-channels``), as
-  channels ``<message>.<field>`` (brackets of an array field dropped:
-  ``esc_status.esc0.esc_rpm``). They are optional streams: sparse or gappy, they are
-  left out with a warning; a sample that is not finite is an invalid one; they never
-  shorten the log (a battery logged from 0.3 s after the IMU holds its first value).
+  current), plus the fields the user names (``extra_channels=["BAT.Temp", ...]``,
+  ``drake-uav identify --extra-channels``), as channels ``<message>.<field>`` (brackets
+  of an array field dropped: ``esc_status.esc1.esc_power``). Every ESC's telemetry is
+  read as ``esc_rpm_<i>``, ``esc_voltage_<i>``, ... (:mod:`drake_uav.io.esc`). They are
+  optional streams: sparse or gappy, they are left out with a warning; a sample that is
+  not finite is an invalid one; they never shorten the log (a battery logged from 0.3 s
+  after the IMU holds its first value).
 """
 
 from __future__ import annotations
@@ -47,12 +48,11 @@ ESTIMATED_CHANNELS = {
 """Measured channels that estimate a canonical quantity, never extra: name -> (unit,
 meaning)."""
 
-ARDUPILOT_EXTRAS = (("BAT", "Volt", "V"), ("BAT", "Curr", "A"), ("ESC", "RPM", "rpm"))
+ARDUPILOT_EXTRAS = (("BAT", "Volt", "V"), ("BAT", "Curr", "A"))
 """(message, field, unit) of the extra channels a ``.bin`` log gives by default (first
 instance)."""
 
-PX4_EXTRAS = (("battery_status", "voltage_v", "V"), ("battery_status", "current_a", "A"),
-              ("esc_status", "esc[0].esc_rpm", "rpm"))
+PX4_EXTRAS = (("battery_status", "voltage_v", "V"), ("battery_status", "current_a", "A"))
 """(topic, field, unit) of the extra channels a ``.ulg`` log gives by default (multi-id 0)."""
 
 
@@ -113,14 +113,16 @@ def wanted_fields(defaults: Sequence[tuple[str, str, str]], named: Sequence[tupl
 
 
 def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
-                  read: Callable[[str, list[str]], tuple[np.ndarray, dict] | None]
-                  ) -> list[Stream]:
+                  read: Callable[[str, list[str]], tuple[np.ndarray, dict] | None],
+                  taken: Iterable[str] = ()) -> list[Stream]:
     """One optional stream per message of ``wanted`` (message -> field -> logged unit or
     None), its fields as extra channels (:func:`extra_channel_name`, :func:`logged_unit`);
     ``read(message, fields)`` gives (time [s], field -> raw values) or None (the message
     left out). A sample with a non-finite value is invalid; the streams never trim the
-    canonical channels' segments (:attr:`~drake_uav.io.streams.Stream.trims`)."""
-    streams = []
+    canonical channels' segments (:attr:`~drake_uav.io.streams.Stream.trims`). A stream is
+    named after its message, ``<message>.extra`` where the reader's other streams
+    (``taken``) have that name (an extra field of the IMU message)."""
+    streams, taken = [], set(taken)
     for message, fields in wanted.items():
         got = read(message, list(fields))
         if got is None:
@@ -132,6 +134,7 @@ def extra_streams(wanted: Mapping[str, Mapping[str, str | None]],
             units[channel], factor = logged_unit(logged)
             values[channel], sources[channel] = factor * raw[field], f"{message}.{field}"
         valid = np.logical_and.reduce([np.isfinite(v) for v in values.values()])
-        streams.append(Stream(message, time, values, units, fields=sources, valid=valid,
+        name = f"{message}.extra" if message in taken else message
+        streams.append(Stream(name, time, values, units, fields=sources, valid=valid,
                               optional=True, trims=False))
     return streams

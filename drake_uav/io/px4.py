@@ -24,7 +24,9 @@ wind (or wind_estimate)   windspeed_north, _east          est_wind_n est_wind_e
 (opt.)
 rpm (opt.)                indicated_frequency_rpm         motor_speed
 battery_status (opt.)     voltage_v current_a             battery_status.voltage_v ...
-esc_status (opt.)         esc[0].esc_rpm (rev/min)        esc_status.esc0.esc_rpm
+esc_status (opt.)         esc[i].esc_rpm (rev/min),       esc_rpm_<i> (rad/s),
+                          esc_voltage, esc_current,       esc_voltage_<i>, esc_current_<i>,
+                          esc_temperature (deg C)         esc_temperature_<i> (K)
 ========================  ==============================  ==============================
 
 Required: the IMU, the attitude and (but on a multicopter) the commands; *the
@@ -44,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_uav.io.esc import esc_stream
 from drake_uav.io.extras import (
     PX4_EXTRAS,
     extra_streams,
@@ -54,20 +57,25 @@ from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.io.px4_actuators import ACTUATOR_TOPICS, actuator_plan, actuator_streams
 from drake_uav.io.px4_metadata import MULTICOPTER_TYPES, px4_metadata
 from drake_uav.io.px4_ulog import ULogFile, channel_stream
-from drake_uav.io.streams import ActuatorMapping, FieldSource, Stream, align_streams
+from drake_uav.io.streams import (
+    MIN_IMU_RATE_HZ,
+    ActuatorMapping,
+    FieldSource,
+    Stream,
+    align_streams,
+)
 from drake_uav.model.rotations import quat_to_euler
 
 __all__ = ["read_px4", "read_px4_metadata"]
 
 _RPM = 2.0 * math.pi / 60.0
-_MIN_IMU_RATE_HZ = 100.0
-"""Below this IMU logging rate the reader warns: too slow for the fast dynamics [Hz]."""
 _MIN_OPTIONAL_RATE_HZ = 2.0
 """The validated airspeed is preferred unless logged slower than this [Hz]."""
 _AIRSPEED_FIELDS = {"true": "true_airspeed_m_s", "indicated": "indicated_airspeed_m_s"}
 _TOPICS = ("sensor_combined", "sensor_accel", "sensor_gyro", "vehicle_attitude",
            "vehicle_local_position", "airspeed", "airspeed_validated", "differential_pressure",
-           "vehicle_air_data", "wind", "wind_estimate", "rpm", "vtol_vehicle_status",
+           "vehicle_air_data", "wind", "wind_estimate", "rpm", "esc_status",
+           "vtol_vehicle_status",
            *ACTUATOR_TOPICS)
 _IMU = {"imu_ax": "accelerometer_m_s2[0]", "imu_ay": "accelerometer_m_s2[1]",
         "imu_az": "accelerometer_m_s2[2]", "imu_p": "gyro_rad[0]", "imu_q": "gyro_rad[1]",
@@ -244,15 +252,17 @@ def read_px4(path: str | Path, *, actuators: ActuatorMapping | str | None = None
                 **px4_metadata(log)}
     base, gyro = _imu(log, instance)
     metadata["imu_rate_hz"] = round(_rate(base.time), 3)
-    if metadata["imu_rate_hz"] < _MIN_IMU_RATE_HZ:
+    if metadata["imu_rate_hz"] < MIN_IMU_RATE_HZ:
         warnings.warn(f"{log.source}: IMU ({base.name} multi-id {instance}) logged at "
-                      f"{metadata['imu_rate_hz']:.3g} Hz, below {_MIN_IMU_RATE_HZ:g} Hz: "
+                      f"{metadata['imu_rate_hz']:.3g} Hz, below {MIN_IMU_RATE_HZ:g} Hz: "
                       "fast dynamics are aliased", stacklevel=3)
     mav_type = metadata["vehicle_type"]["mav_type"]
     sources, metadata["actuators"] = actuator_plan(log, actuators, mav_type, deflections)
     streams = [gyro, _attitude(log), *actuator_streams(log, sources),
                *_air_and_position_streams(log, airspeed, mav_type not in MULTICOPTER_TYPES),
-               *_extra_streams(log, extra, instance), *_logged_extras(log, named)]
+               *_esc_streams(log), *_extra_streams(log, extra, instance)]
+    streams += _logged_extras(log, named,
+                              {base.name, *(s.name for s in streams if s is not None)})
     return align_streams(base, [s for s in streams if s is not None], source=log.source,
                          max_gap=max_gap, metadata=metadata)
 
@@ -272,6 +282,32 @@ def read_px4_metadata(path: str | Path, *, allow_truncated: bool = True,
     _, metadata["actuators"] = actuator_plan(log, None, metadata["vehicle_type"]["mav_type"],
                                              deflections)
     return metadata
+
+
+_ESC_FIELDS = {"rpm": "esc_rpm", "voltage": "esc_voltage", "current": "esc_current",
+               "temperature": "esc_temperature"}
+
+
+def _esc_streams(log: ULogFile) -> list[Stream]:
+    """One optional stream per ESC of ``esc_status`` (multi-id 0): ESC i for i below the
+    largest ``esc_count``, valid where i < ``esc_count`` (:mod:`drake_uav.io.esc`)."""
+    if not log.has("esc_status"):
+        return []
+    data = log.fields("esc_status")
+    count = data.get("esc_count")
+    if count is None or count.size == 0:
+        return []
+    streams = []
+    for i in range(int(np.max(count))):
+        fields = {q: f"esc[{i}].{f}" for q, f in _ESC_FIELDS.items() if f"esc[{i}].{f}" in data}
+        if not fields:
+            break
+        time, raw = log.get("esc_status", list(fields.values()))
+        streams.append(esc_stream(f"esc_status.esc{i}", i, time,
+                                  {q: raw[f] for q, f in fields.items()},
+                                  {q: f"esc_status.{f}" for q, f in fields.items()},
+                                  valid=count > i))
+    return streams
 
 
 def _extra_streams(log: ULogFile, extra: Mapping[str, FieldSource], instance: int
@@ -294,10 +330,11 @@ def _extra_streams(log: ULogFile, extra: Mapping[str, FieldSource], instance: in
     return streams
 
 
-def _logged_extras(log: ULogFile, named: Sequence[tuple[str, str]]) -> list[Stream]:
+def _logged_extras(log: ULogFile, named: Sequence[tuple[str, str]], taken: set[str]
+                   ) -> list[Stream]:
     """Optional streams of the default extra channels the log has and of the ``named``
     (topic, field) pairs (FlightLogError naming one the log lacks), multi-id 0."""
     wanted = wanted_fields(PX4_EXTRAS, named,
                            lambda topic, field: log.has(topic) and field in log.fields(topic),
                            lambda topic, field: None, log.source)
-    return extra_streams(wanted, lambda topic, fields: log.get(topic, fields))
+    return extra_streams(wanted, lambda topic, fields: log.get(topic, fields), taken)

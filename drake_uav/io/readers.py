@@ -1,8 +1,8 @@
 """Reading flight logs: one entry point for every format.
 
-:func:`read_log` reads a CSV, ArduPilot DataFlash ``.bin``, PX4 ``.ulg`` or
-Parquet file into a :class:`~drake_uav.io.flight_log.FlightLog` whose measured
-channels carry the canonical names and SI units of
+:func:`read_log` reads a CSV, ArduPilot DataFlash ``.bin``, PX4 ``.ulg``, MAVLink
+telemetry ``.tlog`` or Parquet file into a :class:`~drake_uav.io.flight_log.FlightLog`
+whose measured channels carry the canonical names and SI units of
 :data:`drake_uav.io.streams.CHANNELS`. See docs/flight_logs.md.
 """
 
@@ -25,12 +25,14 @@ def read_log(path: str | Path, format: str | None = None, *, required: Iterable[
 
     Args:
         path: the file.
-        format: "csv", "bin" (ArduPilot DataFlash), "ulg" (PX4) or "parquet";
+        format: "csv", "bin" (ArduPilot DataFlash), "ulg" (PX4), "tlog" (MAVLink
+            telemetry) or "parquet";
             None picks it from the suffix (:data:`FORMATS`).
         required: channels that must be present (FlightLogError naming the first
             missing one, with the file).
         **options: passed to the format's reader (:func:`~drake_uav.io.csv_log.read_csv`,
-            :func:`~drake_uav.io.ardupilot.read_ardupilot`, :func:`~drake_uav.io.px4.read_px4`).
+            :func:`~drake_uav.io.ardupilot.read_ardupilot`, :func:`~drake_uav.io.px4.read_px4`,
+            :func:`~drake_uav.io.tlog.read_tlog`).
 
     Raises:
         FlightLogError: unknown format, missing/empty/unreadable/truncated file,
@@ -43,7 +45,7 @@ def read_log(path: str | Path, format: str | None = None, *, required: Iterable[
         if format is None:
             raise FlightLogError(
                 f"{path}: unknown log format {path.suffix or '(no suffix)'!r} (known: "
-                f"{', '.join(FORMATS)}); pass format='csv', 'bin', 'ulg' or 'parquet'")
+                f"{', '.join(FORMATS)}); pass format='csv', 'bin', 'ulg', 'tlog' or 'parquet'")
     elif format not in set(FORMATS.values()):
         raise FlightLogError(f"{path}: unknown log format {format!r} "
                              f"(known: {', '.join(sorted(set(FORMATS.values())))})")
@@ -60,6 +62,8 @@ def read_log(path: str | Path, format: str | None = None, *, required: Iterable[
         from drake_uav.io.ardupilot import read_ardupilot as reader
     elif format == "ulg":
         from drake_uav.io.px4 import read_px4 as reader
+    elif format == "tlog":
+        from drake_uav.io.tlog import read_tlog as reader
     else:
         reader = _read_parquet
     try:

@@ -40,6 +40,7 @@ __all__ = [
     "ActuatorChannel",
     "ActuatorMapping",
     "FieldSource",
+    "MIN_IMU_RATE_HZ",
     "Stream",
     "align_streams",
     "imu_position_metadata",
@@ -79,8 +80,13 @@ CHANNELS: dict[str, tuple[str, str]] = {
 """Canonical measured channels: name -> (SI unit, meaning). Surface signs follow
 the aircraft parameters (Cm_elevator < 0, Cl_aileron > 0, Cn_rudder < 0)."""
 
-FORMATS = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet", ".pq": "parquet"}
+FORMATS = {".csv": "csv", ".bin": "bin", ".ulg": "ulg", ".parquet": "parquet", ".pq": "parquet",
+           ".tlog": "tlog"}
 """File suffix (lower case) -> format name accepted by :func:`read_log`."""
+
+MIN_IMU_RATE_HZ = 100.0
+"""Below this IMU logging rate [Hz] every reader warns: the fast dynamics are aliased
+(the rate rounded to 1 mHz, so that a 100 Hz clock's rounding never warns)."""
 
 _HINTS = {
     "vane_alpha": "autopilot logs carry no vane angles unless mapped: pass "
