@@ -16,7 +16,7 @@ from log_writers import DataFlashWriter
 from pyulog import ULog
 
 from drake_uav.cli import main
-from drake_uav.identification.main_job import check_fixed_wing
+from drake_uav.identification.pipeline import check_fixed_wing
 from drake_uav.io import FlightLogError, extra_channels, read_log
 from drake_uav.io.esc import esc_channel, esc_channels
 from drake_uav.io.streams import logged_rate

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import drake_uav
-from drake_uav.identification.main_job import check_fixed_wing
+from drake_uav.identification.pipeline import check_fixed_wing
 from drake_uav.io import FlightLog, FlightLogError, read_log
 from drake_uav.io.esc import esc_channels
 from drake_uav.io.streams import logged_rate
