@@ -15,24 +15,15 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import best_of
 
 from drake_uav.diagrams import fly
 from drake_uav.io import FlightLog
 from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_px4 import write_px4_log
-
-
-def _best(function, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def main() -> None:
@@ -47,13 +38,13 @@ def main() -> None:
     log = FlightLog(np.arange(n) * 0.01, measured, units=flight.units, metadata=flight.metadata)
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder)
-        peer = _best(lambda: np.savez(out / "peer.npz", **measured), args.repeat)
+        peer = best_of(args.repeat, lambda: np.savez(out / "peer.npz", **measured))[1]
         print(f"{n * 0.01:.0f} s flight, {len(measured)} channels; peer numpy.savez "
               f"{peer:.3f} s")
         for name, writer in (("ArduPilot .bin", write_ardupilot_log), ("PX4 .ulg", write_px4_log)):
             target = out / writer.__name__
             target.mkdir()
-            seconds = _best(lambda w=writer, t=target: w(log, t / "log", seed=0), args.repeat)
+            seconds = best_of(args.repeat, lambda w=writer, t=target: w(log, t / "log", seed=0))[1]
             size = sum(p.stat().st_size for p in target.rglob("*") if p.is_file()) / 1e6
             print(f"{name:15s} {seconds:.3f} s  {size:.1f} MB  {seconds / peer:.1f} x the peer")
 
