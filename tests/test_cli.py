@@ -156,7 +156,7 @@ def test_every_reading_option_reaches_the_reader_or_is_refused(kind, option, sho
     """Each reading option is either taken by the format's reader (which may refuse a field
     the log lacks, naming the file) or refused in one line before any work; none ends in a
     reader's TypeError."""
-    from drake_uav.identification import main_job
+    from drake_uav.identification import pipeline
     from drake_uav.io.tlog_writer import write_tlog
 
     path = tmp_path / f"flight.{kind}"
@@ -168,7 +168,7 @@ def test_every_reading_option_reaches_the_reader_or_is_refused(kind, option, sho
     def stop(*args, **kwargs):
         raise _ReadDone
 
-    monkeypatch.setattr(main_job, "identify", stop)
+    monkeypatch.setattr(pipeline, "identify", stop)
     refused = {("--vanes", "csv"), ("--vanes", "parquet"), ("--vanes", "tlog"),
                ("--max-gap", "parquet"), ("--extra-channels", "csv"),
                ("--extra-channels", "parquet")}
