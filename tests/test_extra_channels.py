@@ -190,7 +190,7 @@ def test_extra_channels_option_is_for_autopilot_logs(tmp_path, capsys):
     path = _written(tmp_path / "flight.csv", "time [s], tension [N]\n0, 1\n0.1, 2\n")
     assert main(["identify", str(path), "--extra-channels", "BAT.Volt",
                  "--out", str(tmp_path / "report")]) == 2
-    assert "--extra-channels: names fields of .bin and .ulg logs" in capsys.readouterr().err
+    assert "--extra-channels: names fields of .bin, .ulg and .tlog logs" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------- identification

@@ -97,12 +97,21 @@ def test_an_absurd_airspeed_stops_naming_the_channel_and_the_gps_speed(sample, t
         4.0 * params.derivatives["CD_alpha2"])
     assert 0.25 * params.rho * top**2 * params.S * least_drag == pytest.approx(
         params.mass * params.gravity, rel=1e-3)
-    path = _saved(sample, tmp_path, "pitot", pitot_airspeed=np.full(len(sample), 1e6))
+    # A pitot in cm/s: beyond the aircraft, within what a logger can hold.
+    path = _saved(sample, tmp_path, "pitot",
+                  pitot_airspeed=np.asarray(sample["pitot_airspeed"]) * 100.0)
     _stops_with(path, tmp_path, capsys,
                 f"error: {path}: pitot_airspeed is not physical (a wrong unit, a wrong "
-                "channel or a failed sensor): 1e+06 to 1e+06 m/s in flight, 15001 of 15001 "
-                "samples outside 0 to 131.8 m/s (the aircraft's power-on vertical dive); the "
-                "GPS ground speed is 25.4 m/s; fix the unit or the channel of the log")
+                "channel or a failed sensor): 2.35e+03 to 2.65e+03 m/s in flight, 15001 of "
+                "15001 samples outside 0 to 131.8 m/s (the aircraft's power-on vertical "
+                "dive); the GPS ground speed is 25.4 m/s; fix the unit or the channel of the "
+                "log")
+    # 1e6 m/s is beyond any sensor: the reader stops first, naming the channel too.
+    path = _saved(sample, tmp_path, "pitot_1e6", pitot_airspeed=np.full(len(sample), 1e6))
+    _stops_with(path, tmp_path, capsys,
+                f"error: {path}: channel pitot_airspeed holds 1e+06 m/s at t = 0 s (sample 0; "
+                "15001 such sample(s)), beyond any sensor's range (|value| > 10000 m/s): "
+                "corrupt data")
     # The redundant channel: a GPS velocity in cm/s implies a wind no aircraft flies in.
     path = _saved(sample, tmp_path, "gps", **{n: sample[n] * 100.0
                                               for n in ("gps_vn", "gps_ve", "gps_vd")})
