@@ -8,8 +8,19 @@
   (:mod:`~drake_uav.optimization.flatness`); time-varying terminal sets along a
   reference (:func:`terminal_set`) and the tracking NMPC (:class:`TrackingNmpc`),
   Argyropoulos 2020, ch. 4.
+* Motor failures: force closure (:func:`closure_holds`) and the largest
+  torque-free thrust (:func:`max_thrust`, LP 5.22) of the healthy motors,
+  Argyropoulos 2020, sec. 5.1.
 """
 
+from drake_uav.optimization.allocation import (
+    ClosureMismatchError,
+    canonical_failed_motors,
+    closure_holds,
+    largest_angular_gap,
+    max_thrust,
+    max_thrust_allocation,
+)
 from drake_uav.optimization.flatness import (
     FlatAttitude,
     FlatReference,
@@ -41,6 +52,7 @@ from drake_uav.optimization.terminal_set import ReferenceTable, TerminalSet, ter
 from drake_uav.optimization.trim import TrimError, TrimResult, trim
 
 __all__ = [
+    "ClosureMismatchError",
     "EULER_STATE_NAMES",
     "FlatAttitude",
     "FlatReference",
@@ -60,9 +72,14 @@ __all__ = [
     "TrimResult",
     "YawProfile",
     "attitude_from_flat_outputs",
+    "canonical_failed_motors",
+    "closure_holds",
     "decoupled_models",
     "flat_reference",
+    "largest_angular_gap",
     "linearize_euler",
+    "max_thrust",
+    "max_thrust_allocation",
     "minimum_snap",
     "mode_analysis",
     "optimize_segment_times",
