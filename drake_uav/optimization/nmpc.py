@@ -240,9 +240,10 @@ def _box_upper(bounds) -> np.ndarray:
     if isinstance(bounds, ErrorBounds):
         return bounds.upper()
     upper = np.asarray(bounds, dtype=float)
-    if upper.shape != (ERROR_SIZE,) or np.any(np.isnan(upper)) or np.any(upper <= 0):
+    if upper.shape != (ERROR_SIZE,) or np.any(np.isnan(upper)) or np.any(upper <= 0) \
+            or np.any(np.isfinite(upper[:3])):
         raise ValueError(f"bounds must be ErrorBounds or {ERROR_SIZE} positive upper bounds "
-                         f"(inf = none), got {bounds}")
+                         f"(inf = none; the position unbounded), got {bounds}")
     return upper
 
 

@@ -1,0 +1,117 @@
+"""The seven motor-failure scenarios of Argyropoulos 2020, ch. 6, and their vehicle.
+
+The source gives the failed motors, the fault times, the unsafe discs and the safe
+point, nothing else (no vehicle, no trajectories). Coordinates: the source's x, y
+axes are mapped to NED with north = x and east = -y (its z points up), so its disc
+centre (5, 7) is (north 5, east -7) here. Motors are 0-based as in the source's
+allocation (eq. 1.3).
+
+The vehicle is :func:`fault_vehicle`: the catalog hexacopter with ``f_max = 10 N`` per
+motor (thrust/weight 3.06). With the catalog's 7 N (thrust/weight 2.14) the two
+motors left to hold the attitude in category I give at most 14 N against a weight of
+19.6 N, so the vertical impact speed cannot drop below about 0.54 of free fall, and
+the one-apart pairs barely hover.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from drake_uav.optimization.fault_response import Category, UnsafeDisc
+from drake_uav.optimization.flatness import flat_reference, velocity_heading
+from drake_uav.optimization.min_snap import minimum_snap
+from drake_uav.optimization.terminal_set import ReferenceTable
+from drake_uav.systems.faults import MotorFailure
+from drake_uav.vehicles.multirotor import MultirotorParams, hexacopter
+
+__all__ = ["FAULT_VEHICLE_F_MAX", "fault_vehicle", "FaultScenario", "SCENARIOS",
+           "scenario", "scenario_reference"]
+
+FAULT_VEHICLE_F_MAX = 10.0
+"""Per-motor thrust of the fault vehicle [N]."""
+
+
+def fault_vehicle(**overrides) -> MultirotorParams:
+    """The catalog hexacopter (2 kg, 550 mm) with ``f_max = 10 N`` (thrust/weight 3.06), the
+    vehicle of the ch. 6 scenarios (module docstring)."""
+    return hexacopter(**{"f_max": FAULT_VEHICLE_F_MAX, **overrides})
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultScenario:
+    """One scenario: the mission, the failure, the areas, and the source's category."""
+
+    name: str
+    description: str
+    failed_motors: tuple[int, ...]
+    fault_time: float
+    """[s]"""
+    waypoints: tuple
+    """Mission waypoints NED [m], equal segment times over ``mission_time``."""
+    mission_time: float
+    """[s]"""
+    expected: Category
+    """The category the source reports."""
+    unsafe_disc: UnsafeDisc | None = None
+    safe_point: tuple[float, float] = (0.0, 0.0)
+    duration: float = 40.0
+    """Longest simulated time [s] (a landing ends it earlier)."""
+
+    def failures(self) -> tuple[MotorFailure, ...]:
+        """The total failure of :attr:`failed_motors` at :attr:`fault_time`."""
+        return (MotorFailure(self.fault_time, self.failed_motors, 0.0),)
+
+
+def scenario_reference(sc: FaultScenario, params: MultirotorParams,
+                       dt: float = 0.005) -> ReferenceTable:
+    """Minimum-snap mission through the scenario's waypoints with the velocity heading,
+    sampled every ``dt`` [s] by flatness (all motors healthy)."""
+    w = np.asarray(sc.waypoints, dtype=float)
+    traj = minimum_snap(w, np.linspace(0.0, sc.mission_time, len(w)))
+    t = np.arange(0.0, sc.mission_time + dt / 2, dt)
+    ref = flat_reference(traj, params, t, yaw=velocity_heading(traj))
+    return ReferenceTable(ref.time, ref.state, ref.motor_thrusts)
+
+
+_LOOP_8M = ((0.0, 0.0, -8.0), (4.0, 2.0, -8.0), (8.0, 0.0, -8.0), (4.0, -3.0, -8.0),
+            (0.0, 0.0, -8.0))
+"""A gentle 8 m high loop (20 s): the missions of the scenarios that keep tracking."""
+
+SCENARIOS: dict[str, FaultScenario] = {sc.name: sc for sc in (
+    FaultScenario("I", "motors 3 and 4 (adjacent: no closure) at 10 s, 10 m up",
+                  (3, 4), 10.0, ((0.0, 0.0, -10.0), (4.0, 2.0, -10.0), (8.0, 0.0, -10.0),
+                                 (4.0, -3.0, -10.0), (0.0, 0.0, -10.0)), 20.0, Category.I),
+    FaultScenario("IIa", "motors 0 and 3 at 3 s in a fast dash towards the unsafe disc "
+                  "(10, 0) R 6; free fall would land inside", (0, 3), 3.0,
+                  ((0.0, 0.0, -8.0), (7.0, 0.0, -8.0), (7.0, 7.0, -8.0), (0.0, 7.0, -8.0)),
+                  9.0, Category.II, UnsafeDisc((10.0, 0.0), 6.0)),
+    FaultScenario("IIb", "motors 1 and 5 at 3 s in a fast dash; unsafe disc (5, 7) R 5 "
+                  "(NED (5, -7)); free fall would land outside", (1, 5), 3.0,
+                  ((0.0, 0.0, -8.0), (7.0, 0.0, -8.0), (7.0, 7.0, -8.0), (0.0, 7.0, -8.0)),
+                  9.0, Category.II, UnsafeDisc((5.0, -7.0), 5.0)),
+    FaultScenario("IIIa", "motors 0 and 3 at 7 s; the rest of the mission is aggressive; "
+                  "land at (0, 0)", (0, 3), 7.0,
+                  ((0.0, 0.0, -8.0), (3.0, 2.0, -8.0), (6.0, 0.0, -8.0), (12.0, 6.0, -8.0),
+                   (0.0, 8.0, -8.0), (0.0, 0.0, -8.0)), 15.0, Category.III),
+    FaultScenario("IIIb", "motors 3 and 5 at 7 s; the rest of the mission is aggressive; "
+                  "land at (0, 0)", (3, 5), 7.0,
+                  ((0.0, 0.0, -8.0), (3.0, 2.0, -8.0), (6.0, 0.0, -8.0), (12.0, 6.0, -8.0),
+                   (0.0, 8.0, -8.0), (0.0, 0.0, -8.0)), 15.0, Category.III),
+    FaultScenario("IVa", "motor 2 at 4 s; keep tracking", (2,), 4.0, _LOOP_8M, 20.0,
+                  Category.IV, duration=22.0),
+    FaultScenario("IVb", "motors 2 and 4 at 4 s; keep tracking (yaw rate sacrificed)",
+                  (2, 4), 4.0, _LOOP_8M, 20.0, Category.IV, duration=22.0),
+)}
+"""The seven scenarios of Argyropoulos 2020, ch. 6, by name."""
+
+
+def scenario(name: str) -> FaultScenario:
+    """The scenario called ``name`` (``"I"``, ``"IIa"``, ... ``"IVb"``); raises
+    ``ValueError`` listing the names for an unknown one."""
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise ValueError(f"unknown fault scenario {name!r}; choose one of "
+                         f"{', '.join(SCENARIOS)}") from None
