@@ -104,14 +104,15 @@ def plan_reference(params: MultirotorParams, state, acceleration, waypoints, dur
     x = np.asarray(state, dtype=float)
     w = np.atleast_2d(np.asarray(waypoints, dtype=float))
     T = np.atleast_1d(np.asarray(durations, dtype=float))
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(w)) and np.all(T > 0)):
-        raise ValueError("plan_reference: state and waypoints must be finite and durations "
-                         "positive")
+    if len(w) != len(T) or not (np.all(np.isfinite(x)) and np.all(np.isfinite(w))
+                                and np.all(T > 0)):
+        raise ValueError("plan_reference: state and waypoints must be finite, with one "
+                         "positive duration per waypoint")
     yaw = float(quat_to_euler(x[3:7] / np.linalg.norm(x[3:7]))[2])
     dt = settings.sample_time
     start, derivatives = x[:3], np.vstack([x[7:10], np.asarray(acceleration, dtype=float)])
     states, thrusts, offset = [], [], 0.0
-    for k, (goal, duration) in enumerate(zip(w, T)):
+    for k, (goal, duration) in enumerate(zip(w, T, strict=True)):
         duration = dt * max(np.ceil(duration / dt), 2)
         traj = minimum_snap(np.vstack([start, goal]), [0.0, duration],
                             initial_derivatives=derivatives if k == 0 else None)
