@@ -14,6 +14,7 @@ import time as _time
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource, VectorLogSink
@@ -35,6 +36,7 @@ from drake_uav.systems.faults import (
 )
 from drake_uav.systems.ground import Ground
 from drake_uav.systems.multirotor import MultirotorPlant
+from drake_uav.systems.state_sensor import StateNoise, add_noisy_state_sensor
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = ["Touchdown", "FaultRun", "fly_fault", "INTEGRATION_ACCURACY"]
@@ -136,6 +138,7 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
               tube_for: Callable | None = None, unsafe_disc: UnsafeDisc | None = None,
               safe_point=(0.0, 0.0), settings: FaultResponseSettings | None = None,
               category: Category | None = None, margin: float = 0.0,
+              sensor_noise: StateNoise | None = None, seed: int = 0,
               log_period: float = 0.025) -> FaultRun:
     """Flies ``reference`` from its first state with the motor ``failures`` for up to
     ``duration`` [s] (less when the vehicle touches the ground).
@@ -163,6 +166,11 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
         Forces the category (the tube's figures are still logged when a tube is given).
     margin : float
         Category-III margin on the tube value.
+    sensor_noise : StateNoise, optional
+        Noisy state measurement between the plant and the supervisor and controller
+        (seeded by ``seed``); the ground and the logs see the true state.
+    seed : int
+        Seed of the measurement noise.
     log_period : float
         Logging period [s].
 
@@ -188,10 +196,12 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     controller = builder.AddSystem(FaultTolerantController(response))
     ground = builder.AddSystem(Ground())
     state = plant.GetOutputPort("state")
+    measured = state if sensor_noise is None else add_noisy_state_sensor(
+        builder, sensor_noise, state)
     health = injector.GetOutputPort("motor_health")
     builder.Connect(health, plant.GetInputPort("motor_health"))
     for system in (supervisor, controller):
-        builder.Connect(state, system.GetInputPort("state"))
+        builder.Connect(measured, system.GetInputPort("state"))
         builder.Connect(health, system.GetInputPort("motor_health"))
     builder.Connect(supervisor.GetOutputPort("category"), controller.GetInputPort("category"))
     builder.Connect(controller.GetOutputPort("motor_thrusts"),
@@ -210,6 +220,8 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     sim = Simulator(diagram)
     context = sim.get_mutable_context()
     context.SetAccuracy(INTEGRATION_ACCURACY)
+    if sensor_noise is not None:
+        diagram.SetRandomContext(context, RandomGenerator(seed))
     plant_context = plant.GetMyMutableContextFromRoot(context)
     xc = plant_context.get_continuous_state_vector().CopyToVector()
     xc[:13] = reference.state[0]
