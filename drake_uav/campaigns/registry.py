@@ -18,7 +18,7 @@ Scenario = Callable[[int, dict], Mapping[str, Any]]
 
 _SCENARIOS: dict[str, Scenario] = {}
 _BUILT_IN = ("drake_uav.campaigns.scenarios", "drake_uav.campaigns.realistic_logs",
-             "drake_uav.campaigns.discovery_cases")
+             "drake_uav.campaigns.discovery_cases", "drake_uav.campaigns.motor_fault")
 
 
 def register_scenario(name: str, function: Scenario | None = None):

@@ -19,6 +19,7 @@ import dataclasses
 
 import numpy as np
 
+from drake_uav.diagrams.faults import fly_fault
 from drake_uav.optimization.fault_response import Category, UnsafeDisc
 from drake_uav.optimization.flatness import flat_reference, velocity_heading
 from drake_uav.optimization.min_snap import minimum_snap
@@ -27,7 +28,7 @@ from drake_uav.systems.faults import MotorFailure
 from drake_uav.vehicles.multirotor import MultirotorParams, hexacopter
 
 __all__ = ["FAULT_VEHICLE_F_MAX", "fault_vehicle", "FaultScenario", "SCENARIOS",
-           "scenario", "scenario_reference"]
+           "scenario", "scenario_reference", "scenario_tubes", "fly_scenario"]
 
 FAULT_VEHICLE_F_MAX = 10.0
 """Per-motor thrust of the fault vehicle [N]."""
@@ -115,3 +116,33 @@ def scenario(name: str) -> FaultScenario:
     except KeyError:
         raise ValueError(f"unknown fault scenario {name!r}; choose one of "
                          f"{', '.join(SCENARIOS)}") from None
+
+
+def scenario_tubes(params: MultirotorParams, settings=None, cache_dir=None):
+    """``tube_for(failed_motors) -> value function`` of the recovery tubes of ``params``
+    (:func:`~drake_uav.optimization.recovery_tube.recovery_tube`, cached on disk and in
+    memory), as :func:`~drake_uav.diagrams.faults.fly_fault` takes it."""
+    from drake_uav.optimization.recovery_tube import recovery_tube
+
+    tubes: dict = {}
+
+    def tube_for(failed):
+        key = tuple(sorted(failed))
+        if key not in tubes:
+            tubes[key] = recovery_tube(params, key, settings, cache_dir=cache_dir).value
+        return tubes[key]
+
+    return tube_for
+
+
+def fly_scenario(sc: FaultScenario | str, params: MultirotorParams | None = None, *,
+                 tube_for=None, **kwargs):
+    """Flies scenario ``sc`` (or its name) with :func:`~drake_uav.diagrams.faults.fly_fault`
+    on :func:`fault_vehicle` (or ``params``); ``tube_for`` defaults to
+    :func:`scenario_tubes`; other keyword arguments go to ``fly_fault``."""
+    sc = scenario(sc) if isinstance(sc, str) else sc
+    params = params or fault_vehicle()
+    tube_for = tube_for or scenario_tubes(params)
+    return fly_fault(params, scenario_reference(sc, params), sc.failures(), sc.duration,
+                     tube_for=tube_for, unsafe_disc=sc.unsafe_disc, safe_point=sc.safe_point,
+                     **kwargs)
