@@ -37,6 +37,7 @@ __all__ = [
     "QUATERNION",
     "VELOCITY",
     "BODY_RATES",
+    "body_rate_derivative",
     "produced_thrusts",
     "motor_wrench",
     "multirotor_dynamics",
@@ -133,6 +134,19 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
         inv_m = 1.0 / params.mass
         acc = [acc[0] + e[0] * inv_m, acc[1] + e[1] * inv_m, acc[2] + e[2] * inv_m]
         tx, ty, tz = tx + e[3], ty + e[4], tz + e[5]
+    w_dot = body_rate_derivative(w, [tx, ty, tz], params)
+    q_dot = quat_derivative(q, w, quaternion_stabilization).tolist()
+    return np.array(v + q_dot + acc + w_dot)
+
+
+def body_rate_derivative(omega, torque, params: MultirotorParams) -> list:
+    """Euler's equation ``omega_dot = J^-1 (tau - omega x J omega)`` [rad/s^2] (eq. 1.1).
+
+    ``omega``: body rates (p, q, r) in FRD [rad/s]; ``torque``: body FRD torque [N m].
+    Plain arithmetic on the three entries, so it serves every scalar type of the
+    model and, entry-wise, numpy or JAX arrays of samples (the reachable tubes).
+    """
+    w, (tx, ty, tz) = omega, torque
     Jx, Jy, Jz = params.inertia
     principal = params.inertia_products == (0.0, 0.0, 0.0)
     Jw = [Jx * w[0], Jy * w[1], Jz * w[2]] if principal else \
@@ -140,10 +154,8 @@ def multirotor_dynamics(x, wrench, params: MultirotorParams, external_wrench=Non
     net = [tx - (w[1] * Jw[2] - w[2] * Jw[1]),
            ty - (w[2] * Jw[0] - w[0] * Jw[2]),
            tz - (w[0] * Jw[1] - w[1] * Jw[0])]
-    w_dot = [net[0] / Jx, net[1] / Jy, net[2] / Jz] if principal else \
+    return [net[0] / Jx, net[1] / Jy, net[2] / Jz] if principal else \
         _matvec(params.inertia_inverse.tolist(), net)
-    q_dot = quat_derivative(q, w, quaternion_stabilization).tolist()
-    return np.array(v + q_dot + acc + w_dot)
 
 
 def multirotor_derivatives(x, commands, params: MultirotorParams, health=None,

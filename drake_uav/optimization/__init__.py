@@ -10,7 +10,9 @@
   Argyropoulos 2020, ch. 4.
 * Motor failures: force closure (:func:`closure_holds`) and the largest
   torque-free thrust (:func:`max_thrust`, LP 5.22) of the healthy motors,
-  Argyropoulos 2020, sec. 5.1.
+  Argyropoulos 2020, sec. 5.1; backward reachable tubes to near-hover attitude
+  per failure set (:func:`recovery_tube`, sec. 5.2; solving needs the ``faults``
+  extra, loading a cached tube does not).
 """
 
 from drake_uav.optimization.allocation import (
@@ -48,6 +50,7 @@ from drake_uav.optimization.min_snap import (
     optimize_segment_times,
 )
 from drake_uav.optimization.nmpc import NmpcResult, NmpcSettings, TrackingNmpc
+from drake_uav.optimization.reachability import RecoveryTube, TubeSettings, recovery_tube
 from drake_uav.optimization.terminal_set import ReferenceTable, TerminalSet, terminal_set
 from drake_uav.optimization.trim import TrimError, TrimResult, trim
 
@@ -60,6 +63,7 @@ __all__ = [
     "MinimumSnap",
     "NmpcResult",
     "NmpcSettings",
+    "RecoveryTube",
     "ReferenceTable",
     "TerminalSet",
     "TrackingNmpc",
@@ -68,6 +72,7 @@ __all__ = [
     "PolynomialTrajectory",
     "TimeAllocationResult",
     "TrajectoryInfeasibleError",
+    "TubeSettings",
     "TrimError",
     "TrimResult",
     "YawProfile",
@@ -83,6 +88,7 @@ __all__ = [
     "minimum_snap",
     "mode_analysis",
     "optimize_segment_times",
+    "recovery_tube",
     "reference_from_flat_outputs",
     "terminal_set",
     "trim",
