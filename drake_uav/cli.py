@@ -340,7 +340,7 @@ def _cmd_fault(args: argparse.Namespace) -> int:
         scenario,
         scenario_tubes,
     )
-    from drake_uav.optimization.recovery_tube import TubeSettings
+    from drake_uav.optimization.reachability import TubeSettings
     from drake_uav.reporting.fault_figures import (
         summary_row,
         summary_table,

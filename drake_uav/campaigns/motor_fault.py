@@ -62,7 +62,7 @@ def _failure_sets(closure: bool) -> tuple[tuple[int, ...], ...]:
 
 @functools.cache
 def _tubes(coarse: bool):
-    from drake_uav.optimization.recovery_tube import TubeSettings
+    from drake_uav.optimization.reachability import TubeSettings
 
     return scenario_tubes(fault_vehicle(), TubeSettings.coarse() if coarse else None)
 

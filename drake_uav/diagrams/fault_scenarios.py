@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.diagrams.faults import fly_fault
 from drake_uav.optimization.fault_response import Category, UnsafeDisc
@@ -50,7 +51,7 @@ class FaultScenario:
     fault_time: float
     """[s]"""
     waypoints: tuple
-    """Mission waypoints NED [m], equal segment times over ``mission_time``."""
+    """Mission waypoints NED [m]."""
     mission_time: float
     """[s]"""
     expected: Category
@@ -59,6 +60,25 @@ class FaultScenario:
     safe_point: tuple[float, float] = (0.0, 0.0)
     duration: float = 40.0
     """Longest simulated time [s] (a landing ends it earlier)."""
+    waypoint_times: tuple | None = None
+    """Times of the waypoints [s] (default: equal segments over ``mission_time``)."""
+    stops: tuple[int, ...] = ()
+    """Waypoints (indices) where the mission stops at rest: the minimum-snap pieces
+    between stops are solved apart, so an aggressive piece does not shake the others."""
+    upset: tuple | None = None
+    """``(start [s], duration [s], torque FRD (3) [N m])``: a torque pulse (a gust or a
+    collision) just before the failure that leaves the vehicle outside its recovery tube."""
+
+    def external_wrench(self) -> PiecewisePolynomial | None:
+        """The upset as a 6-vector wrench trajectory (force NED, torque FRD), or None."""
+        if self.upset is None:
+            return None
+        start, length, torque = self.upset
+        pulse = np.concatenate([np.zeros(3), torque])
+        times = [0.0, start, start + 1e-3, start + length, start + length + 1e-3,
+                 start + length + 1.0]
+        values = np.array([0 * pulse, 0 * pulse, pulse, pulse, 0 * pulse, 0 * pulse])
+        return PiecewisePolynomial.FirstOrderHold(times, values.T)
 
     def failures(self) -> tuple[MotorFailure, ...]:
         """The total failure of :attr:`failed_motors` at :attr:`fault_time`."""
@@ -70,36 +90,49 @@ def scenario_reference(sc: FaultScenario, params: MultirotorParams,
     """Minimum-snap mission through the scenario's waypoints with the velocity heading,
     sampled every ``dt`` [s] by flatness (all motors healthy)."""
     w = np.asarray(sc.waypoints, dtype=float)
-    traj = minimum_snap(w, np.linspace(0.0, sc.mission_time, len(w)))
-    t = np.arange(0.0, sc.mission_time + dt / 2, dt)
-    ref = flat_reference(traj, params, t, yaw=velocity_heading(traj))
-    return ReferenceTable(ref.time, ref.state, ref.motor_thrusts)
+    times = np.linspace(0.0, sc.mission_time, len(w)) if sc.waypoint_times is None \
+        else np.asarray(sc.waypoint_times, dtype=float)
+    bounds = [0, *sc.stops, len(w) - 1]
+    states, thrusts = [], []
+    for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        traj = minimum_snap(w[a:b + 1], times[a:b + 1])
+        t = np.arange(times[a], times[b] + dt / 2, dt)[0 if k == 0 else 1:]
+        ref = flat_reference(traj, params, t, yaw=velocity_heading(traj))
+        states.append(ref.state)
+        thrusts.append(ref.motor_thrusts)
+    state = np.vstack(states)
+    return ReferenceTable(dt * np.arange(len(state)), state, np.vstack(thrusts))
 
 
 _LOOP_8M = ((0.0, 0.0, -8.0), (4.0, 2.0, -8.0), (8.0, 0.0, -8.0), (4.0, -3.0, -8.0),
             (0.0, 0.0, -8.0))
 """A gentle 8 m high loop (20 s): the missions of the scenarios that keep tracking."""
 
+_DASH = ((0.0, 0.0, -8.0), (2.0, 1.0, -8.0), (4.0, 0.0, -8.0), (10.0, 4.0, -8.0),
+         (4.0, 8.0, -8.0), (0.0, 0.0, -8.0))
+_DASH_TIMES = (0.0, 4.0, 8.0, 9.6, 11.2, 13.5)
+"""A gentle start to a stop at 8 s, then a fast loop (banks to 59 deg, 8.6 m/s): the
+remaining mission of the category-III scenarios."""
+
 SCENARIOS: dict[str, FaultScenario] = {sc.name: sc for sc in (
     FaultScenario("I", "motors 3 and 4 (adjacent: no closure) at 10 s, 10 m up",
                   (3, 4), 10.0, ((0.0, 0.0, -10.0), (4.0, 2.0, -10.0), (8.0, 0.0, -10.0),
                                  (4.0, -3.0, -10.0), (0.0, 0.0, -10.0)), 20.0, Category.I),
-    FaultScenario("IIa", "motors 0 and 3 at 3 s in a fast dash towards the unsafe disc "
-                  "(10, 0) R 6; free fall would land inside", (0, 3), 3.0,
-                  ((0.0, 0.0, -8.0), (7.0, 0.0, -8.0), (7.0, 7.0, -8.0), (0.0, 7.0, -8.0)),
-                  9.0, Category.II, UnsafeDisc((10.0, 0.0), 6.0)),
-    FaultScenario("IIb", "motors 1 and 5 at 3 s in a fast dash; unsafe disc (5, 7) R 5 "
-                  "(NED (5, -7)); free fall would land outside", (1, 5), 3.0,
-                  ((0.0, 0.0, -8.0), (7.0, 0.0, -8.0), (7.0, 7.0, -8.0), (0.0, 7.0, -8.0)),
-                  9.0, Category.II, UnsafeDisc((5.0, -7.0), 5.0)),
-    FaultScenario("IIIa", "motors 0 and 3 at 7 s; the rest of the mission is aggressive; "
-                  "land at (0, 0)", (0, 3), 7.0,
-                  ((0.0, 0.0, -8.0), (3.0, 2.0, -8.0), (6.0, 0.0, -8.0), (12.0, 6.0, -8.0),
-                   (0.0, 8.0, -8.0), (0.0, 0.0, -8.0)), 15.0, Category.III),
-    FaultScenario("IIIb", "motors 3 and 5 at 7 s; the rest of the mission is aggressive; "
-                  "land at (0, 0)", (3, 5), 7.0,
-                  ((0.0, 0.0, -8.0), (3.0, 2.0, -8.0), (6.0, 0.0, -8.0), (12.0, 6.0, -8.0),
-                   (0.0, 8.0, -8.0), (0.0, 0.0, -8.0)), 15.0, Category.III),
+    FaultScenario("IIa", "motors 0 and 3 at 3 s, just after an upset (a roll torque of 4 N m "
+                  "for 0.22 s) in a dash towards the unsafe disc (10, 0) R 6; free fall "
+                  "would land inside", (0, 3), 3.0, ((0.0, 0.0, -8.0), (12.0, 0.0, -8.0)),
+                  8.0, Category.II, UnsafeDisc((10.0, 0.0), 6.0),
+                  upset=(2.78, 0.22, (4.0, 0.0, 0.0))),
+    FaultScenario("IIb", "motors 1 and 5 at 3 s, just after an upset (a roll torque of 4 N m "
+                  "for 0.22 s); unsafe disc (5, 7) R 5 (NED (5, -7)); free fall would land "
+                  "outside", (1, 5), 3.0, ((0.0, 0.0, -8.0), (12.0, 4.0, -8.0)), 8.0,
+                  Category.II, UnsafeDisc((5.0, -7.0), 5.0), upset=(2.78, 0.22, (4.0, 0.0, 0.0))),
+    FaultScenario("IIIa", "motors 0 and 3 at 7 s, before a fast loop (banks to 59 deg) that "
+                  "comes too close to the recovery tube's boundary; land at (0, 0)", (0, 3),
+                  7.0, _DASH, 13.5, Category.III, waypoint_times=_DASH_TIMES, stops=(2,)),
+    FaultScenario("IIIb", "motors 3 and 5 at 7 s, before the same fast loop; land at (0, 0)",
+                  (3, 5), 7.0, _DASH, 13.5, Category.III, waypoint_times=_DASH_TIMES,
+                  stops=(2,)),
     FaultScenario("IVa", "motor 2 at 4 s; keep tracking", (2,), 4.0, _LOOP_8M, 20.0,
                   Category.IV, duration=22.0),
     FaultScenario("IVb", "motors 2 and 4 at 4 s; keep tracking (yaw rate sacrificed)",
@@ -120,9 +153,9 @@ def scenario(name: str) -> FaultScenario:
 
 def scenario_tubes(params: MultirotorParams, settings=None, cache_dir=None):
     """``tube_for(failed_motors) -> value function`` of the recovery tubes of ``params``
-    (:func:`~drake_uav.optimization.recovery_tube.recovery_tube`, cached on disk and in
+    (:func:`~drake_uav.optimization.reachability.recovery_tube`, cached on disk and in
     memory), as :func:`~drake_uav.diagrams.faults.fly_fault` takes it."""
-    from drake_uav.optimization.recovery_tube import recovery_tube
+    from drake_uav.optimization.reachability import recovery_tube
 
     tubes: dict = {}
 
@@ -145,4 +178,4 @@ def fly_scenario(sc: FaultScenario | str, params: MultirotorParams | None = None
     tube_for = tube_for or scenario_tubes(params)
     return fly_fault(params, scenario_reference(sc, params), sc.failures(), sc.duration,
                      tube_for=tube_for, unsafe_disc=sc.unsafe_disc, safe_point=sc.safe_point,
-                     **kwargs)
+                     external_wrench=sc.external_wrench(), **kwargs)

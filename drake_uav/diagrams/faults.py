@@ -22,6 +22,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_uav.optimization.escape import FreeFallImpact, free_fall_impact
 from drake_uav.optimization.fault_response import (
+    REFERENCE_MARGIN,
     Category,
     FaultResponse,
     FaultResponseSettings,
@@ -137,8 +138,9 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
               failures: Sequence[MotorFailure], duration: float, *,
               tube_for: Callable | None = None, unsafe_disc: UnsafeDisc | None = None,
               safe_point=(0.0, 0.0), settings: FaultResponseSettings | None = None,
-              category: Category | None = None, margin: float = 0.0,
+              category: Category | None = None, margin: float = REFERENCE_MARGIN,
               sensor_noise: StateNoise | None = None, seed: int = 0,
+              external_wrench: PiecewisePolynomial | None = None,
               log_period: float = 0.025) -> FaultRun:
     """Flies ``reference`` from its first state with the motor ``failures`` for up to
     ``duration`` [s] (less when the vehicle touches the ground).
@@ -165,12 +167,15 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     category : Category, optional
         Forces the category (the tube's figures are still logged when a tube is given).
     margin : float
-        Category-III margin on the tube value.
+        Category-III margin on the tube value (``REFERENCE_MARGIN``).
     sensor_noise : StateNoise, optional
         Noisy state measurement between the plant and the supervisor and controller
         (seeded by ``seed``); the ground and the logs see the true state.
     seed : int
         Seed of the measurement noise.
+    external_wrench : PiecewisePolynomial, optional
+        Disturbance on the plant's ``external_wrench`` (6: force NED [N], torque FRD
+        [N m]) over time, e.g. an upset just before a failure.
     log_period : float
         Logging period [s].
 
@@ -207,6 +212,9 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     builder.Connect(controller.GetOutputPort("motor_thrusts"),
                     plant.GetInputPort("motor_thrusts"))
     builder.Connect(state, ground.GetInputPort("state"))
+    if external_wrench is not None:
+        disturbance = builder.AddSystem(TrajectorySource(external_wrench))
+        builder.Connect(disturbance.get_output_port(), plant.GetInputPort("external_wrench"))
     ref_src = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(
         reference.time, reference.state.T)))
     logs = {}

@@ -68,8 +68,18 @@ from drake_uav.optimization.nmpc import NmpcSettings, TrackingNmpc
 from drake_uav.optimization.terminal_set import ReferenceTable
 from drake_uav.vehicles.multirotor import MultirotorParams
 
-__all__ = ["Category", "Phase", "UnsafeDisc", "FaultClassification", "classify_fault",
-           "failed_from_health", "FaultResponseSettings", "FaultResponse"]
+__all__ = ["REFERENCE_MARGIN", "Category", "Phase", "UnsafeDisc", "FaultClassification",
+           "classify_fault", "failed_from_health", "FaultResponseSettings", "FaultResponse"]
+
+
+REFERENCE_MARGIN = -0.9
+"""Default category-III margin on the tube value: every remaining reference state must
+have a tube value at most this. The value ``V(x) = min_t l(x(t))`` (best control, worst
+yaw rate) with ``l = max(tilt / theta_th, rate / omega_th) - 1`` near the target, so
+``V <= -0.9`` says the failed vehicle can bring that state to within a tenth of the
+target (3 deg of level and 0.2 rad/s with the default tube) within the horizon. A
+reference merely inside the tube (``V <= 0``) may be one the vehicle only just
+recovers from; tracking errors after a failure add to it."""
 
 
 class Category(enum.IntEnum):
@@ -132,7 +142,7 @@ class FaultClassification:
 
 def classify_fault(params: MultirotorParams, failed_motors, state,
                    remaining_reference, tube_value: Callable[[np.ndarray], float] | None,
-                   margin: float = 0.0) -> FaultClassification:
+                   margin: float = REFERENCE_MARGIN) -> FaultClassification:
     """Category of a failure at ``state`` (13) (Argyropoulos 2020, sec. 5.3).
 
     Parameters
@@ -148,8 +158,9 @@ def classify_fault(params: MultirotorParams, failed_motors, state,
         Value of the recovery tube of this failure set at a state (<= 0 inside), e.g.
         ``RecoveryTube.value``; needed unless closure fails.
     margin : float
-        Category III when the remaining reference leaves the tube by more than this
-        (in the tube's value units).
+        Category III when the largest tube value along the remaining reference exceeds
+        this (the tube's value units; :data:`REFERENCE_MARGIN` by default, negative: the
+        reference must stay that deep inside).
 
     Raises
     ------

@@ -16,6 +16,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.model.multirotor import STATE_SIZE
 from drake_uav.optimization.fault_response import (
+    REFERENCE_MARGIN,
     Category,
     FaultResponse,
     classify_fault,
@@ -130,7 +131,8 @@ class FaultSupervisor(LeafSystem):
     period : float
         Update period [s] (the controller's).
     margin : float
-        Category-III margin on the tube value.
+        Category-III margin on the tube value (:data:`~drake_uav.optimization.
+        fault_response.REFERENCE_MARGIN`).
     category : Category or None
         Forces the category instead of classifying (to fly one category's controller
         whatever the tube says); the classification figures are still computed when a
@@ -140,7 +142,8 @@ class FaultSupervisor(LeafSystem):
     """
 
     def __init__(self, params: MultirotorParams, reference: ReferenceTable,
-                 tube_for: Callable | None, period: float = 0.025, margin: float = 0.0,
+                 tube_for: Callable | None, period: float = 0.025,
+                 margin: float = REFERENCE_MARGIN,
                  category: Category | None = None, reference_stride: float = 0.1):
         super().__init__()
         self.params, self.reference, self.tube_for = params, reference, tube_for
