@@ -169,13 +169,15 @@ def scenario_tubes(params: MultirotorParams, settings=None, cache_dir=None):
 
 
 def fly_scenario(sc: FaultScenario | str, params: MultirotorParams | None = None, *,
-                 tube_for=None, **kwargs):
+                 tube_for=None, duration: float | None = None, **kwargs):
     """Flies scenario ``sc`` (or its name) with :func:`~drake_uav.diagrams.faults.fly_fault`
-    on :func:`fault_vehicle` (or ``params``); ``tube_for`` defaults to
-    :func:`scenario_tubes`; other keyword arguments go to ``fly_fault``."""
+    on :func:`fault_vehicle` (or ``params``) for ``duration`` [s] (default the
+    scenario's); ``tube_for`` defaults to :func:`scenario_tubes`; other keyword
+    arguments go to ``fly_fault``."""
     sc = scenario(sc) if isinstance(sc, str) else sc
     params = params or fault_vehicle()
     tube_for = tube_for or scenario_tubes(params)
-    return fly_fault(params, scenario_reference(sc, params), sc.failures(), sc.duration,
+    return fly_fault(params, scenario_reference(sc, params), sc.failures(),
+                     duration or sc.duration,
                      tube_for=tube_for, unsafe_disc=sc.unsafe_disc, safe_point=sc.safe_point,
                      external_wrench=sc.external_wrench(), **kwargs)
