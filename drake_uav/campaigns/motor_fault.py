@@ -73,7 +73,9 @@ def motor_fault(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``target`` ("IV": "I" draws a failure set without closure on
     the category-I mission; "II", "III", "IV" a set with closure on the missions of
-    scenarios IIa (with its disc), IIIa and IVa), ``coarse_tube`` (False).
+    scenarios IIa (with its disc), IIIa and IVa), ``coarse_tube`` (False), ``duration``
+    [s] (the scenario's; the fault time is drawn in [1 s, the shorter of the mission and
+    the duration less 1 s]).
 
     Metrics: ``category`` (1-4; 0 if not classified), ``failed`` (the set, e.g. "0,3"),
     ``fault_time`` [s], ``outcome`` (rank 1-4), ``priority_violated``, ``touchdown``,
@@ -87,9 +89,12 @@ def motor_fault(seed: int, params: dict) -> dict:
     sets = _failure_sets(target != "I")
     failed = sets[int(rng.integers(len(sets)))]
     base = scenario(MISSIONS[target])
-    fault_time = round(float(rng.uniform(1.0, base.mission_time - 1.0)) / 0.025) * 0.025
+    duration = float(params.get("duration", base.duration))
+    end = min(base.mission_time, duration) - 1.0
+    fault_time = round(float(rng.uniform(1.0, end)) / 0.025) * 0.025
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
-    run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))))
+    run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))),
+                       duration=duration)
     rank = outcome(run)
     td, ff = run.touchdown, run.free_fall
     return {
