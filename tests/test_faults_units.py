@@ -220,3 +220,31 @@ def test_semidefinite_state_weight_is_accepted_and_negative_refused():
     NmpcSettings(state_weight=(1.0,) * 5 + (0.0,) + (1.0,) * 6).validate()
     with pytest.raises(ValueError, match="state_weight"):
         NmpcSettings(state_weight=(1.0,) * 11 + (-1.0,)).validate()
+
+
+def test_nmpc_terminal_region_of_a_value_function(params):
+    """A terminal region ``north <= 0.2 m`` against a reference 1 m north: the Riccati path
+    puts the end state on the plane and agrees with Clarabel."""
+    from drake_uav.optimization.nmpc import SublevelTerminal, TrackingNmpc
+    from drake_uav.optimization.terminal_set import ReferenceTable
+
+    hover = np.zeros(13)
+    hover[2], hover[3] = -5.0, 1.0
+    target = hover.copy()
+    target[0] = 1.0
+    u = np.full(6, params.weight / 6)
+    ref = ReferenceTable([0.0, 2.0], [target, target], [u, u])
+    region = SublevelTerminal(lambda x: x[0] - 0.2)
+    ends = {}
+    for qp in ("riccati", "clarabel"):
+        mpc = TrackingNmpc(params, None, NmpcSettings(qp_solver=qp), reference=ref,
+                           bounds=(np.inf,) * 12, terminal_region=region)
+        result = mpc.solve(0.0, hover)
+        print(qp, result.status, result.solver_status, f"x_N north {result.states[-1, 0]:.6f}")
+        assert result.status == "solved"
+        assert abs(result.terminal_ratio) < 1e-5  # on the plane
+        ends[qp] = result.states[-1]
+    assert "region active" in TrackingNmpc(
+        params, None, reference=ref, bounds=(np.inf,) * 12,
+        terminal_region=region).solve(0.0, hover).solver_status
+    np.testing.assert_allclose(ends["riccati"], ends["clarabel"], atol=1e-4)

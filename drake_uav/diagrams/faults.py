@@ -191,7 +191,7 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     failures = _check_failures(failures, duration, n)
     if unsafe_disc is not None and not isinstance(unsafe_disc, UnsafeDisc):
         unsafe_disc = UnsafeDisc(*unsafe_disc)
-    response = FaultResponse(params, reference, settings, unsafe_disc, safe_point)
+    response = FaultResponse(params, reference, settings, unsafe_disc, safe_point, tube_for)
     period = response.settings.nmpc.period
     builder = DiagramBuilder()
     plant = builder.AddSystem(MultirotorPlant(params))

@@ -21,7 +21,8 @@ the fault) whose reference and weights change with the phase:
 =====  ==================  ==========================================================
 phase  name                objective
 =====  ==================  ==========================================================
-0      ``tracking``        the mission reference (before the fault; IV after it)
+0      ``tracking``        the mission reference (before the fault; IV after it, with
+                           the recovery tube as terminal region)
 1      ``impact``          I: vertical descent reference, weights on the vertical
                            position and speed and on the tilt only
 2      ``escape``          II: attitude ``q_d`` of eq. 5.23-5.24 (weights on
@@ -64,7 +65,7 @@ from drake_uav.optimization.fault_plans import (
     plan_reference,
     stop_point,
 )
-from drake_uav.optimization.nmpc import NmpcSettings, TrackingNmpc
+from drake_uav.optimization.nmpc import NmpcSettings, SublevelTerminal, TrackingNmpc
 from drake_uav.optimization.terminal_set import ReferenceTable
 from drake_uav.vehicles.multirotor import MultirotorParams
 
@@ -241,15 +242,21 @@ class FaultResponse:
         The area category II avoids.
     safe_point : (north, east), optional
         Where category III lands [m] (default the origin).
+    tube_for : callable, optional
+        ``tube_for(failed_motors) -> value function`` of the recovery tube: category IV
+        keeps tracking with the tube as terminal region (:class:`~drake_uav.optimization.
+        nmpc.SublevelTerminal`); without it, no terminal region.
     """
 
     def __init__(self, params: MultirotorParams, reference: ReferenceTable,
                  settings: FaultResponseSettings | None = None,
-                 unsafe_disc: UnsafeDisc | None = None, safe_point=(0.0, 0.0)):
+                 unsafe_disc: UnsafeDisc | None = None, safe_point=(0.0, 0.0),
+                 tube_for: Callable | None = None):
         self.settings = settings or FaultResponseSettings()
         self.settings.validate()
         self.params, self.reference = params, reference
         self.unsafe_disc, self.safe_point = unsafe_disc, np.asarray(safe_point, dtype=float)
+        self.tube_for = tube_for
         self.mpc = TrackingNmpc(params, None, self.settings.nmpc, reference=reference)
         self.phase, self.category = Phase.TRACKING, Category.NONE
         self.health = np.ones(params.num_motors)
@@ -272,9 +279,12 @@ class FaultResponse:
         self.category, self.health = category, health
         self.failed = failed_from_health(health)
         weight = s.tracking_weight
+        region = None
+        if category == Category.IV and self.tube_for is not None:
+            region = SublevelTerminal(self.tube_for(self.failed))
         self.mpc = TrackingNmpc(self.params, None, dataclasses.replace(
             s.nmpc, state_weight=weight), reference=self.reference, health=health,
-            bounds=np.asarray(s.bounds, dtype=float))
+            bounds=np.asarray(s.bounds, dtype=float), terminal_region=region)
         if category == Category.IV:
             self.phase = Phase.TRACKING
         elif category == Category.I:

@@ -50,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
@@ -81,6 +82,7 @@ __all__ = [
     "default_waypoints",
     "rk4_step",
     "positive_semidefinite",
+    "SublevelTerminal",
 ]
 
 
@@ -168,6 +170,35 @@ class NmpcSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class SublevelTerminal:
+    """Terminal region ``{x : value(x) <= level}`` of a scalar function of the state (13),
+    e.g. a recovery tube's value (Argyropoulos 2020, sec. 5.3, category IV).
+
+    Each step linearises it at the end state of the warm start (central differences of
+    ``step`` per state): the OCP's terminal constraint is the half-space
+    ``value(x_g) + grad^T (x_N - x_g) <= level``; where the gradient vanishes (deep
+    inside or outside a flat region) no constraint is added.
+    """
+
+    value: Callable[[np.ndarray], float]
+    level: float = 0.0
+    step: float = 1e-4
+
+    def linearise(self, x) -> tuple[np.ndarray, float] | None:
+        """``(a, b)`` of the half-space ``a^T x_N <= b`` at ``x``, or None (flat)."""
+        x = np.asarray(x, dtype=float)
+        v = float(self.value(x))
+        grad = np.empty(STATE_SIZE)
+        for i in range(STATE_SIZE):
+            e = np.zeros(STATE_SIZE)
+            e[i] = self.step
+            grad[i] = (float(self.value(x + e)) - float(self.value(x - e))) / (2 * self.step)
+        if not (np.isfinite(v) and np.all(np.isfinite(grad))) or not grad.any():
+            return None
+        return grad, float(self.level - v + grad @ x)
+
+
+@dataclasses.dataclass(frozen=True)
 class NmpcResult:
     """Outcome of one solve; ``status`` is ``"solved"``, ``"relaxed"`` (solved without the
     terminal constraint, which was infeasible), ``"infeasible"`` or ``"failed"``."""
@@ -180,7 +211,9 @@ class NmpcResult:
     solve_time: float
     """Wall time of the whole step [s] (linearisation, update, solve)."""
     terminal_ratio: float
-    """``e_N^T P~ e_N / pi~^2`` of the predicted end state (<= 1 inside the set)."""
+    """``e_N^T P~ e_N / pi~^2`` of the predicted end state (<= 1 inside the set); with a
+    :class:`SublevelTerminal`, ``value(x_N) - level`` (<= 0 inside); nan without a
+    terminal constraint."""
     states: np.ndarray
     inputs: np.ndarray
 
@@ -306,6 +339,9 @@ class TrackingNmpc:
     bounds : ErrorBounds or array (12), optional
         Box of eq. 4.4d in error layout (upper bounds, ``inf`` = none; per axis when an
         array) when ``terminal`` is ``None`` (default ``ErrorBounds()``).
+    terminal_region : SublevelTerminal, optional
+        Terminal region of a value function (e.g. a recovery tube) when ``terminal`` is
+        ``None``.
 
     Raises
     ------
@@ -315,7 +351,8 @@ class TrackingNmpc:
 
     def __init__(self, params: MultirotorParams, terminal: TerminalSet | None,
                  settings: NmpcSettings | None = None, *,
-                 reference: ReferenceTable | None = None, health=None, bounds=None):
+                 reference: ReferenceTable | None = None, health=None, bounds=None,
+                 terminal_region: SublevelTerminal | None = None):
         settings = settings or NmpcSettings()
         settings.validate()
         self.params, self.terminal, self.settings = params, terminal, settings
@@ -332,6 +369,8 @@ class TrackingNmpc:
             params.effective_allocation(health)  # validates the health
             upper = _box_upper(bounds)
         self.reference, self.health, self.upper = reference, health, upper
+        self.terminal_region = terminal_region if terminal is None else None
+        self._half = None
         self._reference_start = 0.0
         self._scaled = bool(np.any(health != 1.0))
         self.R = settings.input_weight * np.eye(n)
@@ -357,6 +396,8 @@ class TrackingNmpc:
             N + 1, STATE_SIZE)
         self._u_index = np.array(prog.FindDecisionVariableIndices(self.U.ravel())).reshape(N, n)
         self._cone = prog.AddLorentzConeConstraint(np.zeros((13, 13)), np.ones(13), self.X[N])
+        self._halfspace = prog.AddLinearConstraint(np.zeros((1, 13)), [-np.inf], [np.inf],
+                                                   self.X[N])
         # state box of eq. 4.4d: attitude error (changes with q_r), velocity, rates
         upper = self.upper
         self._box_rows = [i for i in range(3, 12) if np.isfinite(upper[i])]
@@ -445,6 +486,7 @@ class TrackingNmpc:
             S = np.linalg.cholesky(Pt).T  # e^T Pt e = |S e|^2
             self._terminal = (Pt, level, L[N], l[N], S)
         self._cone_on, self._program_current = self.terminal is not None, False
+        self._region_on, self._half = True, None
         self._xr, self._ur, self._x = xr, ur, x
 
     def _update_program(self) -> None:
@@ -463,7 +505,17 @@ class TrackingNmpc:
             self._input_costs[j].evaluator().UpdateCoefficients(
                 2 * self.h * self.R, self._input_r[j], 0.0, True)
         self._set_cone(self._cone_on)
+        self._set_halfspace()
         self._program_current = True
+
+    def _set_halfspace(self) -> None:
+        """The linearised terminal region ``a^T x_N <= b``, or no constraint."""
+        if self._half is None:
+            self._halfspace.evaluator().UpdateCoefficients(np.zeros((1, 13)), [-np.inf],
+                                                           [np.inf])
+        else:
+            a, b = self._half
+            self._halfspace.evaluator().UpdateCoefficients(a[None], [-np.inf], [b])
 
     def _set_cone(self, on: bool) -> None:
         """The terminal cone ``|S (L x_N + l)| <= pi~``, or (off) ``1 >= |0|``."""
@@ -500,7 +552,7 @@ class TrackingNmpc:
             self._update(t, x)
             out = self._solve_ocp(start)
             if out.status == "infeasible" and self.settings.relax_terminal:
-                self._cone_on = False
+                self._cone_on, self._region_on = False, False
                 if self._program_current:
                     self._set_cone(False)
                 relaxed = self._solve_ocp(start)
@@ -514,6 +566,10 @@ class TrackingNmpc:
     def _solve_ocp(self, start: float) -> NmpcResult:
         """One RTI step, the SQP to convergence, or the NLP solver, from the warm start."""
         Xg, Ug = self._initial_guess()
+        half = self.terminal_region.linearise(Xg[-1]) \
+            if self.terminal_region is not None and self._region_on else None
+        if (half is None) != (self._half is None) or half is not None:
+            self._half, self._program_current = half, False
         if not self._qp:
             self._update_program()
             result = self._solve_once(Xg, Ug)
@@ -622,7 +678,8 @@ class TrackingNmpc:
         box = (self._box_L @ sol.X[1:, :, None])[:, :, 0] + self._box_offset
         if np.any(np.abs(box) > self.upper[self._box_rows]):
             return None
-        name = "Riccati" + (", cone active" if w is not None else "") + \
+        active = ", cone active" if self._half is None else ", region active"
+        name = "Riccati" + (active if w is not None else "") + \
             (", bounds active" if (fixed & healthy).any() else "")
         return _QpSolution(True, name, iteration, sol.X, U)
 
@@ -632,6 +689,8 @@ class TrackingNmpc:
         when it does not); ``None`` when the cone cannot be met."""
         data = (Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R, self._input_r)
         sol = solve_lq(self._x, *data)
+        if self._half is not None:
+            return self._lq_with_halfspace(sol, data, Ax, Bu)
         if not self._cone_on or self._cone_ratio(sol.X[-1]) <= 1.0:
             return sol, None
         w = self._cone_multiplier(sol, Ax, Bu)
@@ -639,6 +698,22 @@ class TrackingNmpc:
             return None
         sol = solve_lq(self._x, *data, terminal=(0.0, w))
         return (sol, w) if self._cone_ratio(sol.X[-1]) <= 1.0 + 1e-6 else None
+
+    def _lq_with_halfspace(self, sol, data, Ax, Bu):
+        """The QP with the linearised terminal region ``a^T x_N <= b``: active when the
+        solution without it leaves it; then ``w = mu a`` with ``x_N(w) = x_N(0) + G w``
+        (:func:`~drake_uav.optimization.riccati_lq.terminal_sensitivity`) on the plane,
+        ``mu = (b - a^T x_N(0)) / (a^T G a) >= 0``."""
+        a, b = self._half
+        if a @ sol.X[-1] <= b:
+            return sol, None
+        curvature = float(a @ terminal_sensitivity(sol, Ax, Bu) @ a)
+        if not curvature < 0:
+            return None
+        w = (b - a @ sol.X[-1]) / curvature * a
+        sol = solve_lq(self._x, *data, terminal=(0.0, w))
+        scale = max(1.0, abs(b))
+        return (sol, w) if a @ sol.X[-1] <= b + 1e-6 * scale else None
 
     def _input_gradient(self, Ax, Bu, X, U, w) -> np.ndarray:
         """``dL/du_j = R_j u_j + r_j + B_j^T lambda_{j+1}`` (N, n): the Lagrangian's
@@ -707,7 +782,12 @@ class TrackingNmpc:
             return dataclasses.replace(self._failure(status, sol.name, start),
                                        iterations=sol.iterations)
         self._guess = (X, U)
-        ratio = self._cone_ratio(X[-1]) if self.terminal is not None else np.nan
+        if self.terminal is not None:
+            ratio = self._cone_ratio(X[-1])
+        elif self.terminal_region is not None:
+            ratio = float(self.terminal_region.value(X[-1])) - self.terminal_region.level
+        else:
+            ratio = np.nan
         return NmpcResult(thrusts=np.clip(U[0], 0.0, self.f_max), status="solved",
                           solver_status=sol.name, iterations=sol.iterations,
                           solve_time=time.perf_counter() - start,
