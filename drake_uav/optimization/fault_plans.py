@@ -111,7 +111,7 @@ def plan_reference(params: MultirotorParams, state, acceleration, waypoints, dur
     yaw = float(quat_to_euler(x[3:7] / np.linalg.norm(x[3:7]))[2])
     dt = settings.sample_time
     start, derivatives = x[:3], np.vstack([x[7:10], np.asarray(acceleration, dtype=float)])
-    states, thrusts, offset = [], [], 0.0
+    states, thrusts = [], []
     for k, (goal, duration) in enumerate(zip(w, T, strict=True)):
         duration = dt * max(np.ceil(duration / dt), 2)
         traj = minimum_snap(np.vstack([start, goal]), [0.0, duration],
@@ -120,7 +120,7 @@ def plan_reference(params: MultirotorParams, state, acceleration, waypoints, dur
         ref = flat_reference(traj, params, t, yaw=yaw, health=health)
         states.append(ref.state)
         thrusts.append(ref.motor_thrusts)
-        start, offset = goal, offset + duration
+        start = goal
     state_table = np.vstack(states)
     for k in range(1, len(state_table)):  # one quaternion sign along the table
         if state_table[k, 3:7] @ state_table[k - 1, 3:7] < 0:
