@@ -248,3 +248,23 @@ def test_nmpc_terminal_region_of_a_value_function(params):
         params, None, reference=ref, bounds=(np.inf,) * 12,
         terminal_region=region).solve(0.0, hover).solver_status
     np.testing.assert_allclose(ends["riccati"], ends["clarabel"], atol=1e-4)
+
+
+def test_nmpc_bounds_and_reference_are_checked(params):
+    from drake_uav.optimization.nmpc import TrackingNmpc
+
+    ref = scenario_reference(scenario("IVa"), params, dt=0.05)
+    with pytest.raises(ValueError, match="reference is required"):
+        TrackingNmpc(params, None)
+    with pytest.raises(ValueError, match="bounds must be ErrorBounds or 12"):
+        TrackingNmpc(params, None, reference=ref, bounds=(1.0,) * 12)  # position bounded
+    with pytest.raises(ValueError, match="health"):
+        TrackingNmpc(params, None, reference=ref, health=[1, 1, 2, 1, 1, 1])
+    x = ref.state[0].copy()
+    x[12] = 1.5  # spinning at 1.5 rad/s; the box wants 1.3 rad/s from the next node on
+    result = TrackingNmpc(params, None, reference=ref,
+                          bounds=(np.inf,) * 9 + (6.0, 6.0, 1.3)).solve(0.0, x)
+    later = np.abs(result.states[1:, 12])
+    print(result.status, result.solver_status, later.max())
+    assert result.status == "solved" and later.max() <= 1.3 + 1e-5
+    assert not result.solver_status.startswith("Riccati")  # a box row active: Clarabel
