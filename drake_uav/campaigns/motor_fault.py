@@ -91,7 +91,7 @@ def motor_fault(seed: int, params: dict) -> dict:
     base = scenario(MISSIONS[target])
     duration = float(params.get("duration", base.duration))
     end = min(base.mission_time, duration) - 1.0
-    fault_time = round(float(rng.uniform(1.0, end)) / 0.025) * 0.025
+    fault_time = round(round(float(rng.uniform(1.0, end)) / 0.025) * 0.025, 3)
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
     run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))),
                        duration=duration)
