@@ -11,6 +11,8 @@ entries (and, where it says so, elementwise on numpy arrays of samples):
   air-relative velocity and back.
 * :mod:`~drake_uav.model.fixed_wing`: the fixed-wing equations of motion.
 * :mod:`~drake_uav.model.multirotor`: the multirotor rigid body and allocation.
+* :mod:`~drake_uav.model.tilt`: the tilt (body z against the vertical) and its
+  rotational dynamics with the heading left out, for the recovery tubes.
 * :mod:`~drake_uav.model.dryden`: the Dryden turbulence shaping filters.
 * :mod:`~drake_uav.model.isolation`: the measured coefficients from flight signals.
 * :mod:`~drake_uav.model.compiled`: a scalar-generic function as generated

@@ -10,6 +10,7 @@ grid on every call, which dominates for one or a few query points
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 
@@ -53,6 +54,8 @@ class RegularGridValues:
         corners = np.array(list(itertools.product((0, 1), repeat=d)), dtype=np.intp)
         self._offsets = corners @ strides
         self._strides = strides
+        self._axes = list(zip(self.lower.tolist(), self.spacing.tolist(), values.shape,
+                              strides.tolist(), strict=True))
 
     @property
     def coordinates(self) -> tuple[np.ndarray, ...]:
@@ -76,6 +79,26 @@ class RegularGridValues:
             tk = t[:, k:k + 1]
             corners = corners[:, :half] + tk * (corners[:, half:] - corners[:, :half])
         return corners[:, 0]
+
+    def at(self, point) -> tuple[float, float]:
+        """Value at one point (d floats) and its distance beyond the grid in cells (0 inside).
+
+        The same interpolation as calling the object, in float arithmetic: a few
+        microseconds instead of the per-call cost of numpy on tiny arrays.
+        """
+        base, blend, beyond = 0, [], 0.0
+        for x, (lo, step, n, stride) in zip(point, self._axes, strict=True):
+            position = (x - lo) / step
+            beyond = max(beyond, -position, position - (n - 1))
+            cell = min(max(math.floor(position), 0), n - 2)
+            blend.append(min(max(position - cell, 0.0), 1.0))
+            base += cell * stride
+        corners = self._flat[self._offsets + base].tolist()
+        for t in blend:
+            half = len(corners) // 2
+            corners = [a + t * (b - a) for a, b in zip(corners[:half], corners[half:],
+                                                       strict=True)]
+        return corners[0], beyond
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
         """Largest distance beyond the grid over the dimensions, in grid cells (0 inside)."""

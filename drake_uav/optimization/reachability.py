@@ -403,10 +403,9 @@ class RecoveryTube:
         p, q, r = x[BODY_RATES].tolist()
         (a, b), (c, d) = self.symmetry.plane
         o = self.symmetry.orientation
-        point = np.array([[a * sx + b * sy, c * sx + d * sy,
-                           o * (a * p + b * q), o * (c * p + d * q)]])
-        v = float(self.values(point)[0])
-        beyond = max(float(self.values.outside_distance(point)[0]) - 1e-9, 0.0)
+        v, beyond = self.values.at((a * sx + b * sy, c * sx + d * sy,
+                                    o * (a * p + b * q), o * (c * p + d * q)))
+        beyond = max(beyond - 1e-9, 0.0)
         excess = beyond + max(abs(r) - self.yaw_rate_limit, 0.0) / self.settings.yaw_rate_band
         return max(v, 0.0) + excess if excess > 0.0 else v
 
