@@ -271,8 +271,8 @@ class FaultResponse:
         try:
             self._switch(t, np.asarray(x, dtype=float), np.asarray(health, dtype=float),
                          Category(int(category)))
-        except (ValueError, RuntimeError, np.linalg.LinAlgError):
-            self.category = Category(int(category))
+        except (ValueError, RuntimeError, ArithmeticError, OSError, np.linalg.LinAlgError):
+            self.category = Category(int(category))  # not tried again at every step
 
     def _switch(self, t, x, health, category):
         s = self.settings
