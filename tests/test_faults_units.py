@@ -268,3 +268,18 @@ def test_nmpc_bounds_and_reference_are_checked(params):
     print(result.status, result.solver_status, later.max())
     assert result.status == "solved" and later.max() <= 1.3 + 1e-5
     assert not result.solver_status.startswith("Riccati")  # a box row active: Clarabel
+
+
+def test_a_tube_that_fails_classifies_as_II_and_the_loop_goes_on(params):
+    """The documented fallback: a tube that cannot be read gives category II (escape or
+    land), never an exception inside the simulation."""
+    def broken(failed):
+        raise OSError("cache folder not readable")
+
+    sc = scenario("IVa")
+    run = fly_fault(params, scenario_reference(sc, params, dt=0.01), sc.failures(), 6.0,
+                    tube_for=broken)
+    print(run.category.name, np.unique(run.phase), np.isnan(run.tube_value))
+    assert run.category == Category.II and np.isnan(run.tube_value)
+    assert np.all(np.isfinite(run.thrusts)) and np.all(run.thrusts[:, 2][run.control_time > 4.0]
+                                                        == 0.0)
