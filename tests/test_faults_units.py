@@ -113,6 +113,8 @@ def test_classification_order():
         return 0.5 if state is not x and state[0] > 0 else -1.0
 
     assert classify_fault(p, (3, 4), x, ref, None).category == Category.I  # no tube needed
+    # the alternating triple keeps closure but hovers only spinning up: land (no tube)
+    assert classify_fault(p, (0, 2, 4), x, ref, None).category == Category.II
     assert classify_fault(p, (0, 3), x, ref, outside).category == Category.II
     assert classify_fault(p, (0, 3), x, ref, inside).category == Category.IV
     later = ref.copy()

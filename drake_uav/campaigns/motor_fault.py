@@ -74,8 +74,9 @@ def motor_fault(seed: int, params: dict) -> dict:
     Parameters (defaults): ``target`` ("IV": "I" draws a failure set without closure on
     the category-I mission; "II", "III", "IV" a set with closure on the missions of
     scenarios IIa (with its disc), IIIa and IVa), ``coarse_tube`` (False), ``duration``
-    [s] (the scenario's; the fault time is drawn in [1 s, the shorter of the mission and
-    the duration less 1 s]).
+    [s] (the scenario's for I and IV, at least 90 s for II and III, time to land from
+    anywhere; the fault time is drawn in [1 s, the shorter of the mission and the duration
+    less 1 s]).
 
     Metrics: ``category`` (1-4; 0 if not classified), ``failed`` (the set, e.g. "0,3"),
     ``fault_time`` [s], ``outcome`` (rank 1-4), ``priority_violated``, ``touchdown``,
@@ -89,7 +90,9 @@ def motor_fault(seed: int, params: dict) -> dict:
     sets = _failure_sets(target != "I")
     failed = sets[int(rng.integers(len(sets)))]
     base = scenario(MISSIONS[target])
-    duration = float(params.get("duration", base.duration))
+    # room for a landing from anywhere on the mission (a touchdown ends the flight)
+    duration = float(params.get("duration", base.duration if target in ("I", "IV")
+                                else max(base.duration, 90.0)))
     end = min(base.mission_time, duration) - 1.0
     fault_time = round(round(float(rng.uniform(1.0, end)) / 0.025) * 0.025, 3)
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
