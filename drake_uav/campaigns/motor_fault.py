@@ -30,12 +30,15 @@ from drake_uav.diagrams.faults import FaultRun
 from drake_uav.optimization.allocation import closure_holds
 from drake_uav.optimization.fault_response import Category
 
-__all__ = ["motor_fault", "outcome", "TRACKED_RMSE", "SAFE_SPEED", "MISSIONS"]
+__all__ = ["motor_fault", "outcome", "TRACKED_RMSE", "SAFE_SPEED", "LANDING_TIME", "MISSIONS"]
 
 TRACKED_RMSE = 1.0
 """Position RMSE [m] after the fault below which a run still tracks."""
 SAFE_SPEED = 1.0
 """Largest downward touchdown speed [m/s] of a safe landing."""
+LANDING_TIME = 60.0
+"""Simulated time after the fault [s] by default: a landing from anywhere on the missions
+(stop, move to the safe point, descend) ends well within it."""
 MISSIONS = {"I": "I", "II": "IIa", "III": "IIIa", "IV": "IVa"}
 """Target -> the scenario whose mission (and disc) the campaign flies."""
 _REQUIRED = {Category.I: 1, Category.II: 2, Category.III: 3, Category.IV: 4}
@@ -74,9 +77,8 @@ def motor_fault(seed: int, params: dict) -> dict:
     Parameters (defaults): ``target`` ("IV": "I" draws a failure set without closure on
     the category-I mission; "II", "III", "IV" a set with closure on the missions of
     scenarios IIa (with its disc), IIIa and IVa), ``coarse_tube`` (False), ``duration``
-    [s] (the scenario's for I and IV, at least 90 s for II and III, time to land from
-    anywhere; the fault time is drawn in [1 s, the shorter of the mission and the duration
-    less 1 s]).
+    [s] (default: the scenario's, and at least :data:`LANDING_TIME` after the fault; the
+    fault time is drawn in [1 s, the shorter of the mission and the duration less 1 s]).
 
     Metrics: ``category`` (1-4; 0 if not classified), ``failed`` (the set, e.g. "0,3"),
     ``fault_time`` [s], ``outcome`` (rank 1-4), ``priority_violated``, ``touchdown``,
@@ -90,11 +92,11 @@ def motor_fault(seed: int, params: dict) -> dict:
     sets = _failure_sets(target != "I")
     failed = sets[int(rng.integers(len(sets)))]
     base = scenario(MISSIONS[target])
-    # room for a landing from anywhere on the mission (a touchdown ends the flight)
-    duration = float(params.get("duration", base.duration if target in ("I", "IV")
-                                else max(base.duration, 90.0)))
-    end = min(base.mission_time, duration) - 1.0
+    duration = params.get("duration")
+    end = min(base.mission_time, float(duration or math.inf)) - 1.0
     fault_time = round(round(float(rng.uniform(1.0, end)) / 0.025) * 0.025, 3)
+    # room for a landing from anywhere on the mission (a touchdown ends the flight)
+    duration = float(duration or max(base.duration, fault_time + LANDING_TIME))
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
     run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))),
                        duration=duration)

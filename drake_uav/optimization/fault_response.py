@@ -5,6 +5,9 @@ At the fault time the failure is classified (:func:`classify_fault`):
 * I: the healthy motors lose closure (:func:`~drake_uav.optimization.allocation.
   closure_holds`): the attitude cannot be held, impact is unavoidable; minimise the
   vertical impact speed;
+* II also escapes when the free-fall point is outside the disc but the landing ahead
+  along the direction of motion would end inside it (the source lands keeping the
+  direction, which may lead into the disc);
 * II also when closure holds but the healthy motors cannot carry the weight with zero yaw
   torque (the hexacopter's alternating triples, whose motors all turn the same way): the
   vehicle hovers only spinning faster and faster (the model has no yaw damping), so it
@@ -308,7 +311,9 @@ class FaultResponse:
                        weight, Phase.SAFE_LANDING)
         elif category == Category.II:
             impact = free_fall_impact(x[:3], x[7:10], self.params.gravity)
-            if self.unsafe_disc is not None and self.unsafe_disc.contains(impact.point):
+            ahead = moving_landing_waypoints(x[:3], x[7:10], s.landing)[0][0]
+            if self.unsafe_disc is not None and (self.unsafe_disc.contains(impact.point)
+                                                 or self.unsafe_disc.contains(ahead)):
                 self._escape = dict(start=t, altitude=-x[2], allocation=max_thrust_allocation(
                     self.params, self.failed) * (health > 0))
                 self.phase = Phase.ESCAPE
