@@ -156,7 +156,9 @@ def test_states_beyond_the_grid_or_spinning_fast_are_outside(single):
     for state in (fast_roll, spinning, inverted):
         assert not single.contains(state)
     assert single.value(inverted) == np.inf
-    assert 0 < single.yaw_rate_limit < COARSE.yaw_rate_band
+    # Band: the query limit plus 0.3 s of the largest yaw acceleration (3 motors of one
+    # spin at f_max: 3 km f_max / J_z = 12 rad/s^2).
+    assert single.yaw_rate_band == pytest.approx(COARSE.yaw_rate_limit + 0.3 * 12.0)
 
 
 def test_cached_tube_loads_without_solving_and_without_jax(single, cache, monkeypatch):
@@ -219,6 +221,7 @@ def test_bad_failure_sets_are_refused_by_name(failed, match, tmp_path):
 
 @pytest.mark.parametrize("field, value", [
     ("theta_th", -0.1), ("omega_th", float("nan")), ("horizon", 0.0), ("tilt_limit", 3.5),
+    ("yaw_rate_limit", -1.0),
     ("tilt_points", 16), ("rate_points", 3), ("accuracy", "best"), ("rate_target", "cube"),
 ])
 def test_bad_settings_are_refused_by_name(field, value):
@@ -252,3 +255,25 @@ def test_two_resolutions_agree_on_membership(failed, tmp_path):
           f"{agreement:.4f} of 20000 states (inside: {inside[0].mean():.3f}, "
           f"{inside[1].mean():.3f})")
     assert agreement >= 0.95
+
+
+def test_the_hexacopter_frame_has_six_symmetries_and_four_closure_classes():
+    from itertools import combinations
+
+    from drake_uav.optimization.allocation import closure_holds
+    from drake_uav.optimization.frame_symmetry import canonical_failure_set, frame_symmetries
+
+    group = frame_symmetries(HEX)
+    assert len(group) == 6 and sorted(s.orientation for s in group) == [-1, -1, -1, 1, 1, 1]
+    closure_sets = [c for k in (1, 2, 3) for c in combinations(range(6), k)
+                    if closure_holds(HEX, c)]
+    classes = {}
+    for failed in closure_sets:
+        canonical, symmetry = canonical_failure_set(group, failed)
+        assert symmetry.apply(failed) == canonical
+        classes.setdefault(canonical, []).append(failed)
+    assert {c: len(members) for c, members in classes.items()} == {
+        (0,): 6, (0, 3): 3, (0, 2): 6, (0, 2, 4): 2}
+    # Keeping the square |p|, |q| <= c leaves the identity and the mirror y -> -y.
+    square = frame_symmetries(HEX, square_rates=True)
+    assert [s.permutation for s in square] == [(0, 1, 2, 3, 4, 5), (5, 4, 3, 2, 1, 0)]

@@ -10,8 +10,9 @@ bring body z within ``theta_th`` of the vertical and the roll/pitch rates within
 solved on a grid with ``hj_reachability`` (JAX; Hamiltonian post-processor
 ``backwards_reachable_tube``). The state is the yaw-free attitude subsystem of
 :mod:`drake_uav.model.tilt`: tilt coordinates ``s`` (2) and roll/pitch rates
-``p, q``; the yaw rate ``r`` enters as a bounded disturbance ``|r| <= yaw_rate_band``
-that plays against recovery (docs/faults.md, "Reachable tubes", explains the
+``p, q``; the yaw rate ``r`` enters as a bounded disturbance that plays against
+recovery, its band covering every yaw rate reachable within the horizon from
+``|r(0)| <= yaw_rate_limit`` (docs/faults.md, "Reachable tubes", explains the
 choice). Motor thrusts ``f`` in ``[0, f_max]`` with ``f_i = 0`` for failed motors act
 through the allocation's torque rows.
 
@@ -33,7 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_uav.model.multirotor import BODY_RATES, QUATERNION, STATE_SIZE
+from drake_uav.model.multirotor import (
+    BODY_RATES,
+    QUATERNION,
+    STATE_SIZE,
+    body_rate_derivative,
+)
 from drake_uav.model.tilt import down_in_body, tilt_coordinates, tilt_dynamics
 from drake_uav.optimization.allocation import canonical_failed_motors
 from drake_uav.optimization.frame_symmetry import (
@@ -53,6 +59,7 @@ __all__ = [
     "solve_value_function",
     "target_value",
     "yaw_acceleration_bound",
+    "yaw_rate_band",
 ]
 
 CACHE_FORMAT = 1
@@ -84,8 +91,9 @@ class TubeSettings:
     half-width in tilt coordinates; the corners reach further)."""
     rate_limit: float = 8.0
     """Half-width of the grid in ``p`` and ``q`` [rad/s]."""
-    yaw_rate_band: float = 10.0
-    """Bound [rad/s] of the yaw-rate disturbance over the horizon."""
+    yaw_rate_limit: float = 2.0
+    """Largest ``|r|`` [rad/s] at a query; the disturbance band adds what the yaw
+    acceleration can add within the horizon. Faster-spinning states count as outside."""
     tilt_points: int = 25
     """Grid nodes along each tilt coordinate (odd, so that level is a node)."""
     rate_points: int = 25
@@ -126,7 +134,7 @@ class TubeSettings:
     def validate(self) -> None:
         """Raises ``ValueError`` naming the first invalid field."""
         for field in ("theta_th", "omega_th", "horizon", "tilt_limit", "rate_limit",
-                      "yaw_rate_band"):
+                      "yaw_rate_limit"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"TubeSettings.{field} must be positive and finite, "
@@ -166,8 +174,9 @@ def target_value(s, rates, settings: TubeSettings):
     """``l(x)``: negative inside the near-hover target set, positive outside (dimensionless).
 
     ``max(tilt / theta_th, rate / omega_th) - 1`` with ``tilt = 2 atan |s|`` and ``rate``
-    the disc or square norm of ``(p, q)``; each entry may be an array. The digest's
-    printed bounds ``Omega_x <= Omega_th`` are read as ``|Omega_x| <= Omega_th``.
+    the disc or square norm of ``(p, q)``; each entry may be an array. The bounds printed
+    as ``Omega_x <= Omega_th`` (Argyropoulos 2020, sec. 5.2) are read as
+    ``|Omega_x| <= Omega_th``.
     """
     tilt = 2.0 * np.arctan(np.hypot(s[0], s[1]))
     if settings.rate_target == "disc":
@@ -195,6 +204,18 @@ def yaw_acceleration_bound(params: MultirotorParams, failed: tuple[int, ...],
     torque = params.f_max * max(yaw[yaw > 0].sum(), -yaw[yaw < 0].sum())
     Jx, Jy, Jz = params.inertia
     return (torque + abs(Jx - Jy) * settings.rate_limit ** 2) / Jz
+
+
+def yaw_rate_band(params: MultirotorParams, failed: tuple[int, ...],
+                  settings: TubeSettings) -> float:
+    """Bound [rad/s] of ``|r|`` over the horizon from ``|r(0)| <= yaw_rate_limit``.
+
+    ``yaw_rate_limit + T max|r_dot|`` (:func:`yaw_acceleration_bound`): the disturbance
+    band of the tube, as tight as the failure set allows (the band's width is what makes
+    the tube conservative).
+    """
+    return settings.yaw_rate_limit + settings.horizon * yaw_acceleration_bound(
+        params, failed, settings)
 
 
 def _check_principal_inertia(params: MultirotorParams) -> None:
@@ -241,6 +262,7 @@ def solve_value_function(params: MultirotorParams, failed_motors: Iterable[int],
     n = params.num_motors
     upper = np.full(n, params.f_max)
     upper[list(failed)] = 0.0
+    band = yaw_rate_band(params, failed, settings)
 
     def derivative(state, torque_value, yaw_rate):
         s, rates = (state[0], state[1]), (state[2], state[3], yaw_rate)
@@ -248,10 +270,12 @@ def solve_value_function(params: MultirotorParams, failed_motors: Iterable[int],
         return jnp.stack([d[0], d[1], d[2], d[3]])
 
     zero_torque = (0.0, 0.0, 0.0)
-    # d(p, q)/df: J^-1 times the torque rows (principal inertia), failed columns zero.
+    # d(p, q)/df: Euler's equation is affine in the torque, so column j is its response to
+    # motor j's torque column (zero for failed motors).
     control_jacobian = np.zeros((4, n))
-    control_jacobian[2] = torque[0] / params.inertia[0]
-    control_jacobian[3] = torque[1] / params.inertia[1]
+    for j in range(n):
+        control_jacobian[2:, j] = body_rate_derivative((0.0, 0.0, 0.0), torque[:, j],
+                                                       params)[:2]
     control_jacobian = jnp.asarray(control_jacobian)
     thrust_middle, thrust_spread = jnp.asarray(upper / 2.0), jnp.asarray(upper / 2.0)
 
@@ -276,13 +300,12 @@ def solve_value_function(params: MultirotorParams, failed_motors: Iterable[int],
             middle = self.open_loop_dynamics(state, time) + control_jacobian @ thrust_middle
             return (jnp.abs(middle) + jnp.abs(control_jacobian) @ thrust_spread
                     + jnp.abs(self.disturbance_jacobian(state, time)[:, 0])
-                    * settings.yaw_rate_band)
+                    * band)
 
     dynamics = _AttitudeRecovery(
         control_mode="min", disturbance_mode="max",
         control_space=hj.sets.Box(jnp.zeros(n), jnp.asarray(upper)),
-        disturbance_space=hj.sets.Box(jnp.array([-settings.yaw_rate_band]),
-                                      jnp.array([settings.yaw_rate_band])))
+        disturbance_space=hj.sets.Box(jnp.array([-band]), jnp.array([band])))
     grid = hj.Grid.from_lattice_parameters_and_boundary_conditions(
         hj.sets.Box(jnp.asarray(settings.lower), jnp.asarray(settings.upper)), settings.shape)
     states = grid.states
@@ -344,10 +367,13 @@ class RecoveryTube:
     settings: TubeSettings
     values: RegularGridValues
     """``V(x, 0)`` on the grid ``(s_x, s_y, p, q)`` of the canonical set."""
-    yaw_rate_limit: float
-    """``|r|`` [rad/s] up to which a query is answered from the grid: the yaw-rate band
-    less what the yaw acceleration can add over the horizon; faster-spinning states
-    count as outside."""
+    yaw_rate_band: float
+    """Bound [rad/s] of the yaw-rate disturbance the tube was solved with."""
+
+    @property
+    def yaw_rate_limit(self) -> float:
+        """``|r|`` [rad/s] up to which a query is answered from the grid."""
+        return self.settings.yaw_rate_limit
 
     def reduced_state(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reduced coordinates of states (N, 13) in the canonical set's frame.
@@ -389,7 +415,7 @@ class RecoveryTube:
         # Round-off of a state on the grid's edge is not "beyond" it.
         beyond = np.maximum(self.values.outside_distance(reduced) - 1e-9, 0.0)
         excess = beyond + np.maximum(yaw_rate - self.yaw_rate_limit, 0.0) \
-            / self.settings.yaw_rate_band
+            / self.yaw_rate_band
         v = np.where(excess > 0.0, np.maximum(v, 0.0) + excess, v)
         v[inverted] = np.inf
         return v
@@ -406,7 +432,7 @@ class RecoveryTube:
         v, beyond = self.values.at((a * sx + b * sy, c * sx + d * sy,
                                     o * (a * p + b * q), o * (c * p + d * q)))
         beyond = max(beyond - 1e-9, 0.0)
-        excess = beyond + max(abs(r) - self.yaw_rate_limit, 0.0) / self.settings.yaw_rate_band
+        excess = beyond + max(abs(r) - self.yaw_rate_limit, 0.0) / self.yaw_rate_band
         return max(v, 0.0) + excess if excess > 0.0 else v
 
     def contains(self, state: np.ndarray) -> bool | np.ndarray:
@@ -491,19 +517,11 @@ def recovery_tube(params: MultirotorParams, failed_motors: Iterable[int],
     Raises
     ------
     ValueError
-        Invalid ``failed_motors``, non-zero products of inertia, or a yaw-rate band
-        that the yaw acceleration of this failure set uses up within the horizon.
+        Invalid ``failed_motors`` or non-zero products of inertia.
     """
     settings = settings or TubeSettings()
     failed = canonical_failed_motors(params, failed_motors)
     _check_principal_inertia(params)
-    yaw_limit = settings.yaw_rate_band - settings.horizon * yaw_acceleration_bound(
-        params, failed, settings)
-    if yaw_limit <= 0.0:
-        needed = settings.yaw_rate_band - yaw_limit
-        raise ValueError(f"TubeSettings.yaw_rate_band ({settings.yaw_rate_band} rad/s) is "
-                         f"used up by the yaw acceleration within the horizon for motors "
-                         f"{list(failed)} out; raise it above {needed:.3g}")
     symmetries = frame_symmetries(params, square_rates=settings.rate_target == "square")
     canonical, symmetry = canonical_failure_set(symmetries, failed)
     key = _cache_key(params, canonical, settings)
@@ -515,4 +533,4 @@ def recovery_tube(params: MultirotorParams, failed_motors: Iterable[int],
     return RecoveryTube(params=params, failed_motors=failed, canonical_failed_motors=canonical,
                         symmetry=symmetry, settings=settings,
                         values=RegularGridValues(values, settings.lower, settings.upper),
-                        yaw_rate_limit=yaw_limit)
+                        yaw_rate_band=yaw_rate_band(params, failed, settings))
