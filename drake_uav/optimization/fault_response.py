@@ -86,7 +86,7 @@ REFERENCE_MARGIN = -0.9
 have a tube value at most this. The value ``V(x) = min_t l(x(t))`` (best control, worst
 yaw rate) with ``l = max(tilt / theta_th, rate / omega_th) - 1`` near the target, so
 ``V <= -0.9`` says the failed vehicle can bring that state to within a tenth of the
-target (3 deg of level and 0.2 rad/s with the default tube) within the horizon. A
+target's tilt and rate bounds within the horizon. A
 reference merely inside the tube (``V <= 0``) may be one the vehicle only just
 recovers from; tracking errors after a failure add to it."""
 
@@ -222,9 +222,9 @@ class FaultResponseSettings:
     landing: LandingSettings = LandingSettings()
     tube_terminal: bool = False
     """Category IV with the recovery tube as terminal region (the source's choice). Off by
-    default: the tube holds the yaw rate within its band, which the failures that must spin
-    exceed; with a noisy state it raised the position RMSE of motors 2 and 4 failed from
-    4.3 cm to 31 cm."""
+    default: the tube's value grows with a yaw rate beyond its limit, which the failures
+    that must spin exceed; with a noisy state it raised the position RMSE of motors 2 and 4
+    failed from 4.3 cm to 31 cm (docs/faults.md)."""
     escape_max_tilt: float = np.radians(35.0)
     """Largest escape tilt [rad]: eq. 5.23 gives ``cos phi = F_z / F_max``, 60 deg for an
     opposite pair of this vehicle; above the cap the thrust is lowered to ``F_z / cos
