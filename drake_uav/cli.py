@@ -375,6 +375,67 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return 0
 
 
+FAULT_SCENARIOS = ("I", "IIa", "IIb", "IIIa", "IIIb", "IVa", "IVb")
+"""Names of the ch. 6 scenarios (drake_uav.diagrams.fault_scenarios.SCENARIOS, repeated so
+that the checks run before pydrake loads; tests/test_faults_cli.py checks they agree)."""
+
+
+def _check_fault_arguments(args: argparse.Namespace) -> tuple[str, ...]:
+    """The scenario names to fly; raises ``ValueError`` for an unknown name or an output
+    folder that is neither new nor empty."""
+    if args.scenario != "all" and args.scenario not in FAULT_SCENARIOS:
+        raise ValueError(f"fault {args.scenario}: unknown scenario; choose one of "
+                         f"{', '.join(FAULT_SCENARIOS)} or all")
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {out}: exists and is not an empty folder; give a new or "
+                         "empty folder (nothing is overwritten)")
+    if args.tube_cache is not None and Path(args.tube_cache).exists() \
+            and not Path(args.tube_cache).is_dir():
+        raise ValueError(f"--tube-cache {args.tube_cache}: not a folder")
+    return FAULT_SCENARIOS if args.scenario == "all" else (args.scenario,)
+
+
+def _cmd_fault(args: argparse.Namespace) -> int:
+    names = _check_fault_arguments(args)
+    from drake_uav.diagrams.fault_scenarios import (
+        fault_vehicle,
+        fly_scenario,
+        scenario,
+        scenario_tubes,
+    )
+    from drake_uav.optimization.reachability import TubeSettings
+    from drake_uav.reporting.fault_figures import (
+        summary_row,
+        summary_table,
+        write_fault_outputs,
+    )
+
+    params = fault_vehicle()
+    tubes = scenario_tubes(params, TubeSettings.coarse() if args.coarse_tube else None,
+                           args.tube_cache)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name in names:
+        sc = scenario(name)
+        print(f"... {name}: {sc.description}", flush=True)
+        run = fly_scenario(sc, params, tube_for=tubes)
+        rows.append(summary_row(name, run))
+        print(f"    category {run.category.name} at {run.switch_time:.3g} s; "
+              + (f"touchdown at {run.touchdown.time:.2f} s, {run.touchdown.vertical_speed:.2f}"
+                 f" m/s down" if run.touchdown else "in the air at the end"), flush=True)
+        for path in write_fault_outputs(run, name, out):
+            print(f"    {path}")
+    table = summary_table(rows)
+    (out / "summary.md").write_text(
+        "# Motor-failure scenarios (Argyropoulos 2020, ch. 6)\n\nNED, north = x and east = "
+        "-y of the source; fault vehicle: hexacopter with f_max = 10 N.\n\n" + table + "\n")
+    print(table)
+    print(f"summary: {out / 'summary.md'}")
+    return 0
+
+
 def _add_log_arguments(command: argparse.ArgumentParser, optional: bool) -> None:
     """The flight-log argument and its ``--format`` option of a sub-command."""
     command.add_argument("log", nargs="?" if optional else None,
@@ -481,6 +542,27 @@ def _track_parser(sub) -> None:
     track.set_defaults(handler=_cmd_track)
 
 
+def _fault_parser(sub) -> None:
+    """The ``fault`` sub-command."""
+    fault = sub.add_parser(
+        "fault", help="fly the motor-failure scenarios of Argyropoulos 2020, ch. 6",
+        description="Fly one or all of the seven motor-failure scenarios (I, IIa, IIb, IIIa, "
+                    "IIIb, IVa, IVb) of Argyropoulos 2020, ch. 6 on the fault hexacopter "
+                    "(f_max = 10 N): the failure is classified into categories I-IV and the "
+                    "category's controller flies it. Coordinates are NED with north = x and "
+                    "east = -y of the source. Writes per scenario a 3-D path with the unsafe "
+                    "disc, the states, the thrusts with the failed motors marked, and a log "
+                    "that 'drake-uav replay' draws, plus summary.md.")
+    fault.add_argument("scenario", help=f"{', '.join(FAULT_SCENARIOS)} or all")
+    fault.add_argument("--out", default="drake_uav_fault",
+                       help="output folder, new or empty (default drake_uav_fault)")
+    fault.add_argument("--tube-cache", default=None,
+                       help="folder of the recovery tubes' cache (default: the library's)")
+    fault.add_argument("--coarse-tube", action="store_true",
+                       help="coarse recovery tubes (seconds to compute, for a quick look)")
+    fault.set_defaults(handler=_cmd_fault)
+
+
 def _replay_parser(sub) -> None:
     """The ``replay`` sub-command."""
     play = sub.add_parser(
@@ -511,6 +593,7 @@ def _parser() -> argparse.ArgumentParser:
     _trim_parser(sub)
     _identify_parser(sub)
     _track_parser(sub)
+    _fault_parser(sub)
     _replay_parser(sub)
 
     from drake_uav.campaigns.command import add_campaign_parser

@@ -23,7 +23,8 @@ BUILT_IN = {"main_job": "drake_uav.campaigns.scenarios",
             "air_data_ekf": "drake_uav.campaigns.scenarios",
             "tracking_nmpc": "drake_uav.campaigns.scenarios",
             "realistic_logs": "drake_uav.testing.realistic_logs",
-            "discovery": "drake_uav.testing.discovery_cases"}
+            "discovery": "drake_uav.testing.discovery_cases",
+            "motor_fault": "drake_uav.campaigns.motor_fault"}
 """Built-in scenario name -> the module that registers it (imported on first use only)."""
 
 

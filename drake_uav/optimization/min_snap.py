@@ -8,6 +8,8 @@ the QP of Argyropoulos 2020, eq. 2.2-2.3::
     minimise    integral ||d^k sigma / dt^k||^2 dt          (k = order, 4 = snap)
     subject to  sigma(t_i) = sigma_i,                        i = 0..m
                 d^p sigma / dt^p = 0 at t_0 and t_m,          p = 1..k
+                    (or the given initial derivatives at t_0: a start from a moving
+                    state, e.g. landing after a motor failure)
                 d^p sigma / dt^p continuous at t_1..t_{m-1},  p = 1..continuity
                 |d sigma_a / dt| <= v_max_a, |d^2 sigma_a / dt^2| <= a_max_a (optional,
                 enforced at sample times on each axis a)
@@ -305,9 +307,16 @@ class MinimumSnap:
                          + _AUGMENTATION * self._A_eq.T @ self._A_eq)
         self._times = T.copy()
 
-    def solve(self, waypoints, times) -> PolynomialTrajectory:
-        """Minimum-``order`` trajectory through ``waypoints`` (m+1, dim) at ``times`` (m+1,)."""
+    def solve(self, waypoints, times, initial_derivatives=None) -> PolynomialTrajectory:
+        """Minimum-``order`` trajectory through ``waypoints`` (m+1, dim) at ``times`` (m+1,).
+
+        ``initial_derivatives`` (p, dim), ``p <= order``: derivatives 1..p at ``times[0]``
+        (velocity [m/s], acceleration [m/s^2], ...) instead of zero, so a trajectory can
+        start from a moving state; the others stay zero. Raises ``ValueError`` naming the
+        argument when its shape is wrong or it is not finite.
+        """
         w, t = _check_waypoints(waypoints, times)
+        start = _initial_derivatives(initial_derivatives, self.order, w.shape[1])
         if w.shape[0] != self.num_segments + 1:
             raise ValueError(f"this program has {self.num_segments} segments and needs "
                              f"{self.num_segments + 1} waypoints, got {w.shape[0]}")
@@ -330,6 +339,8 @@ class MinimumSnap:
         for a in range(dim):
             beq[0:2 * m:2] = w[:-1, a]
             beq[1:2 * m:2] = w[1:, a]
+            beq[2 * m:2 * m + 2 * len(start):2] = start[:, a] * T[0] ** np.arange(
+                1, len(start) + 1)
             b = beq * self._row_scale
             self._eq.evaluator().UpdateCoefficients(self._A_eq, b)
             self._cost.evaluator().UpdateCoefficients(
@@ -350,18 +361,34 @@ class MinimumSnap:
         return PolynomialTrajectory(breaks=t.copy(), coefficients=coefficients)
 
 
+def _initial_derivatives(value, order: int, dim: int) -> np.ndarray:
+    """``initial_derivatives`` as a (p, dim) array, p <= order (empty for ``None``)."""
+    if value is None:
+        return np.zeros((0, dim))
+    d = np.asarray(value, dtype=float)
+    if d.ndim == 1:
+        d = d[None]
+    if d.ndim != 2 or d.shape[1] != dim or not 1 <= d.shape[0] <= order \
+            or not np.all(np.isfinite(d)):
+        raise ValueError(f"initial_derivatives must be finite, (p, {dim}) with 1 <= p <= "
+                         f"order = {order}, got shape {np.shape(value)}")
+    return d
+
+
 def minimum_snap(waypoints, times, *, order: int = 4, degree: int | None = None,
                  continuity: int | None = None, v_max=None, a_max=None,
-                 samples_per_segment: int = 10, solver=None) -> PolynomialTrajectory:
+                 samples_per_segment: int = 10, solver=None,
+                 initial_derivatives=None) -> PolynomialTrajectory:
     """Minimum-snap trajectory through ``waypoints`` (m+1, dim) [m] at ``times`` (m+1,) [s].
 
-    One-shot form of :class:`MinimumSnap` (see there for the options).
+    One-shot form of :class:`MinimumSnap` (see there for the options);
+    ``initial_derivatives`` as in :meth:`MinimumSnap.solve`.
     """
     w, t = _check_waypoints(waypoints, times)
     program = MinimumSnap(len(w) - 1, order=order, degree=degree, continuity=continuity,
                           v_max=v_max, a_max=a_max,
                           samples_per_segment=samples_per_segment, solver=solver)
-    return program.solve(w, t)
+    return program.solve(w, t, initial_derivatives)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -10,6 +10,14 @@ of ``h = T_p / N``, states ``X_0..X_N`` (13 each) and motor thrusts
                 the terminal set's ErrorBounds, eq. 4.4d)
                 e_N^T (P(t_k + T_p) + I) e_N <= pi~(t_k + T_p)^2                   (eq. 4.4e)
 
+The OCP is general: the terminal set may be left out (``terminal=None``, a reference
+table given instead), the state weight ``Q_F`` may be positive semi-definite (zero on
+the yaw error and the yaw rate: yaw free, as after a motor failure), the box may bound
+each rate axis separately (``bounds``, 12 entries), the reference and the weights can be
+replaced between solves (:meth:`TrackingNmpc.set_objective`: a reference that starts at
+a fault, a hover point, an escape attitude), and motor health ``h`` scales the
+thrusts in the prediction model (``f(x, h u)``, failed motors held at 0).
+
 with ``e_j = state_error(X_j, x_r(t_k + j h))`` (linear in ``X_j``: the attitude
 error ``2 vec(q_r* (x) q)`` is linear in ``q``), so the cost is a convex quadratic
 and the terminal constraint a second-order cone. The RK4 step is built on
@@ -42,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
@@ -59,7 +68,11 @@ from drake_uav.model.compiled import CompiledFunction
 from drake_uav.model.multirotor import STATE_SIZE, motor_wrench, multirotor_dynamics
 from drake_uav.model.rotations import quat_conjugate
 from drake_uav.optimization.riccati_lq import solve_lq, terminal_sensitivity
-from drake_uav.optimization.terminal_set import TerminalSet, positive_definite
+from drake_uav.optimization.terminal_set import (
+    ErrorBounds,
+    ReferenceTable,
+    TerminalSet,
+)
 from drake_uav.vehicles.multirotor import MultirotorParams
 
 __all__ = [
@@ -68,7 +81,27 @@ __all__ = [
     "TrackingNmpc",
     "default_waypoints",
     "rk4_step",
+    "positive_semidefinite",
+    "SublevelTerminal",
 ]
+
+
+def positive_semidefinite(name: str, value, size: int) -> np.ndarray:
+    """``value`` as a symmetric positive semi-definite (size, size) matrix (a vector =
+    diagonal); raises ``ValueError`` naming ``name`` when it is not (zero weights allowed:
+    an error component left free, e.g. yaw after a motor failure)."""
+    M = np.asarray(value, dtype=float)
+    M = np.diag(M) if M.ndim == 1 else M
+    if M.shape != (size, size) or not np.all(np.isfinite(M)):
+        raise ValueError(f"{name} must be a finite ({size}, {size}) matrix or {size} "
+                         f"diagonal entries, got shape {M.shape}")
+    if not np.allclose(M, M.T, atol=1e-12 * max(1.0, np.abs(M).max())):
+        raise ValueError(f"{name} must be symmetric")
+    smallest = np.linalg.eigvalsh(M).min()
+    if smallest < -1e-12 * max(1.0, np.abs(M).max()):
+        raise ValueError(f"{name} must be positive semi-definite (smallest eigenvalue "
+                         f"{smallest:.3g})")
+    return M
 
 
 def default_waypoints() -> tuple[np.ndarray, float]:
@@ -89,7 +122,8 @@ class NmpcSettings:
     period: float = 0.025
     """Control period [s]; ``horizon`` must be a multiple of it."""
     state_weight: tuple = (20.0,) * 3 + (5.0,) * 3 + (2.0,) * 3 + (0.2,) * 3
-    """``Q_F`` diagonal (12): position [1/m^2], attitude [1/rad^2], velocity, rates."""
+    """``Q_F`` diagonal (12): position [1/m^2], attitude [1/rad^2], velocity, rates;
+    positive semi-definite (a zero leaves that error component free)."""
     input_weight: float = 0.05
     """``R_F = input_weight I`` [1/N^2]."""
     mode: str = "rti"
@@ -119,7 +153,7 @@ class NmpcSettings:
         if abs(ratio - round(ratio)) > 1e-9:
             raise ValueError(f"NmpcSettings.horizon = {self.horizon} s is not a multiple of "
                              f"the period {self.period} s")
-        positive_definite("NmpcSettings.state_weight", self.state_weight, ERROR_SIZE)
+        positive_semidefinite("NmpcSettings.state_weight", self.state_weight, ERROR_SIZE)
         if not self.input_weight > 0:
             raise ValueError(f"NmpcSettings.input_weight must be positive, got "
                              f"{self.input_weight}")
@@ -136,6 +170,35 @@ class NmpcSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class SublevelTerminal:
+    """Terminal region ``{x : value(x) <= level}`` of a scalar function of the state (13),
+    e.g. a recovery tube's value (Argyropoulos 2020, sec. 5.3, category IV).
+
+    Each step linearises it at the end state of the warm start (central differences of
+    ``step`` per state): the OCP's terminal constraint is the half-space
+    ``value(x_g) + grad^T (x_N - x_g) <= level``; where the gradient vanishes (deep
+    inside or outside a flat region) no constraint is added.
+    """
+
+    value: Callable[[np.ndarray], float]
+    level: float = 0.0
+    step: float = 1e-4
+
+    def linearise(self, x) -> tuple[np.ndarray, float] | None:
+        """``(a, b)`` of the half-space ``a^T x_N <= b`` at ``x``, or None (flat)."""
+        x = np.asarray(x, dtype=float)
+        v = float(self.value(x))
+        grad = np.empty(STATE_SIZE)
+        for i in range(STATE_SIZE):
+            e = np.zeros(STATE_SIZE)
+            e[i] = self.step
+            grad[i] = (float(self.value(x + e)) - float(self.value(x - e))) / (2 * self.step)
+        if not (np.isfinite(v) and np.all(np.isfinite(grad))) or not grad.any():
+            return None
+        return grad, float(self.level - v + grad @ x)
+
+
+@dataclasses.dataclass(frozen=True)
 class NmpcResult:
     """Outcome of one solve; ``status`` is ``"solved"``, ``"relaxed"`` (solved without the
     terminal constraint, which was infeasible), ``"infeasible"`` or ``"failed"``."""
@@ -148,7 +211,9 @@ class NmpcResult:
     solve_time: float
     """Wall time of the whole step [s] (linearisation, update, solve)."""
     terminal_ratio: float
-    """``e_N^T P~ e_N / pi~^2`` of the predicted end state (<= 1 inside the set)."""
+    """``e_N^T P~ e_N / pi~^2`` of the predicted end state (<= 1 inside the set); with a
+    :class:`SublevelTerminal`, ``value(x_N) - level`` (<= 0 inside); nan without a
+    terminal constraint."""
     states: np.ndarray
     inputs: np.ndarray
 
@@ -201,6 +266,20 @@ def _rk4_batch(fn: CompiledFunction, X, U, h):
     return Xn, total[:, :, :STATE_SIZE], total[:, :, STATE_SIZE:]
 
 
+def _box_upper(bounds) -> np.ndarray:
+    """Upper bounds (12, error layout) from ``ErrorBounds``, an array or ``None``."""
+    if bounds is None:
+        return ErrorBounds().upper()
+    if isinstance(bounds, ErrorBounds):
+        return bounds.upper()
+    upper = np.asarray(bounds, dtype=float)
+    if upper.shape != (ERROR_SIZE,) or np.any(np.isnan(upper)) or np.any(upper <= 0) \
+            or np.any(np.isfinite(upper[:3])):
+        raise ValueError(f"bounds must be ErrorBounds or {ERROR_SIZE} positive upper bounds "
+                         f"(inf = none; the position unbounded), got {bounds}")
+    return upper
+
+
 def _error_maps(x_ref) -> tuple[np.ndarray, np.ndarray]:
     """``L`` (M, 12, 13), ``l`` (M, 12) with ``state_error(x, x_ref[k]) = L[k] x + l[k]``
     for reference states ``x_ref`` (M, 13)."""
@@ -243,19 +322,59 @@ class TrackingNmpc:
 
     :meth:`solve` takes the time [s] and the measured plant state (13) and returns an
     :class:`NmpcResult`; it never raises for a failed solve (the status says so).
+
+    Parameters
+    ----------
+    params : MultirotorParams
+        The vehicle (the prediction model).
+    terminal : TerminalSet or None
+        The time-varying terminal set (eq. 4.4e) with its reference, health and box; or
+        ``None``: no terminal constraint, and ``reference`` (required), ``health`` and
+        ``bounds`` give the rest.
+    settings : NmpcSettings, optional
+    reference : ReferenceTable, optional
+        Reference state and thrusts when ``terminal`` is ``None``.
+    health : array (n), optional
+        Motor health in [0, 1] when ``terminal`` is ``None`` (default all ones).
+    bounds : ErrorBounds or array (12), optional
+        Box of eq. 4.4d in error layout (upper bounds, ``inf`` = none; per axis when an
+        array) when ``terminal`` is ``None`` (default ``ErrorBounds()``).
+    terminal_region : SublevelTerminal, optional
+        Terminal region of a value function (e.g. a recovery tube) when ``terminal`` is
+        ``None``.
+
+    Raises
+    ------
+    ValueError
+        A setting, weight, health or bound that is invalid, or no reference.
     """
 
-    def __init__(self, params: MultirotorParams, terminal: TerminalSet,
-                 settings: NmpcSettings | None = None):
+    def __init__(self, params: MultirotorParams, terminal: TerminalSet | None,
+                 settings: NmpcSettings | None = None, *,
+                 reference: ReferenceTable | None = None, health=None, bounds=None,
+                 terminal_region: SublevelTerminal | None = None):
         settings = settings or NmpcSettings()
         settings.validate()
         self.params, self.terminal, self.settings = params, terminal, settings
         self.N, self.h = settings.nodes, settings.horizon / settings.nodes
-        self.Q = positive_definite("NmpcSettings.state_weight", settings.state_weight,
-                                   ERROR_SIZE)
+        self.Q = positive_semidefinite("NmpcSettings.state_weight", settings.state_weight,
+                                       ERROR_SIZE)
         n = self.n = params.num_motors
+        if terminal is not None:
+            reference, health, upper = terminal.reference, terminal.health, terminal.upper
+        else:
+            if reference is None:
+                raise ValueError("reference is required when terminal is None")
+            health = np.ones(n) if health is None else np.asarray(health, dtype=float)
+            params.effective_allocation(health)  # validates the health
+            upper = _box_upper(bounds)
+        self.reference, self.health, self.upper = reference, health, upper
+        self.terminal_region = terminal_region if terminal is None else None
+        self._half = None
+        self._reference_start = 0.0
+        self._scaled = bool(np.any(health != 1.0))
         self.R = settings.input_weight * np.eye(n)
-        self.f_max = params.f_max * (terminal.health > 0)
+        self.f_max = params.f_max * (health > 0)
         self._fn = _dynamics(params)
         self._input_R = np.broadcast_to(2 * self.h * self.R, (self.N, n, n))
         self._build()
@@ -277,8 +396,10 @@ class TrackingNmpc:
             N + 1, STATE_SIZE)
         self._u_index = np.array(prog.FindDecisionVariableIndices(self.U.ravel())).reshape(N, n)
         self._cone = prog.AddLorentzConeConstraint(np.zeros((13, 13)), np.ones(13), self.X[N])
+        self._halfspace = prog.AddLinearConstraint(np.zeros((1, 13)), [-np.inf], [np.inf],
+                                                   self.X[N])
         # state box of eq. 4.4d: attitude error (changes with q_r), velocity, rates
-        upper = self.terminal.upper
+        upper = self.upper
         self._box_rows = [i for i in range(3, 12) if np.isfinite(upper[i])]
         self._box = [prog.AddLinearConstraint(np.zeros((len(self._box_rows), 13)),
                                               -upper[self._box_rows], upper[self._box_rows],
@@ -307,15 +428,40 @@ class TrackingNmpc:
             self._options.SetOption(IpoptSolver.id(), "max_iter", self.settings.max_iterations)
             self._options.SetOption(IpoptSolver.id(), "print_level", 0)
 
+    def set_objective(self, reference: ReferenceTable | None = None,
+                      start_time: float | None = None, state_weight=None) -> None:
+        """Replaces the stage cost's reference and weights for the next solves.
+
+        ``reference`` is read at ``t - start_time`` (a reference that starts at a fault
+        or a switch, time [s]); ``state_weight`` is ``Q_F`` (12 diagonal entries or a
+        matrix, positive semi-definite). The terminal set, if any, keeps its own
+        reference. The warm start is kept (the shifted solution is still a trajectory of
+        the model). Raises ``ValueError`` for an invalid weight.
+        """
+        if reference is not None:
+            self.reference = reference
+        if start_time is not None:
+            self._reference_start = float(start_time)
+        if state_weight is not None:
+            self.Q = positive_semidefinite("state_weight", state_weight, ERROR_SIZE)
+        self._program_current = False
+
+    def _model_batch(self, X, U):
+        """RK4 steps and Jacobians of the model with the motor health applied."""
+        if not self._scaled:
+            return _rk4_batch(self._fn, X, U, self.h)
+        Xn, Ax, Bu = _rk4_batch(self._fn, X, U * self.health, self.h)
+        return Xn, Ax, Bu * self.health
+
     def _defect(self, z):
         """``RK4(x_j, u_j) - x_{j+1}`` with the compiled Jacobian (AutoDiffXd or float)."""
         n = self.n
         if z.dtype != object:
             x, u = z[:13], z[13:13 + n]
-            Xn, _, _ = _rk4_batch(self._fn, x[None], u[None], self.h)
+            Xn, _, _ = self._model_batch(x[None], u[None])
             return Xn[0] - z[13 + n:]
         values, grads = ExtractValue(z)[:, 0], ExtractGradient(z)
-        Xn, Ax, Bu = _rk4_batch(self._fn, values[None, :13], values[None, 13:13 + n], self.h)
+        Xn, Ax, Bu = self._model_batch(values[None, :13], values[None, 13:13 + n])
         J = np.hstack([Ax[0], Bu[0], -np.eye(13)])
         return InitializeAutoDiff(Xn[0] - values[13 + n:], J @ grads)[:, 0]
 
@@ -324,7 +470,7 @@ class TrackingNmpc:
         """The step's QP data as arrays (every node at once); the program's coefficients
         follow only when the QP goes to Clarabel (:meth:`_update_program`)."""
         N, h = self.N, self.h
-        xr, ur = self.terminal.reference.at(t + h * np.arange(N + 1))
+        xr, ur = self.reference.at(t - self._reference_start + h * np.arange(N + 1))
         if x[3:7] @ xr[0, 3:7] < 0:
             x = np.concatenate([x[:3], -x[3:7], x[7:]])
         L, l = _error_maps(xr)
@@ -335,10 +481,12 @@ class TrackingNmpc:
         rows = self._box_rows
         self._box_L = L[1:, rows]  # attitude rows are errors; the others bound x itself
         self._box_offset = np.where(np.array(rows) < 6, l[1:, rows], 0.0)
-        Pt, _, level = self.terminal.matrices_at(t + self.settings.horizon)
-        S = np.linalg.cholesky(Pt).T  # e^T Pt e = |S e|^2
-        self._terminal = (Pt, level, L[N], l[N], S)
-        self._cone_on, self._program_current = True, False
+        if self.terminal is not None:
+            Pt, _, level = self.terminal.matrices_at(t + self.settings.horizon)
+            S = np.linalg.cholesky(Pt).T  # e^T Pt e = |S e|^2
+            self._terminal = (Pt, level, L[N], l[N], S)
+        self._cone_on, self._program_current = self.terminal is not None, False
+        self._region_on, self._half = True, None
         self._xr, self._ur, self._x = xr, ur, x
 
     def _update_program(self) -> None:
@@ -347,7 +495,7 @@ class TrackingNmpc:
             return
         self._x0.evaluator().UpdateLowerBound(self._x)
         self._x0.evaluator().UpdateUpperBound(self._x)
-        upper = self.terminal.upper[self._box_rows]
+        upper = self.upper[self._box_rows]
         for j in range(self.N):
             off = self._box_offset[j]
             self._box[j].evaluator().UpdateCoefficients(self._box_L[j], -upper - off,
@@ -357,11 +505,21 @@ class TrackingNmpc:
             self._input_costs[j].evaluator().UpdateCoefficients(
                 2 * self.h * self.R, self._input_r[j], 0.0, True)
         self._set_cone(self._cone_on)
+        self._set_halfspace()
         self._program_current = True
+
+    def _set_halfspace(self) -> None:
+        """The linearised terminal region ``a^T x_N <= b``, or no constraint."""
+        if self._half is None:
+            self._halfspace.evaluator().UpdateCoefficients(np.zeros((1, 13)), [-np.inf],
+                                                           [np.inf])
+        else:
+            a, b = self._half
+            self._halfspace.evaluator().UpdateCoefficients(a[None], [-np.inf], [b])
 
     def _set_cone(self, on: bool) -> None:
         """The terminal cone ``|S (L x_N + l)| <= pi~``, or (off) ``1 >= |0|``."""
-        self._cone_on = on
+        self._cone_on = on = on and self.terminal is not None
         if on:
             _, level, L, l, S = self._terminal
             A = np.vstack([np.zeros((1, 13)), S @ L])
@@ -379,7 +537,7 @@ class TrackingNmpc:
             return X, self._ur[:-1] * (self.f_max > 0)
         X, U = self._guess
         U = np.vstack([U[1:], U[-1:]])
-        X = np.vstack([X[1:], rk4_step(X[-1], U[-1], self.h, self.params)])
+        X = np.vstack([X[1:], rk4_step(X[-1], U[-1] * self.health, self.h, self.params)])
         X[0] = self._x
         return X, U
 
@@ -394,7 +552,7 @@ class TrackingNmpc:
             self._update(t, x)
             out = self._solve_ocp(start)
             if out.status == "infeasible" and self.settings.relax_terminal:
-                self._cone_on = False
+                self._cone_on, self._region_on = False, False
                 if self._program_current:
                     self._set_cone(False)
                 relaxed = self._solve_ocp(start)
@@ -408,6 +566,10 @@ class TrackingNmpc:
     def _solve_ocp(self, start: float) -> NmpcResult:
         """One RTI step, the SQP to convergence, or the NLP solver, from the warm start."""
         Xg, Ug = self._initial_guess()
+        half = self.terminal_region.linearise(Xg[-1]) \
+            if self.terminal_region is not None and self._region_on else None
+        if (half is None) != (self._half is None) or half is not None:
+            self._half, self._program_current = half, False
         if not self._qp:
             self._update_program()
             result = self._solve_once(Xg, Ug)
@@ -448,7 +610,7 @@ class TrackingNmpc:
     def _linearise(self, Xg, Ug):
         """RK4 steps and their exact Jacobians about ``(Xg, Ug)``; raises on a diverged
         prediction."""
-        lin = _rk4_batch(self._fn, Xg[:-1], Ug, self.h)
+        lin = self._model_batch(Xg[:-1], Ug)
         if not all(np.all(np.isfinite(a)) for a in lin):
             raise ValueError("non-finite linearisation (the prediction diverged)")
         return lin
@@ -514,9 +676,10 @@ class TrackingNmpc:
             fixed = (fixed | low | high) & ~release
             value = np.where(low, 0.0, np.where(high, upper, value))
         box = (self._box_L @ sol.X[1:, :, None])[:, :, 0] + self._box_offset
-        if np.any(np.abs(box) > self.terminal.upper[self._box_rows]):
+        if np.any(np.abs(box) > self.upper[self._box_rows]):
             return None
-        name = "Riccati" + (", cone active" if w is not None else "") + \
+        active = ", cone active" if self._half is None else ", region active"
+        name = "Riccati" + (active if w is not None else "") + \
             (", bounds active" if (fixed & healthy).any() else "")
         return _QpSolution(True, name, iteration, sol.X, U)
 
@@ -526,6 +689,8 @@ class TrackingNmpc:
         when it does not); ``None`` when the cone cannot be met."""
         data = (Ax, Bu, c, self._stage_Q, self._stage_q, self._input_R, self._input_r)
         sol = solve_lq(self._x, *data)
+        if self._half is not None:
+            return self._lq_with_halfspace(sol, data, Ax, Bu)
         if not self._cone_on or self._cone_ratio(sol.X[-1]) <= 1.0:
             return sol, None
         w = self._cone_multiplier(sol, Ax, Bu)
@@ -533,6 +698,22 @@ class TrackingNmpc:
             return None
         sol = solve_lq(self._x, *data, terminal=(0.0, w))
         return (sol, w) if self._cone_ratio(sol.X[-1]) <= 1.0 + 1e-6 else None
+
+    def _lq_with_halfspace(self, sol, data, Ax, Bu):
+        """The QP with the linearised terminal region ``a^T x_N <= b``: active when the
+        solution without it leaves it; then ``w = mu a`` with ``x_N(w) = x_N(0) + G w``
+        (:func:`~drake_uav.optimization.riccati_lq.terminal_sensitivity`) on the plane,
+        ``mu = (b - a^T x_N(0)) / (a^T G a) >= 0``."""
+        a, b = self._half
+        if a @ sol.X[-1] <= b:
+            return sol, None
+        curvature = float(a @ terminal_sensitivity(sol, Ax, Bu) @ a)
+        if not curvature < 0:
+            return None
+        w = (b - a @ sol.X[-1]) / curvature * a
+        sol = solve_lq(self._x, *data, terminal=(0.0, w))
+        scale = max(1.0, abs(b))
+        return (sol, w) if a @ sol.X[-1] <= b + 1e-6 * scale else None
 
     def _input_gradient(self, Ax, Bu, X, U, w) -> np.ndarray:
         """``dL/du_j = R_j u_j + r_j + B_j^T lambda_{j+1}`` (N, n): the Lagrangian's
@@ -601,12 +782,16 @@ class TrackingNmpc:
             return dataclasses.replace(self._failure(status, sol.name, start),
                                        iterations=sol.iterations)
         self._guess = (X, U)
-        Pt, level, L, l, _ = self._terminal
-        e = L @ X[-1] + l
+        if self.terminal is not None:
+            ratio = self._cone_ratio(X[-1])
+        elif self.terminal_region is not None:
+            ratio = float(self.terminal_region.value(X[-1])) - self.terminal_region.level
+        else:
+            ratio = np.nan
         return NmpcResult(thrusts=np.clip(U[0], 0.0, self.f_max), status="solved",
                           solver_status=sol.name, iterations=sol.iterations,
                           solve_time=time.perf_counter() - start,
-                          terminal_ratio=float(e @ Pt @ e) / level**2, states=X, inputs=U)
+                          terminal_ratio=ratio, states=X, inputs=U)
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump of the state)."""
