@@ -8,7 +8,8 @@ measured channels (the raw cost of putting the same numbers on disk). Printed: s
 per writer, the file size and the ratio to the peer. Target: a two-minute flight written
 in well under a second by each writer.
 
-Run: python benchmarks/bench_log_writing.py [--seconds 120] [--repeat 3]
+Run: python benchmarks/bench_log_writing.py [--seconds 120] [--repeat 3]; --quick: a 20 s flight
+written once, in seconds.
 """
 
 from __future__ import annotations
@@ -30,7 +31,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=120.0)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--quick", action="store_true",
+                        help="a 20 s flight written once (seconds)")
     args = parser.parse_args()
+    if args.quick:
+        args.seconds, args.repeat = 20.0, 1
     flight = fly(duration=20.0, seed=4)
     copies = max(int(np.ceil(args.seconds / 20.0)), 1)
     n = copies * len(flight)

@@ -29,6 +29,7 @@ from drake_uav.reporting.output import (  # noqa: E402
     check_output_file,
     check_output_folder,
     is_replay_page,
+    output_folder,
 )
 
 __all__ = ["main"]
@@ -382,14 +383,11 @@ that the checks run before pydrake loads; tests/test_faults_cli.py checks they a
 
 def _check_fault_arguments(args: argparse.Namespace) -> tuple[str, ...]:
     """The scenario names to fly; raises ``ValueError`` for an unknown name or an output
-    folder that is neither new nor empty."""
+    folder the overwrite rule refuses (docs/cli.md)."""
     if args.scenario != "all" and args.scenario not in FAULT_SCENARIOS:
         raise ValueError(f"fault {args.scenario}: unknown scenario; choose one of "
                          f"{', '.join(FAULT_SCENARIOS)} or all")
-    out = Path(args.out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ValueError(f"--out {out}: exists and is not an empty folder; give a new or "
-                         "empty folder (nothing is overwritten)")
+    check_output_folder(args.out)
     if args.tube_cache is not None and Path(args.tube_cache).exists() \
             and not Path(args.tube_cache).is_dir():
         raise ValueError(f"--tube-cache {args.tube_cache}: not a folder")
@@ -415,22 +413,25 @@ def _cmd_fault(args: argparse.Namespace) -> int:
     tubes = scenario_tubes(params, TubeSettings.coarse() if args.coarse_tube else None,
                            args.tube_cache)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for name in names:
-        sc = scenario(name)
-        print(f"... {name}: {sc.description}", flush=True)
-        run = fly_scenario(sc, params, tube_for=tubes)
-        rows.append(summary_row(name, run))
-        print(f"    category {run.category.name} at {run.switch_time:.3g} s; "
-              + (f"touchdown at {run.touchdown.time:.2f} s, {run.touchdown.vertical_speed:.2f}"
-                 f" m/s down" if run.touchdown else "in the air at the end"), flush=True)
-        for path in write_fault_outputs(run, name, out):
-            print(f"    {path}")
-    table = summary_table(rows)
-    (out / "summary.md").write_text(
-        "# Motor-failure scenarios (Argyropoulos 2020, ch. 6)\n\nNED, north = x and east = "
-        "-y of the source; fault vehicle: hexacopter with f_max = 10 N.\n\n" + table + "\n")
+    rows, files = [], []
+    with output_folder(out, "fault scenarios") as partial:
+        for name in names:
+            sc = scenario(name)
+            print(f"... {name}: {sc.description}", flush=True)
+            run = fly_scenario(sc, params, tube_for=tubes)
+            rows.append(summary_row(name, run))
+            print(f"    category {run.category.name} at {run.switch_time:.3g} s; "
+                  + (f"touchdown at {run.touchdown.time:.2f} s, "
+                     f"{run.touchdown.vertical_speed:.2f} m/s down" if run.touchdown
+                     else "in the air at the end"), flush=True)
+            files += [p.name for p in write_fault_outputs(run, name, partial)]
+        table = summary_table(rows)
+        (partial / "summary.md").write_text(
+            "# Motor-failure scenarios (Argyropoulos 2020, ch. 6)\n\nNED, north = x and east "
+            "= -y of the source; fault vehicle: hexacopter with f_max = 10 N.\n\n" + table
+            + "\n")
+    for name in files:
+        print(f"    {out / name}")
     print(table)
     print(f"summary: {out / 'summary.md'}")
     return 0
@@ -555,7 +556,8 @@ def _fault_parser(sub) -> None:
                     "that 'drake-uav replay' draws, plus summary.md.")
     fault.add_argument("scenario", help=f"{', '.join(FAULT_SCENARIOS)} or all")
     fault.add_argument("--out", default="drake_uav_fault",
-                       help="output folder, new or empty (default drake_uav_fault)")
+                       help="output folder: new, empty, or earlier fault outputs (replaced); "
+                            "a folder holding other files is refused (docs/cli.md)")
     fault.add_argument("--tube-cache", default=None,
                        help="folder of the recovery tubes' cache (default: the library's)")
     fault.add_argument("--coarse-tube", action="store_true",

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 import drake_uav
 from drake_uav.campaigns.definition import Campaign
 from drake_uav.campaigns.runner import run_campaign
-from drake_uav.cli import main
+from drake_uav.cli import FAULT_SCENARIOS, main
 from drake_uav.io.flight_log import FlightLog
 
 SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
@@ -30,7 +30,8 @@ SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
 # Random text of the kind a careless user types: any printable character but a path separator
 # (relative names stay inside the example's folder); NUL and lone surrogates cannot be in argv.
 _JUNK = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00/"),
-                max_size=12).filter(lambda t: not t.startswith("."))
+                max_size=12).filter(lambda t: not t.startswith(".")
+                                    and t not in (*FAULT_SCENARIOS, "all"))  # would fly
 _NOT_A_NUMBER = st.sampled_from(["nan", "inf", "-inf", "x", "", "1,5", "0x10", "1e999"])
 
 
@@ -85,6 +86,13 @@ COMMANDS = {
         ("--noise", _values(""), st.nothing()),
         ("--seed", _values("0", "3"), _SEED_BAD),
         ("--out", *_OUT),
+    ]),
+    "fault": (["fault"], [
+        ("scenario", st.nothing(), _values("V", "iia", "I,II", "", "all ")),
+    ], [
+        ("--out", st.nothing(), _values("{user_dir}", "{file}", ".", "..", "/proc/f", "{log}")),
+        ("--tube-cache", st.nothing(), _values("{file}", "{log}")),
+        ("--coarse-tube", st.nothing(), st.nothing()),
     ]),
     "replay": (["replay"], [("log", *_LOG)], [
         ("--format", *_FORMAT),
@@ -158,7 +166,7 @@ def _snapshot(folder: Path) -> dict[str, str]:
             if p.is_file() else "folder" for p in sorted(folder.rglob("*"))}
 
 
-FLAGS = ("--noise", "--live", "--quiet", "--json")
+FLAGS = ("--noise", "--live", "--quiet", "--json", "--coarse-tube")
 """Options that take no value: given or not."""
 
 

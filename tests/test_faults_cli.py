@@ -17,8 +17,8 @@ def test_the_cli_names_are_the_scenarios():
 
 @pytest.mark.parametrize("args, message", [
     (["V"], "fault V: unknown scenario; choose one of I, IIa, IIb, IIIa, IIIb, IVa, IVb or all"),
-    (["I", "--out", "{full}"], "exists and is not an empty folder"),
-    (["I", "--out", "{file}"], "exists and is not an empty folder"),
+    (["I", "--out", "{full}"], "holds files drake_uav did not write (keep.txt)"),
+    (["I", "--out", "{file}"], "is an existing file; give a folder for the output"),
     (["I", "--tube-cache", "{file}"], "--tube-cache"),
 ])
 def test_bad_options_stop_before_pydrake_with_one_line(tmp_path, args, message):
@@ -49,7 +49,8 @@ def test_scenario_I_writes_plots_summary_and_a_replayable_log(tmp_path, capsys):
     assert main(["fault", "I", "--out", str(out)]) == 0
     print(capsys.readouterr().out)
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["I.csv", "I_path_3d.png", "I_states.png", "I_thrusts.png", "summary.md"]
+    assert names == ["I.csv", "I_path_3d.png", "I_states.png", "I_thrusts.png",
+                     "drake_uav_manifest.json", "summary.md"]
     log = FlightLog.load(out / "I.csv")
     track = replay_track(log)
     assert track.kind == "multirotor" and log.metadata["failed_motors"] == [3, 4]
@@ -58,3 +59,8 @@ def test_scenario_I_writes_plots_summary_and_a_replayable_log(tmp_path, capsys):
     assert (track.motor_health[after][:, [3, 4]] == 0).all()
     assert (track.motor_health[~after] == 1).all()
     assert "| I | 3,4 | 10 | I |" in (out / "summary.md").read_text()
+    # An earlier output and nothing else is replaced whole; one holding a user's file is not.
+    assert main(["fault", "I", "--out", str(out)]) == 0
+    (out / "mine.txt").write_text("the user's")
+    assert main(["fault", "I", "--out", str(out)]) == 2
+    assert (out / "mine.txt").read_text() == "the user's"

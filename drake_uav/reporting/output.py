@@ -48,6 +48,7 @@ from pathlib import Path
 __all__ = ["MANIFEST", "OutputRefusedError", "check_output_folder", "check_output_file",
            "check_writable",
            "new_partial_folder", "write_manifest", "replace_folder", "replace_file",
+           "output_folder",
            "is_drake_uav_output", "is_replay_page", "REPLAY_MARKER"]
 
 REPLAY_MARKER = "<!-- drake_uav replay page -->"
@@ -316,6 +317,44 @@ def replace_folder(partial: str | os.PathLike, target: str | os.PathLike,
         else:
             os.rename(partial, target)  # an empty folder is replaced in one step
     return target
+
+
+@contextlib.contextmanager
+def output_folder(target: str | os.PathLike, kind: str,
+                  what: str = "output folder") -> Iterator[Path]:
+    """Writes an output folder whole: yields a new partial folder to write into; when the
+    block ends normally, writes the manifest (``kind``) and swaps the folder into
+    ``target`` (:func:`replace_folder`); when it raises, removes the partial folder and
+    leaves ``target`` as it was.
+
+    Parameters
+    ----------
+    target : path-like
+        The output folder: missing, empty, or an earlier drake_uav output.
+    kind : str
+        What the folder holds, recorded in its manifest (e.g. ``"report"``).
+    what : str
+        How a refusal names the folder (e.g. ``"--out"``).
+
+    Yields
+    ------
+    Path
+        The partial folder to write every file of the output into.
+
+    Raises
+    ------
+    OutputRefusedError
+        ``target`` holds something else, checked before the block and again at the swap.
+    """
+    check_output_folder(target, what=what)
+    partial = new_partial_folder(target)
+    try:
+        yield partial
+        write_manifest(partial, kind)  # last: the marker of a finished output
+        replace_folder(partial, target, what=what)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
 
 
 def replace_file(write: Callable[[Path], None], target: str | os.PathLike, *,

@@ -34,7 +34,6 @@ import json
 import math
 import os
 import re
-import shutil
 import xml.etree.ElementTree as etree
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -47,12 +46,7 @@ from markdown.treeprocessors import Treeprocessor
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from drake_uav.reporting.output import (
-    check_output_folder,
-    new_partial_folder,
-    replace_folder,
-    write_manifest,
-)
+from drake_uav.reporting.output import output_folder
 
 __all__ = ["Report", "format_value", "json_ready"]
 
@@ -422,9 +416,7 @@ class Report:
             raise ValueError(f"summary must not use the reserved keys {clash}")
         data = json_ready(dict(summary))
         json.dumps(data, allow_nan=False)  # fail before touching the disk
-        check_output_folder(out_dir, what="report folder")
-        partial = new_partial_folder(out_dir)
-        try:
+        with output_folder(out_dir, "report", what="report folder") as partial:
             pngs = self._render_figures(partial)
             _write_text(partial / "report.md", self.to_markdown())
             _write_text(partial / "report.html",
@@ -433,11 +425,6 @@ class Report:
             data.update(complete=True, report_title=self.title, report_files=files)
             _write_text(partial / "summary.json",
                         json.dumps(data, indent=2, allow_nan=False) + "\n")
-            write_manifest(partial, "report")  # last: the marker of a finished report
-            replace_folder(partial, out_dir, what="report folder")
-        except BaseException:
-            shutil.rmtree(partial, ignore_errors=True)
-            raise
         return out_dir
 
 

@@ -7,19 +7,13 @@ Matplotlib ``Figure`` objects (no pyplot, no display), written as PNG files by
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from drake_uav.diagrams.tracking import TrackingRun
-from drake_uav.reporting.output import (
-    check_output_folder,
-    new_partial_folder,
-    replace_folder,
-    write_manifest,
-)
+from drake_uav.reporting.output import output_folder
 
 __all__ = ["path_figure", "position_error_figure", "thrust_figure", "solve_time_figure",
            "write_tracking_plots"]
@@ -81,10 +75,9 @@ def write_tracking_plots(run: TrackingRun, out: str | Path) -> list[Path]:
     OutputRefusedError
         ``out`` is a file or a folder holding anything else (nothing is written).
     """
-    out = check_output_folder(out, what="plot folder")
-    partial = new_partial_folder(out)
+    out = Path(out)
     names = []
-    try:
+    with output_folder(out, "tracking plots", what="plot folder") as partial:
         for name, make in (("path_3d.png", path_figure),
                            ("position_error.png", position_error_figure),
                            ("thrusts.png", thrust_figure), ("solve_times.png",
@@ -93,9 +86,4 @@ def write_tracking_plots(run: TrackingRun, out: str | Path) -> list[Path]:
             fig.tight_layout()
             fig.savefig(partial / name, dpi=110)
             names.append(name)
-        write_manifest(partial, "tracking plots")
-        replace_folder(partial, out, what="plot folder")
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
     return [out / name for name in names]
