@@ -10,8 +10,9 @@ from drake_uav.campaigns.definition import Campaign
 from drake_uav.campaigns.motor_fault import motor_fault
 from drake_uav.campaigns.runner import run_campaign
 
-SEEDS = 50
-"""Runs per target category."""
+SEEDS = 10
+"""Runs per target category in the slow suite; the acceptance campaign flies 50
+(docs/faults.md, "Campaign")."""
 
 
 def test_one_run_of_each_target_is_classified_and_scored():
