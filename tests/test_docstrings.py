@@ -21,7 +21,7 @@ SUBPACKAGES = ("", ".statistics", ".samples", ".discovery", ".assessment")
 def _section(doc: str, name: str) -> bool:
     """Whether ``doc`` has a numpydoc section ``name`` (its title, then dashes)."""
     lines = [line.strip() for line in doc.splitlines()]
-    return any(a == name and b and set(b) == {"-"} for a, b in zip(lines, lines[1:]))
+    return any(a == name and b and set(b) == {"-"} for a, b in zip(lines, lines[1:], strict=False))
 
 
 def _returns_value(node: ast.FunctionDef) -> bool:
@@ -55,7 +55,15 @@ def _public_definitions():
     """(where, node, owner class or None) of every public definition of the package."""
     for path in sorted(ROOT.rglob("*.py")):
         tree = ast.parse(path.read_text())
+        bases = {b.id for node in tree.body if isinstance(node, ast.ClassDef)
+                 and not node.name.startswith("_") for b in node.bases
+                 if isinstance(b, ast.Name)}
         for node in tree.body:
+            if isinstance(node, ast.ClassDef) and node.name in bases:
+                # a private base class: its public methods are the public classes'
+                for item in node.body:
+                    if isinstance(item, ast.FunctionDef) and not item.name.startswith("_"):
+                        yield f"{path.relative_to(ROOT)}:{node.name}.{item.name}", item, node
             if node.name.startswith("_") if hasattr(node, "name") else True:
                 continue
             if isinstance(node, ast.FunctionDef):
@@ -122,6 +130,7 @@ def test_examples_run(module, name):
     obj = getattr(importlib.import_module(module), name)
     finder = doctest.DocTestFinder(recurse=False)
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
-    for test in finder.find(obj, name, globs={}):
+    globs = dict(vars(importlib.import_module(obj.__module__)))
+    for test in finder.find(obj, name, globs=globs):
         runner.run(test)
     assert runner.failures == 0, f"{module}.{name}: {runner.failures} example(s) failed"
