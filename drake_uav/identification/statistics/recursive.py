@@ -502,7 +502,9 @@ class RecursiveOLS(_Recursive):
 
     @classmethod
     def from_batch(cls, result, forgetting=1.0, *, p0: float = 1e6, **kwargs) -> RecursiveOLS:
-        """Continue a batch :class:`RegressionResult` on-line (hybrid start, Vaiopoulos 2017, eq. 4.4).
+        """Continue a batch :class:`RegressionResult` on-line.
+
+        Hybrid start, Vaiopoulos 2017, eq. 4.4.
 
         The estimate, P = covariance / noise_std^2, the residual sum of squares and the row count
         are taken over, so with forgetting 1 the recursion continues the batch OLS exactly.
@@ -540,7 +542,9 @@ class RecursiveOLS(_Recursive):
         return est
 
     def update(self, x, z: float) -> None:
-        """One RLS step with one regressor row and its observation (Vaiopoulos 2017, eq. 4.98-4.101).
+        """One RLS step with one regressor row and its observation.
+
+        Vaiopoulos 2017, eq. 4.98-4.101.
 
         Parameters
         ----------
@@ -828,7 +832,9 @@ class RecursiveTLS(_Recursive):
         return cov
 
     def covariance(self) -> np.ndarray:
-        """Asymptotic covariance of the current estimate (:func:`~.errors_in_variables.tls_covariance`).
+        """Asymptotic covariance of the current estimate.
+
+        As :func:`~.errors_in_variables.tls_covariance` computes it.
 
         Returns
         -------
@@ -857,7 +863,9 @@ class RecursiveTLS(_Recursive):
         return math.sqrt(self._scale() * float(w @ self.C.T @ self.C @ w))
 
     def excitation(self) -> ExcitationStatus:
-        """Excitation of the tracked augmented matrix at the last update (Vaiopoulos 2017, eq. 4.68-4.70).
+        """Excitation of the tracked augmented matrix at the last update.
+
+        Vaiopoulos 2017, eq. 4.68-4.70.
 
         Returns
         -------
