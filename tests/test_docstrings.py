@@ -47,7 +47,7 @@ def _arguments(node: ast.FunctionDef) -> list[str]:
 
 
 def _is_property(node: ast.FunctionDef) -> bool:
-    return any(isinstance(d, ast.Name) and d.id in ("property", "cached_property")
+    return any(ast.unparse(d).split(".")[-1] in ("property", "cached_property")
                for d in node.decorator_list)
 
 
