@@ -644,6 +644,10 @@ class RecursiveOLS(_Recursive):
 class RecursiveTLS(_Recursive):
     """Recursive PCA-GTLS by recursive SVD (Vaiopoulos 2017, Algorithms 1-2), with CFF or VFF.
 
+    The nine constructor parameters are those of :func:`~.regression.tls` (the error
+    model, the excitation test, the minimum-norm weights) plus the forgetting and the
+    prior, keyword-only past ``error_std``.
+
     Parameters
     ----------
     n_params : int
@@ -674,9 +678,14 @@ class RecursiveTLS(_Recursive):
     ValueError
         Without ``error_std`` or ``error_cov``.
 
-    The nine constructor parameters are those of :func:`~.regression.tls` (the error
-    model, the excitation test, the minimum-norm weights) plus the forgetting and the
-    prior, keyword-only past ``error_std``.
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rtls = RecursiveTLS(2, error_std=[1e-6, 0.01, 0.01])
+    >>> for x in np.linspace(-1.0, 1.0, 50):
+    ...     rtls.update([1.0, x], 0.5 + 2.0 * x)
+    >>> np.round(rtls.theta, 3).tolist(), rtls.rank
+    ([0.5, 2.0], 2)
     """
 
     _RANK = 5  # number of excited directions, after the common scalars
