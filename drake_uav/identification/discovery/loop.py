@@ -428,9 +428,21 @@ def _round(search: _Search, bases: Mapping[str, RoundBase], used: set[str],
 
 
 def check_coefficients(coefficients: Sequence[str]) -> None:
-    """Raises ValueError unless ``coefficients`` is a non-empty selection of
-    :data:`~drake_uav.model.coefficients.COEFFICIENTS` (names are case-sensitive: ``CL``
-    is the lift, ``Cl`` the rolling moment)."""
+    """Check a selection of coefficients.
+
+    Names are case-sensitive: ``CL`` is the lift, ``Cl`` the rolling moment.
+
+    Parameters
+    ----------
+    coefficients : sequence of str
+        The selection.
+
+    Raises
+    ------
+    ValueError
+        Unless ``coefficients`` is a non-empty selection of
+        :data:`~drake_uav.model.coefficients.COEFFICIENTS`.
+    """
     if isinstance(coefficients, str) or not coefficients:
         raise ValueError(f"coefficients: expected a non-empty sequence of names of "
                          f"{', '.join(COEFFICIENTS)}, got {coefficients!r}")
