@@ -271,7 +271,8 @@ class Design:
         Returns
         -------
         numpy.ndarray of shape (N, n)
-            The scores (:func:`~drake_uav.identification.statistics.errors_in_variables.moment_scores`).
+            The scores
+            (:func:`~drake_uav.identification.statistics.errors_in_variables.moment_scores`).
         """
         return moment_scores(self.X, self.z, theta, self.noise)
 
