@@ -65,14 +65,16 @@ class Reconstruction:
     --------
     >>> import numpy as np
     >>> from importlib.resources import files
-    >>> from drake_uav.identification import fit_derivatives, samples_from_log
+    >>> from drake_uav.identification import baseline_names, samples_from_log
+    >>> from drake_uav.model.coefficients import COEFFICIENTS
     >>> from drake_uav.io.readers import read_log
     >>> from drake_uav.vehicles.fixed_wing import aerosonde
     >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
     >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
-    >>> fits = fit_derivatives(samples, aerosonde()).fits
-    >>> models = {k: (fit.names, fit.estimate, np.zeros((len(samples), len(fit.names))))
-    ...           for k, fit in fits.items()}             # no effect columns: design unused
+    >>> catalog = aerosonde().derivatives                 # the catalog model, name -> value
+    >>> models = {k: (tuple(names), np.array([catalog.get(n, 0.0) for n in names]),
+    ...               np.zeros((len(samples), len(names))))   # no effect columns
+    ...           for k in COEFFICIENTS for names in [baseline_names(aerosonde(), k)]}
     >>> result = reconstruct(samples, aerosonde(), models)
     >>> result.measured.shape, result.divergences
     ((1000, 6), 0)
@@ -141,14 +143,16 @@ def reconstruct(samples: AeroSamples, params: FixedWingParams,
     --------
     >>> import numpy as np
     >>> from importlib.resources import files
-    >>> from drake_uav.identification import fit_derivatives, samples_from_log
+    >>> from drake_uav.identification import baseline_names, samples_from_log
+    >>> from drake_uav.model.coefficients import COEFFICIENTS
     >>> from drake_uav.io.readers import read_log
     >>> from drake_uav.vehicles.fixed_wing import aerosonde
     >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
     >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
-    >>> fits = fit_derivatives(samples, aerosonde()).fits
-    >>> models = {k: (fit.names, fit.estimate, np.zeros((len(samples), len(fit.names))))
-    ...           for k, fit in fits.items()}             # no effect columns: design unused
+    >>> catalog = aerosonde().derivatives                 # the catalog model, name -> value
+    >>> models = {k: (tuple(names), np.array([catalog.get(n, 0.0) for n in names]),
+    ...               np.zeros((len(samples), len(names))))   # no effect columns
+    ...           for k in COEFFICIENTS for names in [baseline_names(aerosonde(), k)]}
     >>> mae = reconstruct(samples, aerosonde(), models).mae
     >>> mae.shape, bool(mae[0] < 1.0)                     # Va within 1 m/s on average
     ((6,), True)

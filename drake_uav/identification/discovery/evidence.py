@@ -763,8 +763,20 @@ def score(candidate: Candidate, bases: Mapping[str, RoundBase], variants: Pertur
 
     Examples
     --------
-    >>> evidence = score(candidate, bases, Perturbations(train), EvidenceRule())
-    >>> [(e.coefficient, e.passed) for e in evidence]   # doctest: +SKIP
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import effect_library, samples_from_log
+    >>> from drake_uav.identification.discovery.coefficient_design import baseline_design
+    >>> from drake_uav.identification.statistics.blocked_folds import fold_edges
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> design = baseline_design(samples, aerosonde(), "CD")
+    >>> bases = {"CD": round_base(design, fold_edges(len(samples), 5))}
+    >>> propwash = next(e for e in effect_library() if e.name == "thrust_propwash")
+    >>> evidence = score(propwash.candidate(aerosonde()), bases, Perturbations(samples),
+    ...                  EvidenceRule())
+    >>> [(e.coefficient, e.passed) for e in evidence]
     [('CD', True)]
     """
     quantities = [k for k in candidate.quantities if k in bases]

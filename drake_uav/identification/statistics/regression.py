@@ -96,7 +96,21 @@ EXACT_COLUMN_REL = 1e-6
 
 
 class IdentificationWarning(UserWarning):
-    """Base class of the warnings of the identification package."""
+    """Base class of the warnings of the identification package.
+
+    Filter on it to silence or catch every warning of the package at once.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("error", IdentificationWarning)
+    ...     try:
+    ...         warnings.warn("too little excitation", InsufficientExcitationWarning)
+    ...     except IdentificationWarning as caught:
+    ...         print(type(caught).__name__)
+    InsufficientExcitationWarning
+    """
 
 
 class InsufficientExcitationWarning(IdentificationWarning):
@@ -104,6 +118,17 @@ class InsufficientExcitationWarning(IdentificationWarning):
 
     The estimator returned the reduced answer: it estimates what the data support and lists the
     parameter combinations it could not identify in ``RegressionResult.unidentifiable``.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> x = np.linspace(-1.0, 1.0, 50)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     fit = ols(np.column_stack([x, x]), 2.0 * x)     # two copies of one column
+    >>> caught[0].category.__name__, fit.rank
+    ('InsufficientExcitationWarning', 1)
     """
 
 
