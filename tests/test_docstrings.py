@@ -1,14 +1,17 @@
-"""The identification's public docstrings are numpydoc, and its package-level examples run.
+"""The identification's public docstrings are numpydoc, and their examples run.
 
 Every public function, method and class of :mod:`drake_uav.identification` that takes
 arguments documents them in a ``Parameters`` section, and every one that returns a value
 has a ``Returns`` section (read from the source: a ``return <value>`` in its own body).
-The ``Examples`` of the names the package and its sub-packages export run as doctests.
+Every name the package and its sub-packages export has ``Examples``, and every example
+of the package runs as a doctest (cheap: small arrays or a short span of the bundled
+sample flight).
 """
 
 import ast
 import doctest
 import importlib
+import pkgutil
 from pathlib import Path
 
 import pytest
@@ -47,12 +50,17 @@ def _arguments(node: ast.FunctionDef) -> list[str]:
 
 
 def _is_property(node: ast.FunctionDef) -> bool:
+    """Whether ``node`` is a property (documented as an attribute: no sections)."""
     return any(ast.unparse(d).split(".")[-1] in ("property", "cached_property")
                for d in node.decorator_list)
 
 
 def _public_definitions():
-    """(where, node, owner class or None) of every public definition of the package."""
+    """(where, node) of every public function, class and method of the package.
+
+    A method is public when its class is, or when its class is a private base of a public
+    class of the same module (its public methods are then the public class's).
+    """
     for path in sorted(ROOT.rglob("*.py")):
         tree = ast.parse(path.read_text())
         bases = {b.id for node in tree.body if isinstance(node, ast.ClassDef)
@@ -63,19 +71,21 @@ def _public_definitions():
                 # a private base class: its public methods are the public classes'
                 for item in node.body:
                     if isinstance(item, ast.FunctionDef) and not item.name.startswith("_"):
-                        yield f"{path.relative_to(ROOT)}:{node.name}.{item.name}", item, node
-            if node.name.startswith("_") if hasattr(node, "name") else True:
+                        yield f"{path.relative_to(ROOT)}:{node.name}.{item.name}", item
+            if not isinstance(node, ast.FunctionDef | ast.ClassDef) or node.name.startswith("_"):
                 continue
             if isinstance(node, ast.FunctionDef):
-                yield f"{path.relative_to(ROOT)}:{node.name}", node, None
+                yield f"{path.relative_to(ROOT)}:{node.name}", node
             elif isinstance(node, ast.ClassDef):
-                yield f"{path.relative_to(ROOT)}:{node.name}", node, None
+                yield f"{path.relative_to(ROOT)}:{node.name}", node
                 for item in node.body:
                     if isinstance(item, ast.FunctionDef) and not item.name.startswith("_"):
-                        yield f"{path.relative_to(ROOT)}:{node.name}.{item.name}", item, node
+                        yield f"{path.relative_to(ROOT)}:{node.name}.{item.name}", item
 
 
-def _problems(node, owner) -> list[str]:
+def _problems(node) -> list[str]:
+    """What the docstring of ``node`` lacks: Parameters when it takes arguments (a class:
+    its ``__init__``), Returns when it returns a value, Attributes for a dataclass."""
     doc = ast.get_docstring(node) or ""
     if not doc:
         return ["no docstring"]
@@ -99,8 +109,8 @@ def _problems(node, owner) -> list[str]:
 
 
 def test_public_docstrings_are_numpydoc():
-    missing = [f"{where}: {p}" for where, node, owner in _public_definitions()
-               for p in _problems(node, owner)]
+    missing = [f"{where}: {p}" for where, node in _public_definitions()
+               for p in _problems(node)]
     assert not missing, "\n".join(missing)
 
 
@@ -125,12 +135,27 @@ def test_every_exported_name_has_an_example():
     assert not without, "no Examples: " + ", ".join(without)
 
 
-@pytest.mark.parametrize(("module", "name"), EXPORTED, ids=[n for _, n in EXPORTED])
-def test_examples_run(module, name):
-    obj = getattr(importlib.import_module(module), name)
-    finder = doctest.DocTestFinder(recurse=False)
+def _examples():
+    """Every docstring of the package with examples, as doctests in its module's namespace.
+
+    The exported names' docstrings are among them (see the test above); the others' run
+    too, so that no example of the package goes stale.
+    """
+    finder = doctest.DocTestFinder()
+    tests = []
+    for info in pkgutil.walk_packages(importlib.import_module(PACKAGE).__path__, PACKAGE + "."):
+        module = importlib.import_module(info.name)
+        tests += [t for t in finder.find(module, globs=dict(vars(module)))
+                  if t.examples and t.name.startswith(module.__name__)]
+    return tests
+
+
+EXAMPLES = _examples()
+
+
+@pytest.mark.parametrize("test", EXAMPLES, ids=[t.name[len(PACKAGE) + 1:] for t in EXAMPLES])
+def test_examples_run(test):
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
-    globs = dict(vars(importlib.import_module(obj.__module__)))
-    for test in finder.find(obj, name, globs=globs):
-        runner.run(test)
-    assert runner.failures == 0, f"{module}.{name}: {runner.failures} example(s) failed"
+    report = []
+    runner.run(test, out=report.append)
+    assert runner.failures == 0, "".join(report)
