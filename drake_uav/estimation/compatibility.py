@@ -249,7 +249,7 @@ specific force also enters over the dynamic pressure (:meth:`_AirData._response`
 flow angle moves the force per dynamic pressure at once, while a throttle that moves the
 airspeed moves the force with no change of the flow angle, through the speed dynamics;
 with the force alone the skew comes out late on flights that move the throttle, with both
-it does not."""
+far less."""
 
 
 class _AirData:
