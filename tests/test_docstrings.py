@@ -2,7 +2,8 @@
 
 Every public function, method and class of :mod:`drake_uav.identification` that takes
 arguments documents them in a ``Parameters`` section, and every one that returns a value
-has a ``Returns`` section (read from the source: a ``return <value>`` in its own body).
+has a ``Returns`` section, and every one that raises a ``Raises`` section (read from the
+source: a ``return <value>`` or a ``raise`` in its own body).
 Every name the package and its sub-packages export has ``Examples``, and every example
 of the package runs as a doctest (cheap: small arrays or a short span of the bundled
 sample flight).
@@ -27,18 +28,26 @@ def _section(doc: str, name: str) -> bool:
     return any(a == name and b and set(b) == {"-"} for a, b in zip(lines, lines[1:], strict=False))
 
 
-def _returns_value(node: ast.FunctionDef) -> bool:
-    """Whether ``node``'s own body (not a nested function's) has ``return <value>``."""
+def _own_nodes(node: ast.FunctionDef):
+    """The nodes of ``node``'s own body, not those of a nested function or class."""
     todo = list(node.body)
     while todo:
         child = todo.pop()
         if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda
                       | ast.ClassDef):
             continue
-        if isinstance(child, ast.Return) and child.value is not None:
-            return True
+        yield child
         todo.extend(ast.iter_child_nodes(child))
-    return False
+
+
+def _returns_value(node: ast.FunctionDef) -> bool:
+    """Whether ``node``'s own body has ``return <value>``."""
+    return any(isinstance(c, ast.Return) and c.value is not None for c in _own_nodes(node))
+
+
+def _raises(node: ast.FunctionDef) -> bool:
+    """Whether ``node``'s own body has ``raise <exception>``."""
+    return any(isinstance(c, ast.Raise) and c.exc is not None for c in _own_nodes(node))
 
 
 def _arguments(node: ast.FunctionDef) -> list[str]:
@@ -85,7 +94,8 @@ def _public_definitions():
 
 def _problems(node) -> list[str]:
     """What the docstring of ``node`` lacks: Parameters when it takes arguments (a class:
-    its ``__init__``), Returns when it returns a value, Attributes for a dataclass."""
+    its ``__init__``), Returns when it returns a value, Raises when it raises, Attributes
+    for a dataclass."""
     doc = ast.get_docstring(node) or ""
     if not doc:
         return ["no docstring"]
@@ -105,6 +115,8 @@ def _problems(node) -> list[str]:
         problems.append("no Parameters section")
     if _returns_value(node) and not (_section(doc, "Returns") or _section(doc, "Yields")):
         problems.append("no Returns section")
+    if _raises(node) and not _section(doc, "Raises"):
+        problems.append("no Raises section")
     return problems
 
 

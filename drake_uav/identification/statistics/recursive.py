@@ -84,6 +84,12 @@ def forgetting_time(forgetting: float, sample_rate: float, fraction: float = 0.0
     float
         [s].
 
+    Raises
+    ------
+    ValueError
+        When ``forgetting`` or ``fraction`` is outside (0, 1) or ``sample_rate`` is not
+        positive.
+
     Examples
     --------
     >>> round(forgetting_time(0.999, 50.0), 1)   # ln(0.05) / (50 ln(0.999))

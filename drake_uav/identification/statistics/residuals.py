@@ -526,6 +526,12 @@ def long_run_covariance(scores: np.ndarray, max_lag: int | None = None) -> np.nd
     ndarray
         (m, m) the covariance of the sum.
 
+    Raises
+    ------
+    ValueError
+        When ``scores`` is not a finite (N, m) array with N >= 2, or ``max_lag`` is not a
+        non-negative integer.
+
     Examples
     --------
     >>> import numpy as np
