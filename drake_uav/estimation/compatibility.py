@@ -248,8 +248,8 @@ leads the flow angle by the surfaces' share and biases the skew by about +0.015 
 specific force also enters over the dynamic pressure (:meth:`_AirData._response`): a
 flow angle moves the force per dynamic pressure at once, while a throttle that moves the
 airspeed moves the force with no change of the flow angle, through the speed dynamics;
-with the force alone the skew came out 5 ms late on clean flights that move the throttle
-(research-grade sensors, tuning seeds 500 and 502), 1-2 ms with both."""
+with the force alone the skew comes out late on flights that move the throttle, with both
+far less."""
 
 
 class _AirData:

@@ -91,6 +91,42 @@ class IdentifyOptions:
     Every field has the default the ``drake-uav identify`` command uses; make one with the
     fields to change, or change an existing one with :meth:`replace`.
 
+    Attributes
+    ----------
+    rate_hz : float
+        Rate of the regression samples [Hz]; faster logs are block-averaged down to it.
+    rule : EvidenceRule or None
+        The evidence rule of the discovery (None:
+        :class:`~drake_uav.identification.discovery.result.EvidenceRule` with its defaults).
+    reset_interval : float
+        [s] between the restarts of the output-error reconstruction from the measured
+        state.
+    source : str
+        The log's name in the messages and the report.
+    seed : int
+        Seed of the Monte-Carlo uncertainty of the measured coefficients; everything else
+        is deterministic.
+    air_data : str
+        Where the flow angles come from: one of
+        :data:`~drake_uav.identification.samples.air_data_source.AIR_DATA_MODES` (``auto``,
+        ``vanes``, ``estimate``, ``ahrs``).
+    segment : (float, float) or None
+        (start, end) [s] of the log to use (None: every airborne span).
+    sensor_noise_std : Mapping[str, float] or None
+        Declared sensor specs, log channel -> standard deviation [channel unit, SI]; the
+        noise of the channels left out is read from the data.
+    propulsion : str
+        ``data``: the thrust identified with C_X where the flight allows it (else the
+        catalog model, with a warning); ``catalog``: the aircraft's propulsion model.
+    phases : PhaseSettings
+        Thresholds of the airborne detection (airspeed [m/s], height [m], duration [s]).
+    coefficients : tuple of str
+        The coefficients fitted (names of
+        :data:`~drake_uav.model.coefficients.COEFFICIENTS`).
+    imu_position : (float, float, float) or None
+        (x, y, z) [m, body axes FRD] of the IMU from the centre of gravity (None: the one
+        the log's autopilot parameters record, else the centre of gravity).
+
     Raises
     ------
     ValueError
@@ -101,40 +137,24 @@ class IdentifyOptions:
     >>> options = IdentifyOptions(air_data="vanes", coefficients=("CL", "CD"))
     >>> options.replace(seed=3).seed
     3
+    >>> IdentifyOptions(propulsion="measured")
+    Traceback (most recent call last):
+    ...
+    ValueError: propulsion: 'catalog' or 'data', got 'measured'
     """
 
     rate_hz: float = 50.0
-    """Rate of the regression samples [Hz]; faster logs are block-averaged down to it."""
     rule: EvidenceRule | None = None
-    """The evidence rule of the discovery (None: :class:`~drake_uav.identification.
-    discovery.result.EvidenceRule` with its defaults)."""
     reset_interval: float = 5.0
-    """[s] between the restarts of the output-error reconstruction from the measured
-    state."""
     source: str = "flight log"
-    """The log's name in the messages and the report."""
     seed: int = 0
-    """Seed of the Monte-Carlo uncertainty of the measured coefficients; everything else
-    is deterministic."""
     air_data: str = "auto"
-    """Where the flow angles come from: one of :data:`~drake_uav.identification.samples.
-    air_data_source.AIR_DATA_MODES` (``auto``, ``vanes``, ``estimate``, ``ahrs``)."""
     segment: tuple[float, float] | None = None
-    """(start, end) [s] of the log to use (None: every airborne span)."""
     sensor_noise_std: Mapping[str, float] | None = None
-    """Declared sensor specs, log channel -> standard deviation [channel unit, SI]; the
-    noise of the channels left out is read from the data."""
     propulsion: str = "data"
-    """``data``: the thrust identified with C_X where the flight allows it (else the
-    catalog model, with a warning); ``catalog``: the aircraft's propulsion model."""
     phases: PhaseSettings = DEFAULT_PHASES
-    """Thresholds of the airborne detection (airspeed [m/s], height [m], duration [s])."""
     coefficients: tuple[str, ...] = COEFFICIENTS
-    """The coefficients fitted (names of :data:`~drake_uav.model.coefficients.
-    COEFFICIENTS`)."""
     imu_position: tuple[float, float, float] | None = None
-    """(x, y, z) [m, body axes FRD] of the IMU from the centre of gravity (None: the one
-    the log's autopilot parameters record, else the centre of gravity)."""
 
     def __post_init__(self):
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0.0):
@@ -160,7 +180,17 @@ class IdentifyOptions:
                                ImuPosition.given(self.imu_position).position)
 
     def replace(self, **changes) -> IdentifyOptions:
-        """A copy with ``changes`` (field -> value), checked again.
+        """A copy with ``changes``, checked again.
+
+        Parameters
+        ----------
+        **changes
+            Field -> new value.
+
+        Returns
+        -------
+        IdentifyOptions
+            The copy.
 
         Raises
         ------
@@ -182,21 +212,39 @@ def _options(options: IdentifyOptions | None, changes: dict) -> IdentifyOptions:
 
 @dataclasses.dataclass(frozen=True)
 class LogSelection:
-    """The parts of a log the main job used, and how it read their air data."""
+    """The parts of a log the main job used, and how it read their air data.
+
+    Attributes
+    ----------
+    spans : tuple of (float, float)
+        Airborne fixed-wing spans (start, end) [s] (:func:`usable_spans`).
+    air_data : str
+        "vanes", "estimate" or "ahrs"
+        (:mod:`~drake_uav.identification.samples.air_data_source`).
+    air_data_description : str
+        One line on where the flow angles came from.
+    notes : tuple of str
+        What the job chose (spans left out, extra channels).
+    warnings : tuple of str
+        What the job did to the data that changes what the result means: glitches drawn
+        over (:func:`check_log_channels`), an estimate it could not use (a wind the flight
+        does not observe).
+    """
 
     spans: tuple[tuple[float, float], ...]
-    """Airborne fixed-wing spans (start, end) [s] (:func:`usable_spans`)."""
     air_data: str
-    """"vanes", "estimate" or "ahrs" (:mod:`~drake_uav.identification.samples.air_data_source`)."""
     air_data_description: str
     notes: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
-    """What the job did to the data that changes what the result means: glitches drawn
-    over (:func:`check_log_channels`), an estimate it could not use (a wind the flight
-    does not observe)."""
 
     def summary(self) -> dict:
-        """JSON-ready: spans, air data, notes and warnings."""
+        """JSON-ready summary: spans, air data, notes and warnings.
+
+        Returns
+        -------
+        dict
+            Keys ``spans_s``, ``air_data``, ``air_data_description``, ``notes``, ``warnings``.
+        """
         return {"spans_s": [list(s) for s in self.spans], "air_data": self.air_data,
                 "air_data_description": self.air_data_description, "notes": list(self.notes),
                 "warnings": list(self.warnings)}
@@ -206,13 +254,44 @@ class LogSelection:
 class IdentificationRun:
     """Result of the main job on one flight log: everything its report prints.
 
+    Attributes
+    ----------
+    params : FixedWingParams
+        The aircraft's catalog model.
+    samples : AeroSamples
+        The measured coefficients and their regressors.
+    discovery : DiscoveryResult
+        The search for missing effects.
+    reconstruction_before : Reconstruction
+        Output-error reconstruction with the baseline model.
+    reconstruction_after : Reconstruction
+        The same with the effects found.
+    source : str
+        The log's name.
+    coefficient_sigma : dict of str to float
+        Monte-Carlo standard deviation of the measured C_L, C_D, C_Y (Vaiopoulos 2017,
+        sec. 5.6).
+    data : LogSelection or None
+        What the job used of the log: spans, air data, notes (None: samples given
+        directly).
+    compatibility : CompatibilityResult or None
+        The data-compatibility check of the airborne spans (docs/compatibility.md), whose
+        significant calibration errors were removed before the isolation (None: samples
+        given directly, or nothing to check).
+
     Examples
     --------
-    >>> run = identify(log, aerosonde())                 # doctest: +SKIP
-    >>> run.findings, run.discovery.message              # doctest: +SKIP
+    >>> from importlib.resources import files
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> run = identify(log, aerosonde(), segment=(0.0, 30.0), propulsion="catalog")
+    >>> run.findings, run.discovery.message
     (('thrust_propwash',), 'missing effect(s) found: thrust_propwash (CD)')
-    >>> run.noise_floors["CD"].floor                     # doctest: +SKIP
-    >>> json.dumps(json_ready(run.summary()))            # summary.json  # doctest: +SKIP
+    >>> run.data.spans, run.data.air_data
+    (((0.0, 29.0),), 'vanes')
+    >>> "findings" in run.summary()                      # what summary.json holds
+    True
     """
 
     params: FixedWingParams
@@ -222,13 +301,8 @@ class IdentificationRun:
     reconstruction_after: Reconstruction
     source: str
     coefficient_sigma: dict
-    """Monte-Carlo standard deviation of the measured C_L, C_D, C_Y (Vaiopoulos 2017, sec. 5.6)."""
     data: LogSelection | None = None
-    """What the job used of the log: spans, air data, notes (None: samples given directly)."""
     compatibility: CompatibilityResult | None = None
-    """The data-compatibility check of the airborne spans (docs/compatibility.md), whose
-    significant calibration errors were removed before the isolation (None: samples given
-    directly, or nothing to check)."""
 
     @functools.cached_property
     def noise_floors(self) -> dict[str, NoiseFloor]:
@@ -403,8 +477,37 @@ def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed:
                             draws: int = 200_000) -> dict[str, float]:
     """Monte-Carlo error std of the measured force coefficients (Vaiopoulos 2017, sec. 5.6).
 
-    Inputs (airspeed, alpha, specific force) vary over their flight ranges with
-    their observed correlation; their errors are the noise the isolation estimated.
+    Inputs (airspeed, alpha, specific force) vary over their flight ranges with their
+    observed correlation; their errors are the noise the isolation estimated
+    (:func:`~drake_uav.identification.samples.isolation.monte_carlo_sigmas`).
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The measured coefficients and their noise variances.
+    params : FixedWingParams
+        The aircraft (mass, wing area).
+    seed : int
+        Seed of the draws.
+    draws : int
+        Number of draws.
+
+    Returns
+    -------
+    dict of str to float
+        ``CL``, ``CD``, ``CY`` -> normal-equivalent standard deviation [-].
+
+    Examples
+    --------
+    >>> from drake_uav.identification import samples_from_log
+    >>> from importlib.resources import files
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde())
+    >>> sigma = coefficient_uncertainty(samples, aerosonde(), draws=20_000)
+    >>> sorted(sigma), bool(sigma["CL"] < 0.01)
+    (['CD', 'CL', 'CY'], True)
     """
     c = samples.condition
     inputs = np.column_stack([c.airspeed, c.alpha, *samples.specific_force.T])
@@ -445,6 +548,7 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
     Returns
     -------
     IdentifiedDerivatives
+        The fits, their estimates and joint covariance.
 
     Raises
     ------
@@ -453,7 +557,15 @@ def identify_derivatives(log: FlightLog, params: FixedWingParams, *,
 
     Examples
     --------
-    >>> derivatives = identify_derivatives(read_log("flight.csv"), aerosonde())  # doctest: +SKIP
+    >>> import warnings
+    >>> from importlib.resources import files
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> with warnings.catch_warnings(record=True):   # the thrust: the catalog model kept
+    ...     derivatives = identify_derivatives(log.slice(0.0, 15.0), aerosonde(), rate_hz=20.0)
+    >>> derivatives.names[:2], derivatives["CL"].method
+    (('CL_0', 'CL_alpha'), 'BCLS')
     """
     return fit_derivatives(select_samples(log, params, rate_hz=rate_hz)[0], params)
 
@@ -504,6 +616,7 @@ def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions |
     Returns
     -------
     IdentificationRun
+        Findings, discovery, reconstructions, uncertainty and what was used of the log.
 
     Raises
     ------
@@ -516,11 +629,14 @@ def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions |
 
     Examples
     --------
+    >>> from importlib.resources import files
     >>> from drake_uav.io.readers import read_log
     >>> from drake_uav.vehicles.loading import load_fixed_wing
-    >>> run = identify(read_log("flight.csv"), load_fixed_wing("aerosonde"),
-    ...                IdentifyOptions(air_data="vanes"))       # doctest: +SKIP
-    >>> run.findings                                            # doctest: +SKIP
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> run = identify(log, load_fixed_wing("aerosonde"),
+    ...                IdentifyOptions(air_data="vanes", segment=(0.0, 30.0)),
+    ...                propulsion="catalog")
+    >>> run.findings
     ('thrust_propwash',)
     """
     options = _options(options, changes)
@@ -553,16 +669,36 @@ def check_log_channels(log: FlightLog, params: FixedWingParams, *,
                        source: str = "flight log",
                        segment: tuple[float, float] | None = None,
                        phases: PhaseSettings = DEFAULT_PHASES) -> CheckedLog:
-    """Every channel of ``log`` against its physical range over the airborne spans, and the
-    airspeed against the GPS ground speed
-    (:func:`~drake_uav.estimation.channel_checks.check_channels`; see :func:`identify` for
-    the arguments): the log with its glitches drawn over, and a warning for each channel
-    that had any. The log as it is when it has no usable span (:func:`select_samples`
-    then says why).
+    """Every channel of ``log`` against its physical range over the airborne spans.
 
-    Raises :class:`~drake_uav.estimation.channel_checks.ImplausibleChannelError` naming
-    ``source``, the channel and the likely cause for a channel that is physically
-    impossible.
+    And the airspeed against the GPS ground speed
+    (:func:`~drake_uav.estimation.channel_checks.check_channels`): the log with its
+    glitches drawn over, and a warning for each channel that had any. The log as it is
+    when it has no usable span (:func:`select_samples` then says why).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    params : FixedWingParams
+        The aircraft (its physical ranges).
+    source : str
+        The log's name in the messages.
+    segment : (float, float), optional
+        (start, end) [s] of the log to use.
+    phases : PhaseSettings
+        Thresholds of the airborne detection.
+
+    Returns
+    -------
+    CheckedLog
+        The log with its glitches drawn over, and the warnings.
+
+    Raises
+    ------
+    ImplausibleChannelError
+        Naming ``source``, the channel and the likely cause for a channel that is
+        physically impossible.
     """
     check_fixed_wing(log, source)
     try:
@@ -586,15 +722,37 @@ def check_log_compatibility(log: FlightLog, params: FixedWingParams, *,
                             phases: PhaseSettings = DEFAULT_PHASES,
                             progress: Callable[[str], None] | None = None
                             ) -> CompatibilityResult | None:
-    """The data-compatibility check (:func:`~drake_uav.estimation.compatibility.
-    check_compatibility`) on the samples of the airborne spans of ``log`` (see
-    :func:`identify` for the arguments).
+    """The data-compatibility check on the samples of the airborne spans of ``log``.
 
-    None when the log has no usable span or too little for the check (the IMU and the
-    attitude over 8 s): :func:`select_samples` then says what is wrong, or the job goes on
-    with the log as recorded. Raises :class:`~drake_uav.estimation.channel_checks.
-    ImplausibleChannelError` naming ``source`` for a calibration far outside what a
-    calibration can be.
+    :func:`~drake_uav.estimation.compatibility.check_compatibility`; see :func:`identify`
+    for the arguments.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    params : FixedWingParams
+        The aircraft.
+    source : str
+        The log's name in the messages.
+    segment : (float, float), optional
+        (start, end) [s] of the log to use.
+    phases : PhaseSettings
+        Thresholds of the airborne detection.
+    progress : callable, optional
+        Called with one line per stage.
+
+    Returns
+    -------
+    CompatibilityResult or None
+        None when the log has no usable span or too little for the check (the IMU and the
+        attitude over 8 s): :func:`select_samples` then says what is wrong, or the job goes
+        on with the log as recorded.
+
+    Raises
+    ------
+    ImplausibleChannelError
+        Naming ``source`` for a calibration far outside what a calibration can be.
     """
     check_fixed_wing(log, source)
     try:
@@ -623,9 +781,21 @@ apart, so these effects are not tested then."""
 
 
 def measured_command_delay(compatibility: CompatibilityResult | None) -> float | None:
-    """The servo delay [s] the data-compatibility check measured: a significant command
-    time skew it left to the model (a late one, shorter than its ``max_actuator_delay``);
-    None when it measured none."""
+    """The servo delay the data-compatibility check measured.
+
+    A significant command time skew it left to the model (a late one, shorter than its
+    ``max_actuator_delay``).
+
+    Parameters
+    ----------
+    compatibility : CompatibilityResult or None
+        The check's result.
+
+    Returns
+    -------
+    float or None
+        The delay [s]; None when it measured none.
+    """
     if compatibility is None:
         return None
     skew = next((e for e in compatibility.effects if e.name == "command_time_skew"), None)
@@ -635,9 +805,21 @@ def measured_command_delay(compatibility: CompatibilityResult | None) -> float |
 
 
 def testable_effects(air_data: str, command_delay: float | None = None) -> list[Effect]:
-    """The named effects the data of an ``air_data`` mode can tell from its errors;
-    ``command_delay`` [s], the servo delay the data-compatibility check measured
-    (:func:`measured_command_delay`), shapes ``actuator_time_delay``."""
+    """The named effects the data of an ``air_data`` mode can tell from its errors.
+
+    Parameters
+    ----------
+    air_data : str
+        The resolved air-data mode.
+    command_delay : float, optional
+        The servo delay [s] the data-compatibility check measured
+        (:func:`measured_command_delay`), which shapes ``actuator_time_delay``.
+
+    Returns
+    -------
+    list of Effect
+        The effect library, without those an estimate of the flow angles confounds.
+    """
     library = effect_library(command_delay)
     if air_data != "estimate":
         return library
@@ -645,9 +827,21 @@ def testable_effects(air_data: str, command_delay: float | None = None) -> list[
 
 
 def testable_vector_effects(air_data: str) -> list[VectorEffect]:
-    """The vector effects the data of an ``air_data`` mode can tell from its errors: without
-    vanes, not the force towards a point the data locate, which then takes up the error of
-    the estimated wind as a pull towards some far point on clean flights."""
+    """The vector effects the data of an ``air_data`` mode can tell from its errors.
+
+    Without vanes, not the force towards a point the data locate, which then takes up the
+    error of the estimated wind as a pull towards some far point.
+
+    Parameters
+    ----------
+    air_data : str
+        The resolved air-data mode.
+
+    Returns
+    -------
+    list of VectorEffect
+        The vector effects.
+    """
     return vector_effect_library(located_point=air_data != "estimate")
 
 
@@ -748,7 +942,20 @@ _FIXED_WING_TYPES = {1, 19, 20, 21, 22, 23, 24, 25}
 
 
 def check_fixed_wing(log: FlightLog, source: str) -> None:
-    """Raises FlightLogError for a log whose vehicle type is not a fixed wing or VTOL."""
+    """Check that the log is of a fixed wing or a VTOL.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log (its ``vehicle_type`` metadata).
+    source : str
+        The log's name in the message.
+
+    Raises
+    ------
+    FlightLogError
+        For a log whose vehicle type is another.
+    """
     vehicle = log.metadata.get("vehicle_type") or {}
     kind = vehicle.get("mav_type")
     if kind is not None and int(kind) not in _FIXED_WING_TYPES | {0}:  # 0: generic
@@ -818,6 +1025,19 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
     Returns
     -------
     IdentificationRun
+        The discovery, the reconstructions before and after, and the uncertainty.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> run = identify_samples(samples, aerosonde(), coefficients=("CD",))
+    >>> run.findings, run.data is None
+    (('thrust_propwash',), True)
 
     Raises
     ------

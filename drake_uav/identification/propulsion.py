@@ -124,58 +124,138 @@ PARSIMONY = 0.01
 
 
 class ThrustPrediction(NamedTuple):
-    """Thrust of a :class:`ThrustModel` on arrays of samples."""
+    """Thrust of a :class:`ThrustModel` on arrays of samples.
+
+    Attributes
+    ----------
+    thrust : numpy.ndarray
+        T [N].
+    std : numpy.ndarray
+        Standard deviation of T from the coefficients' covariance [N] (0: catalog).
+    airspeed_slope : numpy.ndarray
+        dT/dVa at the logged throttle or motor speed [N/(m/s)].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> catalog = ThrustModel(aerosonde(), "catalog", (), np.zeros(0), np.zeros((0, 0)))
+    >>> prediction = catalog.thrust(np.array([20.0, 25.0]), np.array([0.5, 0.8]))
+    >>> prediction.thrust.round(1).tolist(), prediction.std.tolist()
+    ([154.2, 446.1], [0.0, 0.0])
+    """
 
     thrust: np.ndarray
-    """T [N]."""
     std: np.ndarray
-    """Standard deviation of T from the coefficients' covariance [N] (0: catalog)."""
     airspeed_slope: np.ndarray
-    """dT/dVa at the logged throttle or motor speed [N/(m/s)]."""
 
 
 @dataclasses.dataclass(frozen=True)
 class ThrustDiagnostics:
-    """How well the flight determines the thrust."""
+    """How well the flight determines the thrust.
+
+    Attributes
+    ----------
+    condition : float
+        Condition number of the column-equilibrated regressors (C_X and thrust).
+    correlation : float
+        Largest multiple correlation of a thrust column with the C_X columns (and a constant,
+        for a throttle correction) [-].
+    relative_std : float
+        Median thrust standard deviation over the thrust's spread (std over the flight).
+    held_out_rmse : Mapping[tuple of str, HeldOutError]
+        Held-out RMS errors of m a_x [N] per candidate thrust-term subset.
+    identifiable : bool
+        Whether the flight tells thrust from drag (else the catalog model is kept).
+    message : str
+        Why the catalog was kept, or empty.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification.samples.flight_data import gridded_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> grid = gridded_log(log, aerosonde())
+    >>> flight = grid.log
+    >>> with warnings.catch_warnings(record=True):       # the throttle hardly moves here
+    ...     model = identify_thrust(aerosonde(), flight.time, flight.stack(SPECIFIC_FORCE),
+    ...                             flight.stack(RATES), flight.stack(AIR_DATA), grid.controls)
+    >>> model.diagnostics.identifiable, model.diagnostics.message.split(" (")[0]
+    (False, 'thrust and C_X0 are confounded')
+    """
 
     condition: float
-    """Condition number of the column-equilibrated regressors (C_X and thrust)."""
     correlation: float
-    """Largest multiple correlation of a thrust column with the C_X columns (and a constant,
-    for a throttle correction) [-]."""
     relative_std: float
-    """Median thrust standard deviation over the thrust's spread (std over the flight)."""
     held_out_rmse: Mapping[tuple[str, ...], HeldOutError]
-    """Held-out RMS errors of m a_x [N] per candidate thrust-term subset."""
     identifiable: bool
     message: str
-    """Why the catalog was kept, or empty."""
 
 
 @dataclasses.dataclass(frozen=True)
 class ThrustModel:
-    """An identified (or catalog) thrust model; :meth:`thrust` evaluates it on samples."""
+    """An identified (or catalog) thrust model; :meth:`thrust` evaluates it on samples.
+
+    Attributes
+    ----------
+    params : FixedWingParams
+        The catalog aircraft (its propulsion model is the fallback and the fixed part).
+    source : str
+        "motor_speed" (propeller C_T(J)), "throttle" (catalog plus correction) or "catalog".
+    terms : tuple of str
+        Names of the identified thrust coefficients.
+    coefficients : numpy.ndarray
+        Their values (C_T0, C_T1 [-]; throttle terms [N], [N], [N s/m]).
+    covariance : numpy.ndarray
+        Their covariance.
+    drag_terms : tuple of str
+        Names of the C_X coefficients fitted together with the thrust.
+    drag_coefficients : numpy.ndarray
+        Their values [-] (empty for the catalog).
+    drag_sigma : numpy.ndarray
+        Their standard deviations [-].
+    diagnostics : ThrustDiagnostics or None
+        How well the flight determined the thrust (None for a model built by hand).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> catalog = ThrustModel(aerosonde(), "catalog", (), np.zeros(0), np.zeros((0, 0)))
+    >>> float(catalog.thrust(20.0, 0.5).thrust.round(1))
+    154.2
+    """
 
     params: FixedWingParams
-    """The catalog aircraft (its propulsion model is the fallback and the fixed part)."""
     source: str
-    """"motor_speed" (propeller C_T(J)), "throttle" (catalog plus correction) or "catalog"."""
     terms: tuple[str, ...]
-    """Names of the identified thrust coefficients."""
     coefficients: np.ndarray
-    """Their values (C_T0, C_T1 [-]; throttle terms [N], [N], [N s/m])."""
     covariance: np.ndarray
-    """Their covariance."""
     drag_terms: tuple[str, ...] = DRAG_TERMS
     drag_coefficients: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
-    """C_X coefficients fitted together with the thrust [-] (empty for the catalog)."""
     drag_sigma: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
-    """Their standard deviations [-]."""
     diagnostics: ThrustDiagnostics | None = None
 
     def thrust(self, airspeed, throttle, motor_speed=None) -> ThrustPrediction:
-        """Thrust [N], its standard deviation [N] and dT/dVa [N/(m/s)] at airspeed [m/s],
-        throttle [0..1] and, for a model identified from it, motor speed [rad/s]."""
+        """Thrust, its standard deviation and dT/dVa on samples.
+
+        Parameters
+        ----------
+        airspeed : array_like
+            Airspeed [m/s].
+        throttle : array_like
+            Throttle [0..1].
+        motor_speed : array_like, optional
+            Motor speed [rad/s], for a model identified from it.
+
+        Returns
+        -------
+        ThrustPrediction
+            Thrust [N], its standard deviation [N] and dT/dVa [N/(m/s)].
+        """
         base = _base_thrust(self.params, self.source, self.terms, airspeed, throttle,
                             motor_speed)
         if not self.terms:
@@ -189,13 +269,29 @@ class ThrustModel:
 
 
 def catalog_propeller(params: FixedWingParams) -> tuple[float, tuple[float, float, float]]:
-    """Propeller diameter D [m] and ``(C_T0, C_T1, C_T2)`` [-] of the params' propulsion.
+    """Propeller diameter and thrust coefficients of the params' propulsion model.
 
     A :class:`~drake_uav.vehicles.fixed_wing.MotorPropeller` gives its own. The momentum
     model of Beard & McLain (2012, sec. 4.3), ``0.5 rho S_prop C_prop ((k dT)^2 - Va^2)``,
     is a disc of area S_prop with no ``(nD) Va`` term (C_T1 = 0), whose Va^2 term is
     ``C_T2 = -S_prop C_prop / (2 D^2)``; it has no shaft speed, so no C_T0 (NaN).
-    Raises ``ValueError`` for a model with neither.
+
+    Parameters
+    ----------
+    params : FixedWingParams
+        The aircraft.
+
+    Returns
+    -------
+    diameter : float
+        Propeller diameter D [m].
+    coefficients : (float, float, float)
+        ``(C_T0, C_T1, C_T2)`` [-].
+
+    Raises
+    ------
+    ValueError
+        For a propulsion model with neither a propeller diameter nor a disc area.
     """
     prop = params.propulsion
     if hasattr(prop, "C_T2") and hasattr(prop, "diameter"):
@@ -257,12 +353,24 @@ def _speed_diameter(motor_speed, diameter: float) -> np.ndarray:
 
 
 def thrust_correction_columns(samples: AeroSamples) -> dict[str, np.ndarray]:
-    """C_D columns of the identified thrust's
-    :attr:`~.isolation.AeroSamples.thrust_correction_terms`, named ``thrust:<term>``: the
-    change of the measured C_D per newton-per-unit of each term [1/(N unit)] by which the
-    thrust taken out of ``a_x`` exceeds the true one (the isolation reads an excess of
-    thrust as drag: minus the C_D of a body-x force). Empty for a thrust not identified
-    from the flight's throttle."""
+    """C_D columns of the identified thrust's correction terms, named ``thrust:<term>``.
+
+    The terms are :attr:`~.isolation.AeroSamples.thrust_correction_terms`; each column is
+    the change of the measured C_D per newton-per-unit of the term by which the thrust
+    taken out of ``a_x`` exceeds the true one (the isolation reads an excess of thrust as
+    drag: minus the C_D of a body-x force).
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Column name -> (N,) values [1/(N unit)]; empty for a thrust not identified from the
+        flight's throttle.
+    """
     terms = samples.thrust_correction_terms
     if not terms:
         return {}
@@ -273,9 +381,29 @@ def thrust_correction_columns(samples: AeroSamples) -> dict[str, np.ndarray]:
 
 def thrust_drag_columns(alpha, airspeed, throttle, qbar_s, terms=THROTTLE_TERMS
                         ) -> dict[str, np.ndarray]:
-    """The C_D columns ``thrust:<term>`` of the throttle thrust terms at alpha [rad],
-    airspeed [m/s], throttle [0..1] and qbar S [N]: what a thrust in excess of the true
-    one by each term's unit does to the drag measured from ``a_x``."""
+    """The C_D columns ``thrust:<term>`` of the throttle thrust terms.
+
+    What a thrust in excess of the true one by each term's unit does to the drag measured
+    from ``a_x``.
+
+    Parameters
+    ----------
+    alpha : array_like
+        Angle of attack [rad].
+    airspeed : array_like
+        Airspeed [m/s].
+    throttle : array_like
+        Throttle [0..1].
+    qbar_s : array_like
+        Dynamic pressure times wing area [N].
+    terms : sequence of str
+        The throttle terms (:data:`~drake_uav.model.propeller.THROTTLE_TERMS`).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Column name -> values [1/(N unit)].
+    """
     per_newton = 1.0 / np.asarray(qbar_s, float)
     drag = -body_to_lift_drag(per_newton, 0.0 * per_newton, alpha)[1]
     values = dict(zip(THROTTLE_TERMS, throttle_thrust_regressors(throttle, airspeed),
@@ -513,6 +641,10 @@ def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_da
                     raw_noise_variance: Mapping[str, float] | None = None) -> ThrustModel:
     """Thrust identified with C_X from airborne, uniformly sampled flight data.
 
+    The ten parameters are the flight's arrays (as
+    :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` takes them)
+    and three keyword-only settings.
+
     Parameters
     ----------
     params : FixedWingParams
@@ -545,9 +677,21 @@ def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_da
     ValueError
         When the flight is too short for the held-out blocks or an array's shape is wrong.
 
-    The ten parameters are the flight's arrays (as
-    :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` takes them)
-    and three keyword-only settings.
+    Examples
+    --------
+    >>> import warnings
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification.samples.flight_data import gridded_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> grid = gridded_log(log, aerosonde())
+    >>> flight = grid.log
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     model = identify_thrust(aerosonde(), flight.time, flight.stack(SPECIFIC_FORCE),
+    ...                             flight.stack(RATES), flight.stack(AIR_DATA), grid.controls)
+    >>> model.source, caught[0].category.__name__     # too little throttle: the catalog
+    ('catalog', 'InsufficientExcitationWarning')
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked(len(time), specific_force=specific_force, rates=rates,

@@ -49,8 +49,21 @@ def _varying(names: Sequence[str], X: np.ndarray) -> list[int]:
 
 
 def variance_inflation(X: np.ndarray) -> np.ndarray:
-    """VIF of every column of ``X`` (N, n), n >= 2, all varying: the diagonal of the
-    inverse correlation matrix; inf where a column is a combination of the others."""
+    """Variance inflation factor of every column of ``X``.
+
+    The diagonal of the inverse correlation matrix: how much a column's variance of
+    estimate grows because the other columns explain it.
+
+    Parameters
+    ----------
+    X : numpy.ndarray of shape (N, n)
+        Regressor columns, n >= 2, all varying.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n,)
+        VIF >= 1 of each column; inf where a column is a combination of the others.
+    """
     R = np.corrcoef(np.asarray(X, dtype=float), rowvar=False)
     try:
         return np.diag(np.linalg.inv(R)).copy()
@@ -59,10 +72,22 @@ def variance_inflation(X: np.ndarray) -> np.ndarray:
 
 
 def correlated_regressors(names: Sequence[str], X: np.ndarray) -> list[DerivativeWarning]:
-    """Warnings for regressor pairs with |correlation| > :data:`CORRELATION_LIMIT`, and for
-    columns with VIF > :data:`VIF_LIMIT` not already named in such a pair.
+    """Warnings for regressor pairs and columns the flight does not separate.
 
-    ``names`` the derivatives of the (N, n) regressor columns ``X`` of one fit.
+    A pair with |correlation| > :data:`CORRELATION_LIMIT`, and a column with VIF >
+    :data:`VIF_LIMIT` not already named in such a pair.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The derivatives of the columns of ``X``.
+    X : numpy.ndarray of shape (N, n)
+        The regressor columns of one fit.
+
+    Returns
+    -------
+    list of DerivativeWarning
+        Of kind "correlated"; empty when every column stands apart.
     """
     keep = _varying(names, X)
     if len(keep) < 2:
@@ -90,12 +115,27 @@ def correlated_regressors(names: Sequence[str], X: np.ndarray) -> list[Derivativ
 
 def unexcited_derivatives(names: Sequence[str], X: np.ndarray, estimate: np.ndarray,
                           sigma: np.ndarray) -> list[DerivativeWarning]:
-    """Warnings for derivatives the flight does not determine: a regressor that does not
-    vary, or a standard error above :data:`RELATIVE_SIGMA_LIMIT` of the estimate.
+    """Warnings for derivatives the flight does not determine.
 
-    ``names``, ``X`` (N, n) as for :func:`correlated_regressors`; ``estimate`` and
-    ``sigma`` (n,) of the fit. The constant term is not a direction of excitation and is
-    left out.
+    A regressor that does not vary, or a standard error above
+    :data:`RELATIVE_SIGMA_LIMIT` of the estimate. The constant term is not a direction of
+    excitation and is left out.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The derivatives of the columns of ``X``.
+    X : numpy.ndarray of shape (N, n)
+        The regressor columns of one fit.
+    estimate : numpy.ndarray of shape (n,)
+        The fit's estimates.
+    sigma : numpy.ndarray of shape (n,)
+        Their standard errors.
+
+    Returns
+    -------
+    list of DerivativeWarning
+        Of kind "unexcited".
     """
     varying = set(_varying(names, X))
     out = []

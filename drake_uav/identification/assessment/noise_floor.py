@@ -49,17 +49,27 @@ __all__ = ["NoiseFloor", "held_out_noise_floor", "smoothing_gains", "ISOLATION_W
 
 @dataclasses.dataclass(frozen=True)
 class NoiseFloor:
-    """Held-out equation-error RMS of one coefficient before and after, and its floor [-]."""
+    """Held-out equation-error RMS of one coefficient before and after, and its floor [-].
+
+    Attributes
+    ----------
+    coefficient : str
+        The coefficient.
+    before : float
+        Held-out RMS of the baseline fit.
+    after : float
+        Held-out RMS of the final fit.
+    floor : float
+        RMS the sensor noise alone gives the final fit's held-out error.
+    parts : Mapping[str, float]
+        Noise source -> its share of ``floor`` as an RMS (they add in square).
+    """
 
     coefficient: str
     before: float
-    """Held-out RMS of the baseline fit."""
     after: float
-    """Held-out RMS of the final fit."""
     floor: float
-    """RMS the sensor noise alone gives the final fit's held-out error."""
     parts: Mapping[str, float]
-    """Noise source -> its share of ``floor`` as an RMS (they add in square)."""
 
     @property
     def excess_explained(self) -> float | None:
@@ -77,7 +87,14 @@ class NoiseFloor:
         return self.after / self.floor if self.floor > 0 else float("inf")
 
     def summary(self) -> dict:
-        """JSON-ready: floor, its parts, the excess explained and after/floor."""
+        """JSON-ready summary: floor, its parts, the excess explained and after/floor.
+
+        Returns
+        -------
+        dict
+            Keys ``noise_floor``, ``noise_floor_parts``, ``excess_explained``,
+            ``after_over_floor``.
+        """
         return {"noise_floor": self.floor, "noise_floor_parts": dict(self.parts),
                 "excess_explained": self.excess_explained,
                 "after_over_floor": self.after_over_floor}
@@ -87,8 +104,19 @@ def held_out_noise_floor(samples: AeroSamples, discovery: DiscoveryResult,
                          params: FixedWingParams) -> dict[str, NoiseFloor]:
     """The noise floor of every coefficient's held-out error (module docstring).
 
-    ``samples`` are those :func:`~drake_uav.identification.discovery.loop.discover` ran on,
-    ``params`` the aircraft (mass, inertia, geometry of the isolation).
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples :func:`~drake_uav.identification.discovery.loop.discover` ran on.
+    discovery : DiscoveryResult
+        Its result.
+    params : FixedWingParams
+        The aircraft (mass, inertia, geometry of the isolation).
+
+    Returns
+    -------
+    dict of str to NoiseFloor
+        Coefficient -> its floor.
     """
     out = {}
     for k, fit in discovery.final.items():

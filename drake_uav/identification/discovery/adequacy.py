@@ -44,48 +44,72 @@ __all__ = ["AdequacyRule", "Adequacy", "assess", "coefficient_symbol"]
 
 @dataclasses.dataclass(frozen=True)
 class AdequacyRule:
-    """Thresholds of the incompleteness finding (module docstring)."""
+    """Thresholds of the incompleteness finding (module docstring).
+
+    Attributes
+    ----------
+    sigmas : float
+        Standard errors an excess must reach.
+    floor_uncertainty : float
+        Relative standard error of the floor's mean square (noise variances read from the
+        data).
+    min_excess : float
+        Smallest excess of a mean-square ratio over 1 (or over the training ratio) that
+        counts: 0.21 is an RMS 1.1 times the floor.
+    min_share_of_variation : float
+        Smallest excess RMS (the error the noise does not explain) that counts, as a share
+        of the coefficient's standard deviation over the flight: what the evidence rule asks
+        of an effect's contribution.
+    windows : int
+        Equal windows the flight is cut into to say where the residual is largest.
+    top_signals : int
+        Signals the held-out residual correlates with most that are named.
+    """
 
     sigmas: float = 4.0
-    """Standard errors an excess must reach."""
     floor_uncertainty: float = 0.1
-    """Relative standard error of the floor's mean square (noise variances read from the
-    data)."""
     min_excess: float = 0.21
-    """Smallest excess of a mean-square ratio over 1 (or over the training ratio) that
-    counts: 0.21 is an RMS 1.1 times the floor."""
     min_share_of_variation: float = 0.01
-    """Smallest excess RMS (the error the noise does not explain) that counts, as a share
-    of the coefficient's standard deviation over the flight: what the evidence rule asks
-    of an effect's contribution."""
     windows: int = 10
-    """Equal windows the flight is cut into to say where the residual is largest."""
     top_signals: int = 3
-    """Signals the held-out residual correlates with most that are named."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Adequacy:
-    """One coefficient's equation error against its noise floor (module docstring)."""
+    """One coefficient's equation error against its noise floor (module docstring).
+
+    Attributes
+    ----------
+    coefficient : str
+        The coefficient.
+    ratio : float
+        Held-out RMS / noise floor [-].
+    train_ratio : float
+        Training RMS / its noise floor [-].
+    above_floor : bool
+        The held-out error is significantly above the floor.
+    differs : bool
+        The held-out ratio is significantly above the training ratio.
+    limit : float
+        Held-out RMS ratio above which the error is significantly above the floor [-].
+    train_limit : float
+        Held-out RMS ratio above which it differs significantly from the training one [-].
+    segments : tuple of (float, float, float)
+        ``(start, end [s], RMS / floor)`` of the flight segments where the residual is
+        largest, largest first.
+    correlations : tuple of (str, float)
+        ``(signal, correlation)`` the residual correlates with most over the flight.
+    """
 
     coefficient: str
     ratio: float
-    """Held-out RMS / noise floor [-]."""
     train_ratio: float
-    """Training RMS / its noise floor [-]."""
     above_floor: bool
-    """The held-out error is significantly above the floor."""
     differs: bool
-    """The held-out ratio is significantly above the training ratio."""
     limit: float
-    """Held-out RMS ratio above which the error is significantly above the floor [-]."""
     train_limit: float = float("inf")
-    """Held-out RMS ratio above which it differs significantly from the training one [-]."""
     segments: tuple[tuple[float, float, float], ...] = ()
-    """``(start, end [s], RMS / floor)`` of the flight segments where the residual is
-    largest, largest first."""
     correlations: tuple[tuple[str, float], ...] = ()
-    """``(signal, correlation)`` the residual correlates with most over the flight."""
 
     @property
     def incomplete(self) -> bool:
@@ -107,7 +131,13 @@ class Adequacy:
         return ", ".join(parts)
 
     def summary(self) -> dict:
-        """JSON-ready fields (a ratio without a floor is None)."""
+        """JSON-ready fields of the adequacy (a ratio without a floor is None).
+
+        Returns
+        -------
+        dict
+            The ratios, limits, decisions, segments and correlations.
+        """
 
         def finite(value: float) -> float | None:
             return value if np.isfinite(value) else None
@@ -121,7 +151,18 @@ class Adequacy:
 
 
 def coefficient_symbol(coefficient: str) -> str:
-    """``"CD"`` -> ``"C_D"``."""
+    """The symbol of a coefficient name: ``"CD"`` -> ``"C_D"``.
+
+    Parameters
+    ----------
+    coefficient : str
+        The name.
+
+    Returns
+    -------
+    str
+        The symbol.
+    """
     return f"{coefficient[0]}_{coefficient[1:]}"
 
 
@@ -152,10 +193,27 @@ def assess(coefficient: str, train: tuple[np.ndarray, np.ndarray, np.ndarray],
            rule: AdequacyRule | None = None) -> Adequacy:
     """The adequacy of one coefficient's final fit (module docstring).
 
-    ``train`` and ``test`` are ``(time [s], residual, noise variance per sample)`` of the
-    training part (in-sample residual) and of the held-out tail; ``signals`` the logged
-    signals on the training samples followed by the held-out ones, by name (``time`` is
-    added); ``scale`` the coefficient's standard deviation over the flight.
+    Parameters
+    ----------
+    coefficient : str
+        The coefficient.
+    train : (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        ``(time [s], residual, noise variance per sample)`` of the training part
+        (in-sample residual).
+    test : (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        The same of the held-out tail.
+    signals : Mapping[str, numpy.ndarray]
+        The logged signals on the training samples followed by the held-out ones, by name
+        (``time`` is added).
+    scale : float
+        The coefficient's standard deviation over the flight.
+    rule : AdequacyRule, optional
+        The thresholds (None: the defaults).
+
+    Returns
+    -------
+    Adequacy
+        The adequacy (ratios inf when there is no floor).
     """
     rule = rule or AdequacyRule()
     fit, tail = _Part(*train), _Part(*test)

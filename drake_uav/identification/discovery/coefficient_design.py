@@ -45,12 +45,18 @@ ColumnFunction = Callable[[AeroSamples], Mapping[str, np.ndarray]]
 
 
 class Perturbations:
-    """Samples and their copies with one noise source moved by +-its step
-    (:func:`~drake_uav.identification.samples.regressor_noise.perturbed`), and the probe: every
-    source but the air data moved at once, which tells the columns that depend on none
-    of them (most) from the others.
+    """Samples and their copies with one noise source moved by +-its step.
 
-    The copies are made once and shared by every column function evaluated on them.
+    The copies (:func:`~drake_uav.identification.samples.regressor_noise.perturbed`) and
+    the probe, every source but the air data moved at once, which tells the columns that
+    depend on none of them (most) from the others. The copies are made once and shared by
+    every column function evaluated on them; calling the object with ``(source, step)``
+    gives the copy with ``source`` moved by ``step``.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples perturbed.
     """
 
     def __init__(self, samples: AeroSamples):
@@ -64,7 +70,18 @@ class Perturbations:
         return self._copies[key]
 
     def probe(self, sources: tuple[str, ...]) -> AeroSamples:
-        """The samples with every one of ``sources`` moved by its step."""
+        """The samples with every one of ``sources`` moved by its step.
+
+        Parameters
+        ----------
+        sources : tuple of str
+            The noise sources moved.
+
+        Returns
+        -------
+        AeroSamples
+            The moved copy (made once).
+        """
         if sources not in self._copies:
             moved = self.samples
             for source in sources:
@@ -75,9 +92,27 @@ class Perturbations:
 
 def columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | Perturbations,
                            variance):
-    """Columns of ``function(samples)`` and their derivatives w.r.t. the noise sources of
-    ``variance``: the air data always, the others (rates, derivatives) where a column
-    depends on them."""
+    """Columns of ``function(samples)`` and their derivatives with respect to the noise sources.
+
+    The air data always, the other sources of ``variance`` (rates, derivatives) where a
+    column depends on them, by central differences.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(samples) -> {column name: (N,) values}``.
+    samples : AeroSamples or Perturbations
+        The samples (a :class:`Perturbations` shares its copies between calls).
+    variance : Mapping[str, float]
+        Noise source -> variance; its keys are the sources differentiated.
+
+    Returns
+    -------
+    columns : dict of str to numpy.ndarray
+        Column name -> (N,) values.
+    jacobians : dict of str to dict of str to numpy.ndarray
+        Source -> column name -> (N,) derivative of the column by the source.
+    """
     variants = samples if isinstance(samples, Perturbations) else Perturbations(samples)
     columns = dict(function(variants.samples))
     sources = [s for s in AIR_DATA_SOURCES if variance.get(s, 0.0) > 0.0]
@@ -102,8 +137,19 @@ def columns_and_jacobians(function: ColumnFunction, samples: AeroSamples | Pertu
 class Design:
     """One coefficient's regression on some samples, with its noise model.
 
-    The estimator is :func:`~..estimators.regression.bcls`; this class adds
-    the bookkeeping of the loop (added columns, folds, noise-corrected errors).
+    The estimator is :func:`~drake_uav.identification.statistics.regression.bcls`; this
+    class adds the bookkeeping of the loop (added columns, folds, noise-corrected errors).
+
+    Attributes
+    ----------
+    names : list of str
+        Column names.
+    X : numpy.ndarray of shape (N, n)
+        Regressor columns.
+    z : numpy.ndarray of shape (N,)
+        The measured coefficient.
+    noise : PropagatedNoise
+        The noise of the columns and of the coefficient.
     """
 
     names: list[str]
@@ -112,17 +158,55 @@ class Design:
     noise: PropagatedNoise
 
     def extended(self, columns: Mapping[str, np.ndarray], jac, prefix: str = "") -> Design:
+        """The design with added columns.
+
+        Parameters
+        ----------
+        columns : Mapping[str, numpy.ndarray]
+            Column name -> (N,) values.
+        jac : Mapping[str, Mapping[str, numpy.ndarray]]
+            Noise source -> column name -> (N,) derivative (:func:`columns_and_jacobians`).
+        prefix : str
+            Put before the added column names (``"<effect>:"``).
+
+        Returns
+        -------
+        Design
+            The extended design.
+        """
         names = [f"{prefix}{k}" for k in columns]
         X = np.column_stack([self.X, *columns.values()])
         added = {s: np.column_stack([jac[s][k] for k in columns]) for s in jac}
         return Design(self.names + names, X, self.z, self.noise.extended(added, len(columns)))
 
     def without(self, prefix: str) -> Design:
-        """The design without the columns whose names start with ``prefix``."""
+        """The design without the columns whose names start with ``prefix``.
+
+        Parameters
+        ----------
+        prefix : str
+            Name prefix of the columns removed.
+
+        Returns
+        -------
+        Design
+            The reduced design.
+        """
         return self.keeping([name for name in self.names if not name.startswith(prefix)])
 
     def keeping(self, names: Sequence[str]) -> Design:
-        """The design with only the columns ``names``, in its own order."""
+        """The design with only the columns ``names``, in its own order.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The columns kept.
+
+        Returns
+        -------
+        Design
+            The reduced design.
+        """
         keep = [i for i, name in enumerate(self.names) if name in names]
         noise = PropagatedNoise(len(keep), {s: J[:, keep] for s, J in
                                             self.noise.regressors.items()},
@@ -130,27 +214,94 @@ class Design:
         return Design([self.names[i] for i in keep], self.X[:, keep], self.z, noise)
 
     def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
-        """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``."""
+        """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``.
+
+        Parameters
+        ----------
+        rows : array_like or slice, optional
+            The samples summed over; None: all.
+
+        Returns
+        -------
+        A : numpy.ndarray of shape (n, n)
+            Compensated normal matrix.
+        b : numpy.ndarray of shape (n,)
+            Compensated right-hand side.
+        """
         return compensated_normal_equations(self.X, self.z, self.noise, rows)
 
     def solve(self, rows=None) -> np.ndarray:
+        """The bias-compensated estimate on ``rows``.
+
+        Parameters
+        ----------
+        rows : array_like or slice, optional
+            The samples fitted; None: all.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            The estimate.
+        """
         return solve_normal_equations(*self.moments(rows))
 
     def block_moments(self, edges: Sequence[int]) -> BlockMoments:
-        """The moments of the design summed over the blocked folds ``edges``."""
+        """The moments of the design summed over the blocked folds ``edges``.
+
+        Parameters
+        ----------
+        edges : sequence of int
+            Fold boundaries, from 0 to N.
+
+        Returns
+        -------
+        BlockMoments
+            The per-fold sums.
+        """
         return BlockMoments.of(self.X, self.z, self.noise, edges)
 
     def scores(self, theta: np.ndarray) -> np.ndarray:
-        """(N, m) per-sample terms of the noise-corrected normal equations at ``theta``."""
+        """Per-sample terms of the noise-corrected normal equations at ``theta``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray of shape (n,)
+            The parameters.
+
+        Returns
+        -------
+        numpy.ndarray of shape (N, n)
+            The scores
+            (:func:`~drake_uav.identification.statistics.errors_in_variables.moment_scores`).
+        """
         return moment_scores(self.X, self.z, theta, self.noise)
 
     def inverse_normal_matrix(self) -> np.ndarray:
-        """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse)."""
+        """``A^-1`` of the noise-corrected normal matrix (pseudo-inverse).
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, n)
+            The (pseudo-)inverse.
+        """
         return np.linalg.pinv(self.moments()[0])
 
     def result(self, confidence: float = 0.95,
                scores_covariance: np.ndarray | None = None) -> RegressionResult:
-        """The bias-compensated fit (:func:`~..estimators.regression.bcls`)."""
+        """The bias-compensated fit (:func:`~drake_uav.identification.statistics.regression.bcls`).
+
+        Parameters
+        ----------
+        confidence : float
+            Two-sided confidence level of the significance test.
+        scores_covariance : numpy.ndarray of shape (n, n), optional
+            Covariance of the summed scores (None: from these samples alone).
+
+        Returns
+        -------
+        RegressionResult
+            The fit.
+        """
         return bcls(self.X, self.z, self.noise, names=self.names, confidence=confidence,
                     scores_covariance=scores_covariance)
 
@@ -183,9 +334,26 @@ def baseline_names(params: FixedWingParams, coefficient: str) -> list[str]:
 
 
 def baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: str) -> Design:
-    """The catalog's terms of ``coefficient``; for C_D also the terms of a thrust identified
-    from the flight (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`),
-    fitted again with every effect on the drag axis."""
+    """The design of the catalog's terms of ``coefficient``.
+
+    For C_D also the terms of a thrust identified from the flight
+    (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`), fitted again
+    with every effect on the drag axis.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    params : FixedWingParams
+        The aircraft (its derivative names).
+    coefficient : str
+        One of ``CL, CD, CY, Cl, Cm, Cn``.
+
+    Returns
+    -------
+    Design
+        The baseline design.
+    """
     names = baseline_names(params, coefficient)
     with_thrust = coefficient == "CD"
 
@@ -209,21 +377,56 @@ def baseline_design(samples: AeroSamples, params: FixedWingParams, coefficient: 
 
 @dataclasses.dataclass(frozen=True)
 class IdentifiedDerivatives:
-    """The aircraft model's derivatives identified from one flight (:func:`fit_derivatives`)."""
+    """The aircraft model's derivatives identified from one flight (:func:`fit_derivatives`).
+
+    Indexing by a coefficient (``derivatives["CL"]``) gives its fit.
+
+    Attributes
+    ----------
+    fits : Mapping[str, RegressionResult]
+        Coefficient (``"CL"`` ...) -> its bias-compensated fit (method "BCLS").
+    names : tuple of str
+        Every derivative name, coefficient after coefficient.
+    estimate : numpy.ndarray of shape (n,)
+        Estimates in ``names`` order.
+    covariance : numpy.ndarray of shape (n, n)
+        Joint covariance: the six fits share sensor noise (e.g. the sideslip vane enters
+        C_Y, C_l and C_n), so their errors are correlated; the diagonal blocks are the fits'
+        own covariances.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> derivatives = fit_derivatives(samples, aerosonde(), coefficients=("CL",))
+    >>> derivatives.names
+    ('CL_0', 'CL_alpha', 'CL_q', 'CL_elevator')
+    >>> derivatives["CL"].method, derivatives.sigma.shape
+    ('BCLS', (4,))
+    """
 
     fits: Mapping[str, RegressionResult]
-    """Coefficient (``"CL"`` ...) -> its bias-compensated fit (method "BCLS")."""
     names: tuple[str, ...]
-    """Every derivative name, coefficient after coefficient."""
     estimate: np.ndarray
-    """(n,) estimates in ``names`` order."""
     covariance: np.ndarray
-    """(n, n) joint covariance: the six fits share sensor noise (e.g. the sideslip vane
-    enters C_Y, C_l and C_n), so their errors are correlated; the diagonal blocks are
-    the fits' own covariances."""
 
     def __getitem__(self, coefficient: str) -> RegressionResult:
-        """The fit of one coefficient."""
+        """The fit of one coefficient.
+
+        Parameters
+        ----------
+        coefficient : str
+            One of the fitted coefficients.
+
+        Returns
+        -------
+        RegressionResult
+            Its fit.
+        """
         return self.fits[coefficient]
 
     @property
@@ -252,6 +455,7 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
     Returns
     -------
     IdentifiedDerivatives
+        The fits, their estimates and joint covariance.
 
     Raises
     ------
@@ -260,8 +464,17 @@ def fit_derivatives(samples: AeroSamples, params: FixedWingParams,
 
     Examples
     --------
-    >>> derivatives = fit_derivatives(samples_from_log(log, params), params)  # doctest: +SKIP
-    >>> derivatives.estimate["CL_alpha"]                                        # doctest: +SKIP
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> derivatives = fit_derivatives(samples, aerosonde(), coefficients=("CL", "Cm"))
+    >>> derivatives.names[:4]
+    ('CL_0', 'CL_alpha', 'CL_q', 'CL_elevator')
+    >>> bool(derivatives["Cm"].estimate[derivatives["Cm"].names.index("Cm_alpha")] < 0)
+    True
     """
     designs = [baseline_design(samples, params, k) for k in coefficients]
     scores = np.hstack([d.scores(d.solve()) for d in designs])

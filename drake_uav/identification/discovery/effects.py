@@ -66,6 +66,27 @@ ColumnFunction = Callable[[AeroSamples, FixedWingParams], Mapping[str, np.ndarra
 class Effect:
     """A physical effect: its regressor columns per coefficient and what it means.
 
+    Attributes
+    ----------
+    name : str
+        Short name, used in column names (``"<name>:<column>"``) and reports.
+    explanation : str
+        One line on the physics.
+    coefficients : tuple of str
+        Coefficients the effect may enter.
+    columns : callable
+        ``columns(samples, params, coefficient) -> {column name: values}``.
+    kind : str
+        ``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data).
+    signals : tuple of str
+        ``AeroSamples.signals`` entries the effect needs.
+    condition : callable or None
+        Extra requirement on the data for the effect to be testable.
+    blind_folds : int
+        Blocked cross-validation folds the effect cannot improve by construction, which the
+        evidence rule does not ask it to: 1 for a linear drift, whose middle fold a constant
+        fitted on the folds either side already predicts.
+
     Examples
     --------
     >>> cubic = Effect("lift_break", "the lift falls off with the cube of alpha", ("CL",),
@@ -77,29 +98,44 @@ class Effect:
     name: str
     explanation: str
     coefficients: tuple[str, ...]
-    """Coefficients the effect may enter."""
     columns: Callable[[AeroSamples, FixedWingParams, str], Mapping[str, np.ndarray]]
-    """``columns(samples, params, coefficient) -> {column name: values}``."""
     kind: str = "aerodynamic"
-    """``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data)."""
     signals: tuple[str, ...] = ()
-    """``AeroSamples.signals`` entries the effect needs."""
     condition: Callable[[AeroSamples], bool] | None = None
-    """Extra requirement on the data for the effect to be testable."""
     blind_folds: int = 0
-    """Blocked cross-validation folds the effect cannot improve by construction, which the
-    evidence rule does not ask it to: 1 for a linear drift, whose middle fold a constant
-    fitted on the folds either side already predicts."""
 
     def candidate(self, params: FixedWingParams) -> Candidate:
-        """The effect as a plant-agnostic candidate of the evidence rule, on the samples each
-        coefficient is measured with (:meth:`AeroSamples.aligned`)."""
+        """The effect as a plant-agnostic candidate of the evidence rule.
+
+        On the samples each coefficient is measured with (:meth:`AeroSamples.aligned`).
+
+        Parameters
+        ----------
+        params : FixedWingParams
+            The aircraft the columns are computed for.
+
+        Returns
+        -------
+        Candidate
+            The candidate.
+        """
         return Candidate(self.name, self.explanation, self.coefficients,
                          lambda samples, k: self.columns(samples.aligned(k), params, k),
                          blind_folds=self.blind_folds, kind=self.kind)
 
     def available(self, samples: AeroSamples) -> bool:
-        """True when the samples carry every signal the effect needs (and meet its condition)."""
+        """Whether the samples carry every signal the effect needs (and meet its condition).
+
+        Parameters
+        ----------
+        samples : AeroSamples
+            The samples.
+
+        Returns
+        -------
+        bool
+            True when the effect can be tested on them.
+        """
         if not all(s in samples.signals for s in self.signals):
             return False
         return self.condition is None or bool(self.condition(samples))
@@ -363,15 +399,40 @@ PRODUCT_KEYS = tuple(itertools.combinations_with_replacement(BASE_SIGNALS, 2))
 
 
 def base_signals(samples: AeroSamples, params: FixedWingParams) -> dict[str, np.ndarray]:
-    """Signals whose products form the data-driven fallback candidates."""
+    """Signals whose products form the data-driven fallback candidates.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    params : FixedWingParams
+        The aircraft (reference lengths of the normalised rates).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Name (:data:`BASE_SIGNALS`) -> (N,) values.
+    """
     signals = _normalised(samples, params)
     return {name: signals[signal] for name, signal in BASE_SIGNALS.items()}
 
 
 def product_candidates(samples: AeroSamples, params: FixedWingParams
                        ) -> dict[tuple[str, ...], np.ndarray]:
-    """Squares and pairwise products of :func:`base_signals`, keyed by the signal names
-    (:data:`PRODUCT_KEYS`)."""
+    """Squares and pairwise products of :func:`base_signals`.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    params : FixedWingParams
+        The aircraft.
+
+    Returns
+    -------
+    dict of (str, str) to numpy.ndarray
+        Signal-name pair (:data:`PRODUCT_KEYS`) -> (N,) product.
+    """
     signals = base_signals(samples, params)
     return {(a, b): signals[a] * signals[b] for a, b in PRODUCT_KEYS}
 
@@ -397,14 +458,24 @@ def _logged_columns(key: str, main: str | None, reference: float):
 
 
 def logged_effects(samples: AeroSamples) -> list[Effect]:
-    """The data-driven candidates of the log's extra channels (``logged:<channel>`` in
-    ``samples.signals``): per channel, the channel itself on every coefficient and its
-    product with alpha (C_L, C_D, C_m) and with beta (C_Y, C_l, C_n); a channel in N or
-    N m enters over ``qbar S`` (:data:`LOGGED_FORCE_UNITS`).
+    """The data-driven candidates of the log's extra channels.
 
-    The product takes alpha (beta) about its mean over ``samples``, one constant for the
-    training and the held-out parts alike: alpha hardly leaves its trim value, and the
-    plain product would be the channel itself again, scaled.
+    Per ``logged:<channel>`` entry of ``samples.signals``: the channel itself on every
+    coefficient and its product with alpha (C_L, C_D, C_m) and with beta (C_Y, C_l, C_n);
+    a channel in N or N m enters over ``qbar S`` (:data:`LOGGED_FORCE_UNITS`). The product
+    takes alpha (beta) about its mean over ``samples``, one constant for the training and
+    the held-out parts alike: alpha hardly leaves its trim value, and the plain product
+    would be the channel itself again, scaled.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+
+    Returns
+    -------
+    list of Effect
+        One effect per channel (kind "aerodynamic").
     """
     out = []
     for key in (k for k in samples.signals if k.startswith(LOGGED)):

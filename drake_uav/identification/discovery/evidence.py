@@ -64,73 +64,127 @@ POINT_SEARCH_PARAMETERS = 3
 class Candidate:
     """A candidate effect, plant-agnostic: what it is and the columns it adds.
 
+    Attributes
+    ----------
+    name : str
+        Its name in the findings.
+    explanation : str
+        One line of physics: what would cause it.
+    quantities : tuple of str
+        The measured quantities it may act on (coefficients, for the fixed-wing job).
+    columns : callable
+        ``columns(samples, quantity) -> {column name: (N,) values}``; a column of zeros
+        means the parameter does not enter that quantity.
+    parameters : tuple of str
+        The parameters shared by every quantity (:attr:`joint`); empty for a candidate with
+        its own parameters, one per column, on each quantity.
+    joint : bool
+        True: one parameter set over all the quantities, tested jointly (a force moves the
+        lift, the drag and the side force together); False: each quantity tested on its own.
+    blind_folds : int
+        Folds the candidate cannot improve by construction (a linear drift's middle fold),
+        which the rule does not ask it to.
+    searched : int
+        Candidate points its point was chosen from (0: none); the p-value is multiplied by
+        it (Bonferroni) and the BIC counts :data:`POINT_SEARCH_PARAMETERS` more parameters.
+    kind : str
+        ``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data).
+
     Examples
     --------
-    A term in the square of the elevator on the pitching moment::
+    A term in the square of the elevator on the pitching moment:
 
-        Candidate("elevator_squared", "the elevator's moment grows with its square",
-                  ("Cm",), lambda samples, k: {"de2": samples.condition.elevator ** 2})
+    >>> squared = Candidate("elevator_squared", "the elevator's moment grows with its square",
+    ...                     ("Cm",), lambda samples, k: {"de2": samples.condition.elevator ** 2})
+    >>> squared.quantities, squared.joint
+    (('Cm',), False)
     """
 
     name: str
-    """Its name in the findings."""
     explanation: str
-    """One line of physics: what would cause it."""
     quantities: tuple[str, ...]
-    """The measured quantities it may act on (coefficients, for the fixed-wing job)."""
     columns: Callable[[Any, str], Mapping[str, np.ndarray]]
-    """``columns(samples, quantity) -> {column name: (N,) values}``; a column of zeros
-    means the parameter does not enter that quantity."""
     parameters: tuple[str, ...] = ()
-    """The parameters shared by every quantity (:attr:`joint`); empty for a candidate with
-    its own parameters, one per column, on each quantity."""
     joint: bool = False
-    """True: one parameter set over all the quantities, tested jointly (a force moves the
-    lift, the drag and the side force together); False: each quantity tested on its own."""
     blind_folds: int = 0
-    """Folds the candidate cannot improve by construction (a linear drift's middle fold),
-    which the rule does not ask it to."""
     searched: int = 0
-    """Candidate points its point was chosen from (0: none); the p-value is multiplied by
-    it (Bonferroni) and the BIC counts :data:`POINT_SEARCH_PARAMETERS` more parameters."""
     kind: str = "aerodynamic"
-    """``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data)."""
 
 
 @dataclasses.dataclass(frozen=True)
 class CandidateColumns:
-    """A candidate's columns on the training samples and their noise sensitivities."""
+    """A candidate's columns on the training samples and their noise sensitivities.
+
+    Attributes
+    ----------
+    columns : Mapping[str, numpy.ndarray]
+        Column name -> (N,) values.
+    jacobians : Mapping[str, Mapping[str, numpy.ndarray]]
+        Noise source -> column name -> d column / d source.
+    """
 
     columns: Mapping[str, np.ndarray]
     jacobians: Mapping[str, Mapping[str, np.ndarray]]
-    """Noise source -> column name -> d column / d source."""
 
     def pick(self, names: Sequence[str]) -> CandidateColumns:
-        """The columns ``names`` only."""
+        """The columns ``names`` only.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The columns kept.
+
+        Returns
+        -------
+        CandidateColumns
+            The selected columns and their sensitivities.
+        """
         return CandidateColumns({k: self.columns[k] for k in names},
                                 {s: {k: j[k] for k in names} for s, j in self.jacobians.items()})
 
 
 def nonzero_columns(columns: CandidateColumns) -> CandidateColumns:
-    """The columns that are not zero everywhere (the parameters that enter)."""
+    """The columns that are not zero everywhere (the parameters that enter).
+
+    Parameters
+    ----------
+    columns : CandidateColumns
+        A candidate's columns.
+
+    Returns
+    -------
+    CandidateColumns
+        Those not zero everywhere.
+    """
     return columns.pick([n for n, v in columns.columns.items() if np.any(v != 0.0)])
 
 
 @dataclasses.dataclass(frozen=True)
 class RoundBase:
-    """The current design of one quantity and its statistics, shared by the candidates."""
+    """The current design of one quantity and its statistics, shared by the candidates.
+
+    Attributes
+    ----------
+    design : Design
+        The current design.
+    n_eff : float
+        Effective sample size of the design's residual.
+    fold_errors : numpy.ndarray of shape (2, K)
+        Observed and noise-corrected held-out errors.
+    sse : (float, float)
+        Observed and noise-corrected training error.
+    blocks : BlockMoments
+        The design's moments per fold, which every candidate extends.
+    basis : numpy.ndarray
+        Orthonormal basis of the design's columns (redundancy test of candidate columns).
+    """
 
     design: Design
     n_eff: float
-    """Effective sample size of the design's residual."""
     fold_errors: np.ndarray
-    """(2, K) observed and noise-corrected held-out errors."""
     sse: tuple[float, float]
-    """Observed and noise-corrected training error."""
     blocks: BlockMoments
-    """The design's moments per fold, which every candidate extends."""
     basis: np.ndarray
-    """Orthonormal basis of the design's columns (redundancy test of candidate columns)."""
 
 
 def round_base(design: Design, edges: Sequence[int]) -> RoundBase:
@@ -171,8 +225,20 @@ def _column_space(X: np.ndarray) -> np.ndarray:
 
 
 def redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
-    """(m,) True where a column of ``columns`` (N, m) is (nearly) in the span of the
-    orthonormal ``basis``, or zero."""
+    """Which columns are (nearly) in the span of an orthonormal basis, or zero.
+
+    Parameters
+    ----------
+    basis : numpy.ndarray of shape (N, r)
+        Orthonormal columns.
+    columns : numpy.ndarray of shape (N, m)
+        The columns tested.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (m,)
+        True for a redundant or zero column.
+    """
     norm = np.linalg.norm(columns, axis=0)
     r = columns - basis @ (basis.T @ columns)
     with np.errstate(invalid="ignore"):
@@ -183,15 +249,50 @@ def redundant(basis: np.ndarray, columns: np.ndarray) -> np.ndarray:
 
 
 def folds_pass(reduction, improved, rule: EvidenceRule, blind_folds=0):
-    """The cross-validation part of the rule: the mean relative reduction of the held-out
-    error reaches :attr:`EvidenceRule.min_pse_reduction` and at least
-    :attr:`EvidenceRule.min_folds` folds (less ``blind_folds``) improve."""
+    """The cross-validation part of the evidence rule.
+
+    The mean relative reduction of the held-out error reaches
+    :attr:`EvidenceRule.min_pse_reduction` and at least :attr:`EvidenceRule.min_folds`
+    folds (less ``blind_folds``) improve.
+
+    Parameters
+    ----------
+    reduction : float or numpy.ndarray
+        Mean relative reduction of the held-out error.
+    improved : int or numpy.ndarray
+        Number of folds improved.
+    rule : EvidenceRule
+        The thresholds.
+    blind_folds : int
+        Folds the candidate cannot improve by construction.
+
+    Returns
+    -------
+    bool or numpy.ndarray of bool
+        Whether the folds pass (elementwise for arrays).
+    """
     return (reduction >= rule.min_pse_reduction) & (improved >= rule.min_folds - blind_folds)
 
 
 def bic_term(n_eff, sse: float, drop, parameters):
-    """One quantity's part of BIC(with) - BIC(without): the training error ``sse`` falling
-    by ``drop`` over ``n_eff`` effective samples, for ``parameters`` more parameters."""
+    """One quantity's part of BIC(with) - BIC(without).
+
+    Parameters
+    ----------
+    n_eff : float or numpy.ndarray
+        Effective number of samples.
+    sse : float
+        Training squared error without the candidate.
+    drop : float or numpy.ndarray
+        By how much the candidate lowers it.
+    parameters : int
+        Number of parameters the candidate adds.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The BIC difference; negative favours the candidate.
+    """
     return n_eff * np.log(np.maximum(sse - drop, 1e-300) / sse) + parameters * np.log(n_eff)
 
 
@@ -341,8 +442,23 @@ def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class JointBlock:
-    """One quantity's compensated normal equations ``(A, b)`` of ``[X | V_k]``: ``p``
-    own columns, then the shared parameters ``index`` (of the candidate's) entering it."""
+    """One quantity's compensated normal equations ``(A, b)`` of ``[X | V_k]``.
+
+    ``p`` own columns, then the shared parameters ``index`` (of the candidate's) entering it.
+
+    Attributes
+    ----------
+    A : numpy.ndarray of shape (..., p + m, p + m)
+        Compensated normal matrix.
+    b : numpy.ndarray of shape (..., p + m)
+        Compensated right-hand side.
+    p : int
+        Number of the quantity's own columns.
+    index : numpy.ndarray of int, shape (m,)
+        Which of the candidate's shared parameters enter this quantity.
+    weight : float
+        The quantity's weight in the joint fit [1/quantity^2].
+    """
 
     A: np.ndarray
     b: np.ndarray
@@ -353,9 +469,27 @@ class JointBlock:
 
 def joint_solve(blocks: Sequence[JointBlock], q: int
                 ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
-    """The shared parameters ``phi`` (..., q), each quantity's own ``theta`` (..., p)
-    and the reduced normal matrix (..., q, q): the weighted stacked normal equations with
-    every quantity's columns eliminated (Schur complements)."""
+    """The shared parameters and each quantity's own, from the weighted stacked equations.
+
+    Every quantity's own columns are eliminated (Schur complements), leaving the reduced
+    normal matrix of the shared parameters.
+
+    Parameters
+    ----------
+    blocks : sequence of JointBlock
+        One per quantity.
+    q : int
+        Number of shared parameters.
+
+    Returns
+    -------
+    phi : numpy.ndarray of shape (..., q)
+        The shared parameters.
+    thetas : list of numpy.ndarray of shape (..., p)
+        Each quantity's own parameters.
+    S : numpy.ndarray of shape (..., q, q)
+        The reduced normal matrix.
+    """
     lead = blocks[0].A.shape[:-2]
     S, s = np.zeros((*lead, q, q)), np.zeros((*lead, q))
     parts = []
@@ -375,22 +509,45 @@ def joint_solve(blocks: Sequence[JointBlock], q: int
 
 @dataclasses.dataclass(frozen=True)
 class JointEvidence:
-    """The joint test of one candidate over the quantities it moves."""
+    """The joint test of one candidate over the quantities it moves.
+
+    Attributes
+    ----------
+    effect : object
+        The candidate tested (for the fixed-wing job, a
+        :class:`~drake_uav.identification.discovery.vector_effects.VectorEffect`).
+    coefficients : tuple of str
+        The quantities it moves.
+    parameters : tuple of str
+        The shared parameters tested (the degrees of freedom of the test).
+    estimate : numpy.ndarray
+        Their joint estimate on the training part.
+    pse_reduction : float
+        Mean over the folds of the held-out error removed, summed over the quantities in
+        units of each one's error (:attr:`total` is the same mean taken per quantity).
+    folds_improved : int
+        Folds whose summed held-out error fell.
+    reductions : Mapping[str, float]
+        Per quantity: mean relative reduction of its held-out error over the folds.
+    improved : Mapping[str, int]
+        Per quantity: folds improved.
+    f_statistic : float
+        Joint partial F statistic.
+    p_value : float
+        Its p-value (effective sample size).
+    delta_bic : float
+        BIC(with) - BIC(without); negative favours the candidate.
+    passed : bool
+        Whether it passed every threshold of the rule.
+    """
 
     effect: Any
-    """The candidate tested (for the fixed-wing job, a
-    :class:`~drake_uav.identification.discovery.vector_effects.VectorEffect`)."""
     coefficients: tuple[str, ...]
     parameters: tuple[str, ...]
-    """The shared parameters tested (the degrees of freedom of the test)."""
     estimate: np.ndarray
-    """Their joint estimate on the training part."""
     pse_reduction: float
-    """Mean over the folds of the held-out error removed, summed over the quantities in
-    units of each one's error (:attr:`total` is the same mean taken per quantity)."""
     folds_improved: int
     reductions: Mapping[str, float]
-    """Per quantity: mean relative reduction of its held-out error over the folds."""
     improved: Mapping[str, int]
     f_statistic: float
     p_value: float
@@ -404,8 +561,13 @@ class JointEvidence:
         return float(sum(self.reductions.values()))
 
     def evidence(self) -> list[Evidence]:
-        """One :class:`Evidence` per quantity: the joint statistics with the quantity's own
-        held-out reduction."""
+        """One :class:`Evidence` per quantity: the joint statistics with its own held-out reduction.
+
+        Returns
+        -------
+        list of Evidence
+            In the order of :attr:`coefficients`.
+        """
         return [Evidence(self.effect.name, k, self.parameters, self.reductions[k],
                          self.improved[k], self.f_statistic, self.p_value, self.delta_bic,
                          self.passed) for k in self.coefficients]
@@ -553,8 +715,24 @@ def score_jointly(effect: Any, parameters: Sequence[str],
 
 def candidate_columns(candidate: Candidate, quantity: str, variants: Perturbations,
                       variance: Mapping[str, float]) -> CandidateColumns:
-    """The columns of ``candidate`` on ``quantity`` and their sensitivities to the noise
-    sources of ``variance`` (the samples ``variants`` perturbed one source at a time)."""
+    """The columns of ``candidate`` on ``quantity`` and their sensitivities to the noise sources.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The candidate.
+    quantity : str
+        The quantity (coefficient).
+    variants : Perturbations
+        The samples, perturbed one source at a time.
+    variance : Mapping[str, float]
+        Noise source -> variance; its keys are the sources differentiated.
+
+    Returns
+    -------
+    CandidateColumns
+        The columns and their sensitivities.
+    """
     return CandidateColumns(*columns_and_jacobians(
         lambda samples: candidate.columns(samples, quantity), variants, variance))
 
@@ -585,8 +763,20 @@ def score(candidate: Candidate, bases: Mapping[str, RoundBase], variants: Pertur
 
     Examples
     --------
-    >>> evidence = score(candidate, bases, Perturbations(train), EvidenceRule())
-    >>> [(e.coefficient, e.passed) for e in evidence]   # doctest: +SKIP
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import effect_library, samples_from_log
+    >>> from drake_uav.identification.discovery.coefficient_design import baseline_design
+    >>> from drake_uav.identification.statistics.blocked_folds import fold_edges
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> design = baseline_design(samples, aerosonde(), "CD")
+    >>> bases = {"CD": round_base(design, fold_edges(len(samples), 5))}
+    >>> propwash = next(e for e in effect_library() if e.name == "thrust_propwash")
+    >>> evidence = score(propwash.candidate(aerosonde()), bases, Perturbations(samples),
+    ...                  EvidenceRule())
+    >>> [(e.coefficient, e.passed) for e in evidence]
     [('CD', True)]
     """
     quantities = [k for k in candidate.quantities if k in bases]

@@ -61,19 +61,55 @@ _POSITION = ("gps_pn", "gps_pe", "gps_pd")
 
 
 def ned_to_body(samples: AeroSamples, v: np.ndarray) -> np.ndarray:
-    """NED vectors (..., N, 3) in body axes at each sample's attitude."""
+    """NED vectors in body axes at each sample's attitude.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples (their ``roll``, ``pitch`` and ``yaw`` signals [rad]).
+    v : numpy.ndarray of shape (..., N, 3)
+        NED vectors, one per sample.
+
+    Returns
+    -------
+    numpy.ndarray of shape (..., N, 3)
+        The same vectors in body axes.
+    """
     rotation = euler_to_rotmat(np.array([samples.signals[s] for s in _ATTITUDE]))
     return np.einsum("ijn,...ni->...nj", rotation, v)
 
 
 def positions(samples: AeroSamples) -> np.ndarray:
-    """The GPS positions (N, 3) [m, NED] of ``samples``."""
+    """The GPS positions of ``samples``.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples (their GPS position signals).
+
+    Returns
+    -------
+    numpy.ndarray of shape (N, 3)
+        Positions [m, NED].
+    """
     return np.column_stack([samples.signals[s] for s in _POSITION])
 
 
 def unit_vectors_towards(path: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """(3, m, N) NED components of the unit vectors towards each of ``points`` (m, 3) [m]
-    from the positions ``path`` (N, 3) [m]."""
+    """NED components of the unit vectors from the positions ``path`` towards each point.
+
+    Parameters
+    ----------
+    path : numpy.ndarray of shape (N, 3)
+        Positions [m, NED].
+    points : numpy.ndarray of shape (m, 3)
+        Points [m, NED].
+
+    Returns
+    -------
+    numpy.ndarray of shape (3, m, N)
+        The unit vectors' components.
+    """
     d = points.T[:, :, None] - path.T[:, None, :]
     return d / np.sqrt(np.maximum(np.sum(d * d, axis=0), 1e-18))
 
@@ -87,28 +123,65 @@ def _offsets(samples: AeroSamples, point) -> tuple[np.ndarray, np.ndarray]:
 
 
 def towards(samples: AeroSamples, point) -> np.ndarray:
-    """Body-axis unit vectors (N, 3) towards the NED ``point`` [m]."""
+    """Body-axis unit vectors towards the NED ``point``.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples (GPS position and attitude).
+    point : array_like of shape (3,)
+        The point [m, NED].
+
+    Returns
+    -------
+    numpy.ndarray of shape (N, 3)
+        The unit vectors, body axes.
+    """
     return ned_to_body(samples, _offsets(samples, point)[0])
 
 
 def towards_gradient(samples: AeroSamples, point) -> np.ndarray:
-    """(N, 3, 3) derivatives [1/m] of :func:`towards` along each NED coordinate of
-    ``point`` (last axis): ``(I - u u') / r`` in body axes."""
+    """Derivatives of :func:`towards` along each NED coordinate of ``point``.
+
+    ``(I - u u') / r`` in body axes.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples (GPS position and attitude).
+    point : array_like of shape (3,)
+        The point [m, NED].
+
+    Returns
+    -------
+    numpy.ndarray of shape (N, 3, 3)
+        [1/m]; the last axis is the NED coordinate of ``point``.
+    """
     u, r = _offsets(samples, point)
     ned = (np.eye(3)[None] - u[:, :, None] * u[:, None, :]) / r[:, None, None]
     return np.stack([ned_to_body(samples, ned[:, :, j]) for j in range(3)], axis=-1)
 
 
 def candidate_points(path: np.ndarray) -> np.ndarray:
-    """(G, 3) NED points [m] around the flight ``path`` (N, 3) [m]: shells of points
-    between ``d`` and ``2 d`` from the path, ``d`` = :data:`NEAREST`, twice that, ... up to
-    :data:`FARTHEST` times the path's extent (the last shell unbounded outside), each a
-    cubic lattice of step :data:`SPACING` ``d`` over the path's box widened by ``2 d``.
-    When they are more than :data:`MAX_CANDIDATES` (a long flight over a wide area), the
-    innermost shells are left out until they are not.
+    """The NED points around the flight ``path`` where a fixed point is searched.
 
-    The direction to a point ``d`` from the path turns over the ``~2 d`` of the path
-    nearest to it, so a step proportional to ``d`` resolves every shell alike.
+    Shells of points between ``d`` and ``2 d`` from the path, ``d`` = :data:`NEAREST`,
+    twice that, ... up to :data:`FARTHEST` times the path's extent (the last shell
+    unbounded outside), each a cubic lattice of step :data:`SPACING` ``d`` over the path's
+    box widened by ``2 d``. When they are more than :data:`MAX_CANDIDATES` (a long flight
+    over a wide area), the innermost shells are left out until they are not. The direction
+    to a point ``d`` from the path turns over the ``~2 d`` of the path nearest to it, so a
+    step proportional to ``d`` resolves every shell alike.
+
+    Parameters
+    ----------
+    path : numpy.ndarray of shape (N, 3)
+        The flight's positions [m, NED].
+
+    Returns
+    -------
+    numpy.ndarray of shape (G, 3)
+        The candidate points [m, NED].
     """
     from scipy.spatial import cKDTree
 
@@ -135,22 +208,45 @@ def candidate_points(path: np.ndarray) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class PointFit:
-    """Where the profile search put the point."""
+    """Where the profile search put the point.
+
+    Attributes
+    ----------
+    grid_point : (float, float, float)
+        The best candidate point, NED [m]: the one the effect is tested at.
+    point : (float, float, float)
+        The refined point, NED [m]: the one the effect is estimated at.
+    candidates : int
+        Number of candidate points searched (the Bonferroni factor of the test).
+    """
 
     grid_point: tuple[float, float, float]
-    """The best candidate point, NED [m]: the one the effect is tested at."""
     point: tuple[float, float, float]
-    """The refined point, NED [m]: the one the effect is estimated at."""
     candidates: int
-    """Number of candidate points searched (the Bonferroni factor of the test)."""
 
 
 def locate_point(path: np.ndarray, profile: Callable[[np.ndarray], np.ndarray],
                  points: np.ndarray | None = None, chunk: int = 512) -> PointFit:
-    """The point of a force towards a fixed point (module docstring): the largest
-    ``profile(points (m, 3)) -> D (m,)`` over the candidate ``points`` (default
-    :func:`candidate_points` of the flight ``path`` (N, 3) [m, NED]), ``chunk`` at a
-    time, refined by a simplex search from there.
+    """The point of a force towards a fixed point (module docstring).
+
+    The largest ``profile`` over the candidate points, ``chunk`` at a time, refined by a
+    simplex search from there.
+
+    Parameters
+    ----------
+    path : numpy.ndarray of shape (N, 3)
+        The flight's positions [m, NED].
+    profile : callable
+        ``profile(points (m, 3)) -> D (m,)``.
+    points : numpy.ndarray of shape (G, 3), optional
+        The candidate points (default :func:`candidate_points` of ``path``).
+    chunk : int
+        Points evaluated per call of ``profile``.
+
+    Returns
+    -------
+    PointFit
+        The best candidate and the refined point.
     """
     from scipy.optimize import minimize
 
@@ -175,32 +271,68 @@ def locate_point(path: np.ndarray, profile: Callable[[np.ndarray], np.ndarray],
 
 @dataclasses.dataclass(frozen=True)
 class ProfileKernels:
-    """One force coefficient's part of ``D(P)`` (:class:`PointProfile`) for the force's
-    column ``v = sum_i a_i u_i``: ``v' X - E[dv' dX] = sum_i u_i' x_i``,
-    ``v' z - E[dv' dz] = sum_i u_i' z_i`` and ``v' v - E[dv' dv] = sum_n u_n' V_n u_n``, the
-    bias-compensated moments of the design ``[X | v]`` (Fuller 1987, eq. 2.2.4, as
-    :class:`~..estimators.errors_in_variables.BlockMoments` computes them)."""
+    """One force coefficient's part of ``D(P)`` (:class:`PointProfile`).
+
+    For the force's column ``v = sum_i a_i u_i``: ``v' X - E[dv' dX] = sum_i u_i' x_i``,
+    ``v' z - E[dv' dz] = sum_i u_i' z_i`` and ``v' v - E[dv' dv] = sum_n u_n' V_n u_n``,
+    the bias-compensated moments of the design ``[X | v]`` (Fuller 1987, eq. 2.2.4, as
+    :class:`~drake_uav.identification.statistics.errors_in_variables.BlockMoments`
+    computes them).
+
+    Attributes
+    ----------
+    x : numpy.ndarray of shape (3, N, p)
+        The kernels of ``v' X``.
+    z : numpy.ndarray of shape (3, N)
+        The kernels of ``v' z``.
+    v : numpy.ndarray of shape (6, N)
+        The entries xx, yy, zz, 2 xy, 2 xz, 2 yz of the symmetric ``V_n``.
+    inverse : numpy.ndarray of shape (p, p)
+        The design's own compensated normal matrix inverted.
+    estimate : numpy.ndarray of shape (p,)
+        The design's own estimate.
+    weight : float
+        The coefficient's weight in the joint fit [1/coefficient^2].
+    """
 
     x: np.ndarray
-    """(3, N, p)."""
     z: np.ndarray
-    """(3, N)."""
     v: np.ndarray
-    """(6, N): the entries xx, yy, zz, 2 xy, 2 xz, 2 yz of the symmetric ``V_n``."""
     inverse: np.ndarray
-    """(p, p) the design's own compensated normal matrix inverted."""
     estimate: np.ndarray
-    """(p,) the design's own estimate."""
     weight: float
-    """The coefficient's weight in the joint fit [1/coefficient^2]."""
 
     @classmethod
     def of(cls, a: np.ndarray, sensitivities: Mapping[str, np.ndarray], X: np.ndarray,
            z: np.ndarray, noise: PropagatedNoise, A: np.ndarray, b: np.ndarray,
            weight: float) -> ProfileKernels:
-        """The kernels of a coefficient's design ``(X, z)`` with regressor noise ``noise``,
-        its compensated normal equations ``(A, b)`` and ``weight``, for the column factors
-        ``a`` (N, 3) and their sensitivities (N, 3) to the noise sources."""
+        """The kernels of one coefficient's design.
+
+        Parameters
+        ----------
+        a : numpy.ndarray of shape (N, 3)
+            The column factors: the change of the coefficient by a unit force along each NED
+            axis.
+        sensitivities : Mapping[str, numpy.ndarray]
+            Noise source -> (N, 3) sensitivity of ``a``.
+        X : numpy.ndarray of shape (N, p)
+            The design's columns.
+        z : numpy.ndarray of shape (N,)
+            The measured coefficient.
+        noise : PropagatedNoise
+            The design's regressor noise.
+        A : numpy.ndarray of shape (p, p)
+            Its compensated normal matrix.
+        b : numpy.ndarray of shape (p,)
+            Its compensated right-hand side.
+        weight : float
+            The coefficient's weight in the joint fit.
+
+        Returns
+        -------
+        ProfileKernels
+            The kernels.
+        """
         K_x = a.T[:, :, None] * X[None]
         k_z = a.T * z[None]
         K = a[:, :, None] * a[:, None, :]
@@ -219,8 +351,7 @@ class ProfileKernels:
 
 
 class PointProfile:
-    """``D(P)`` of the module docstring over a flight ``path`` (N, 3) [m, NED] sampled at
-    ``time`` (N,) [s], against each round's designs (:meth:`against`).
+    """``D(P)`` of the module docstring over a flight path, against each round's designs.
 
     The force's column on coefficient ``k`` is ``v = sum_i a_i u_i``: ``a`` (N, 3) the
     change of ``k`` by a unit force along each NED axis, which depends on the air data,
@@ -231,7 +362,15 @@ class PointProfile:
     components and their products are taken as straight lines between knots every
     :data:`KNOT_STEP` samples, so that the kernels are summed onto the knots once per round
     and each point costs a few products of the knots' length. The test itself is the
-    exact one at the best candidate point.
+    exact one at the best candidate point. Calling the profile with points (m, 3) gives
+    their ``D`` (m,) (:meth:`against` first).
+
+    Parameters
+    ----------
+    path : numpy.ndarray of shape (N, 3)
+        The flight's positions [m, NED].
+    time : numpy.ndarray of shape (N,)
+        Their times [s] (joined spans keep their gaps).
     """
 
     def __init__(self, path: np.ndarray, time: np.ndarray):
@@ -257,7 +396,18 @@ class PointProfile:
                          for v in values.T], axis=1)
 
     def against(self, kernels: Mapping[str, ProfileKernels]) -> PointProfile:
-        """This profile against the round's force coefficients' ``kernels``."""
+        """This profile against the round's force coefficients' ``kernels``.
+
+        Parameters
+        ----------
+        kernels : Mapping[str, ProfileKernels]
+            Coefficient -> its kernels.
+
+        Returns
+        -------
+        PointProfile
+            This profile, ready to evaluate.
+        """
         self._kernels = []
         for k in kernels.values():
             n, p = k.x.shape[1:]
@@ -282,6 +432,12 @@ class PointProfile:
                         0.0)
 
     def locate(self) -> PointFit:
-        """:func:`locate_point` on this profile's candidates."""
+        """:func:`locate_point` on this profile's candidates.
+
+        Returns
+        -------
+        PointFit
+            The best candidate and the refined point.
+        """
         return locate_point(self.path, self, self.candidates,
                             chunk=max(1, _PROFILE_ELEMENTS // len(self.knots)))

@@ -301,9 +301,15 @@ def discover(samples: AeroSamples, params: FixedWingParams,
 
     Examples
     --------
-    >>> result = discover(samples, aerosonde())          # doctest: +SKIP
-    >>> result.message                                   # doctest: +SKIP
-    'missing effect(s) found: stall_onset (CL)'
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CL", "CD"))
+    >>> result.message
+    'missing effect(s) found: thrust_propwash (CD)'
     """
     rule = rule or EvidenceRule()
     effects = [e for e in (effects or effect_library()) if e.available(samples)]
@@ -428,9 +434,21 @@ def _round(search: _Search, bases: Mapping[str, RoundBase], used: set[str],
 
 
 def check_coefficients(coefficients: Sequence[str]) -> None:
-    """Raises ValueError unless ``coefficients`` is a non-empty selection of
-    :data:`~drake_uav.model.coefficients.COEFFICIENTS` (names are case-sensitive: ``CL``
-    is the lift, ``Cl`` the rolling moment)."""
+    """Check a selection of coefficients.
+
+    Names are case-sensitive: ``CL`` is the lift, ``Cl`` the rolling moment.
+
+    Parameters
+    ----------
+    coefficients : sequence of str
+        The selection.
+
+    Raises
+    ------
+    ValueError
+        Unless ``coefficients`` is a non-empty selection of
+        :data:`~drake_uav.model.coefficients.COEFFICIENTS`.
+    """
     if isinstance(coefficients, str) or not coefficients:
         raise ValueError(f"coefficients: expected a non-empty sequence of names of "
                          f"{', '.join(COEFFICIENTS)}, got {coefficients!r}")

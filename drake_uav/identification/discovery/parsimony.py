@@ -49,25 +49,38 @@ class DroppedTerm:
 
     The errors are RMS of the observed equation error [-], before and after the term was
     removed (the terms dropped before it already out); the gains are what the rule read.
+
+    Attributes
+    ----------
+    coefficient : str
+        The coefficient.
+    term : str
+        The term dropped.
+    pse_with : float
+        Cross-validated held-out RMS with the term: each fold predicted by the fit on the
+        others [-].
+    pse_without : float
+        The same without it [-].
+    edges_with : float
+        RMS over the first and last blocks predicted by the fit on the middle ones, with the
+        term [-].
+    edges_without : float
+        The same without it [-].
+    pse_gain : float
+        Mean over the folds of the held-out error the term removes, without its
+        regressor-noise part, fraction of the error without it [-].
+    edges_gain : float
+        The same on the edges [-].
     """
 
     coefficient: str
     term: str
     pse_with: float
-    """Cross-validated held-out RMS with the term: each fold predicted by the fit on the
-    others [-]."""
     pse_without: float
-    """The same without it [-]."""
     edges_with: float
-    """RMS over the first and last blocks predicted by the fit on the middle ones, with the
-    term [-]."""
     edges_without: float
-    """The same without it [-]."""
     pse_gain: float
-    """Mean over the folds of the held-out error the term removes, without its
-    regressor-noise part, fraction of the error without it [-]."""
     edges_gain: float
-    """The same on the edges [-]."""
 
     @property
     def line(self) -> str:
@@ -80,8 +93,15 @@ class DroppedTerm:
 
 @dataclasses.dataclass(frozen=True)
 class Pruning:
-    """The terms of one coefficient kept (in their order) and those dropped (in the order
-    dropped)."""
+    """The terms of one coefficient kept and those dropped.
+
+    Attributes
+    ----------
+    kept : tuple of str
+        The terms kept, in their order.
+    dropped : tuple of DroppedTerm
+        The terms dropped, in the order dropped.
+    """
 
     kept: tuple[str, ...]
     dropped: tuple[DroppedTerm, ...]
@@ -122,9 +142,37 @@ def _errors(blocks: BlockMoments, X: np.ndarray, z: np.ndarray, keep: Sequence[i
 def prune(coefficient: str, names: Sequence[str], X: np.ndarray, z: np.ndarray,
           noise: PropagatedNoise, edges: Sequence[int], min_gain: float,
           always: Sequence[str] = ()) -> Pruning:
-    """Backward elimination of the columns ``names`` of the design ``(X, z)`` with regressor
-    noise ``noise`` over the blocked folds ``edges`` (at least three: the edge check fits
-    the middle ones); ``always`` are never dropped (the constant). See the module."""
+    """Backward elimination of the columns of the design ``(X, z)`` (see the module).
+
+    Parameters
+    ----------
+    coefficient : str
+        The coefficient (for the records).
+    names : sequence of str
+        The column names.
+    X : numpy.ndarray of shape (N, n)
+        Regressor columns.
+    z : numpy.ndarray of shape (N,)
+        The measured coefficient.
+    noise : PropagatedNoise
+        The regressor noise.
+    edges : sequence of int
+        Blocked fold boundaries (at least three folds: the edge check fits the middle ones).
+    min_gain : float
+        Gain a term must show on the folds or on the edges to be kept (fraction).
+    always : sequence of str
+        Terms never dropped (the constant).
+
+    Returns
+    -------
+    Pruning
+        The terms kept and dropped.
+
+    Raises
+    ------
+    ValueError
+        With fewer than three folds.
+    """
     if len(edges) < 4:
         raise ValueError(f"prune: {len(edges) - 1} folds; the edge check needs at least 3")
     blocks = BlockMoments.of(X, z, noise, edges)

@@ -42,12 +42,23 @@ _DOWNWASH_LAG = ("Etkin & Reid 1996, ch. 5 (the alpha-dot derivatives: the tail 
 
 @dataclasses.dataclass(frozen=True)
 class PlausibleRange:
-    """Closed range ``[low, high]`` of one derivative, what lies outside, and the source."""
+    """Closed range ``[low, high]`` of one derivative, what lies outside, and the source.
+
+    Attributes
+    ----------
+    low : float
+        Lower bound, in the derivative's unit.
+    high : float
+        Upper bound.
+    meaning : str
+        What a value outside the range would mean for the aircraft.
+    source : str
+        Where the range comes from.
+    """
 
     low: float
     high: float
     meaning: str
-    """What a value outside the range would mean for the aircraft."""
     source: str
 
 
@@ -85,22 +96,41 @@ PLAUSIBLE_RANGES: Mapping[str, PlausibleRange] = {
 
 @dataclasses.dataclass(frozen=True)
 class DerivativeWarning:
-    """One warning about identified derivatives."""
+    """One warning about identified derivatives.
+
+    Attributes
+    ----------
+    kind : str
+        "implausible", "correlated" or "unexcited".
+    derivatives : tuple of str
+        The derivative (or the pair) it concerns.
+    message : str
+        One line: what was found and what it means.
+    """
 
     kind: str
-    """"implausible", "correlated" or "unexcited"."""
     derivatives: tuple[str, ...]
-    """The derivative (or the pair) it concerns."""
     message: str
-    """One line: what was found and what it means."""
 
 
 def implausible_derivatives(values: Mapping[str, float],
                             sigma: Mapping[str, float] | None = None
                             ) -> list[DerivativeWarning]:
-    """A warning for every value of ``values`` (derivative name -> value) outside
-    :data:`PLAUSIBLE_RANGES`; with ``sigma`` (name -> standard deviation) a value whose
-    two-sigma interval reaches the range is said to be possibly noise."""
+    """A warning for every value outside :data:`PLAUSIBLE_RANGES`.
+
+    Parameters
+    ----------
+    values : Mapping[str, float]
+        Derivative name -> value.
+    sigma : Mapping[str, float], optional
+        Name -> standard deviation; a value whose two-sigma interval reaches the range is
+        then said to be possibly noise.
+
+    Returns
+    -------
+    list of DerivativeWarning
+        Of kind "implausible".
+    """
     out = []
     for name, value in values.items():
         bounds = PLAUSIBLE_RANGES.get(name)

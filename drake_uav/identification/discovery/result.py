@@ -31,35 +31,63 @@ class EvidenceRule:
     """Thresholds a candidate must pass to be added (all of them).
 
     ``p_value`` is the family-wise level: it is divided by the number of
-    candidates tested in the round (Bonferroni). ``min_pse_reduction`` is the
-    smallest held-out prediction-error reduction worth a new term (fraction of
-    the baseline PSE), and what a catalog term of the baseline must gain on the folds or
-    on the flight's edges to be kept (:mod:`~drake_uav.identification.discovery.parsimony`);
-    ``min_folds`` how many of the ``folds`` (at least 3) must improve (less the
-    effect's :attr:`~drake_uav.identification.discovery.effects.Effect.blind_folds`).
+    candidates tested in the round (Bonferroni).
 
     A candidate that passes is then checked, per coefficient, on the held-out tail
-    (``holdout_fraction`` of the flight, which no test above saw;
-    :class:`HeldOutCheck`): it is kept on a coefficient only if the held-out
-    prediction error falls with it by at least ``min_pse_reduction`` (the gain the
-    folds must show on average, so that cross-validation and the held-out tail ask
-    the same of an effect), for the bias-compensated fit (the noise of sources only
-    the effect's columns carry set aside) and the least-squares one alike, and its
-    contribution there (RMS of the
-    change it makes to the prediction) reaches both ``min_share_of_variation`` of the
-    coefficient's standard deviation over the flight and ``min_share_of_error`` of
-    the held-out error left with it. A coefficient whose standard deviation over the
-    training or the held-out part is at most ``constant_tolerance`` times
-    ``1 + |mean|`` does not vary and is not fitted.
+    (``holdout_fraction`` of the flight, which no test above saw; :class:`HeldOutCheck`):
+    it is kept on a coefficient only if the held-out prediction error falls with it by at
+    least ``min_pse_reduction`` (the gain the folds must show on average, so that
+    cross-validation and the held-out tail ask the same of an effect), for the
+    bias-compensated fit (the noise of sources only the effect's columns carry set aside)
+    and the least-squares one alike, and its contribution there (RMS of the change it makes
+    to the prediction) reaches both ``min_share_of_variation`` of the coefficient's
+    standard deviation over the flight and ``min_share_of_error`` of the held-out error
+    left with it.
 
-    ``named_first``: the data-driven products are scored only in a round where no named
-    effect is kept (each family at its own Bonferroni level); False puts both in one pool,
-    one level over all, where a product ranks ahead of a named effect only when its
-    held-out gain is larger by ``min_pse_reduction``.
+    Attributes
+    ----------
+    p_value : float
+        Family-wise level of the partial F-test.
+    min_pse_reduction : float
+        Smallest held-out prediction-error reduction worth a new term (fraction of the
+        baseline PSE), and what a catalog term of the baseline must gain on the folds or on
+        the flight's edges to be kept
+        (:mod:`~drake_uav.identification.discovery.parsimony`).
+    folds : int
+        Number of blocked cross-validation folds (at least 3).
+    min_folds : int
+        How many of the folds must improve (less the effect's
+        :attr:`~drake_uav.identification.discovery.effects.Effect.blind_folds`).
+    holdout_fraction : float
+        Share of the flight, at its end, kept for the held-out check.
+    max_rounds : int
+        Most effects added.
+    min_share_of_variation : float
+        Smallest held-out contribution, as a share of the coefficient's standard deviation.
+    min_share_of_error : float
+        Smallest held-out contribution, as a share of the held-out error left with it.
+    constant_tolerance : float
+        A coefficient whose standard deviation over the training or the held-out part is at
+        most this times ``1 + |mean|`` does not vary and is not fitted.
+    named_first : bool
+        The data-driven products are scored only in a round where no named effect is kept
+        (each family at its own Bonferroni level); False puts both in one pool, one level
+        over all, where a product ranks ahead of a named effect only when its held-out gain
+        is larger by ``min_pse_reduction``.
+    parsimonious : bool
+        The baseline drops the catalog terms that the flight does not support
+        (:mod:`~drake_uav.identification.discovery.parsimony`); False fits the catalog's
+        structure as it is.
+    adequacy : AdequacyRule
+        When the final fit's error is too far above the noise floor to call the model
+        complete (:mod:`~drake_uav.identification.discovery.adequacy`).
 
-    ``parsimonious``: the baseline drops the catalog terms that the flight does not
-    support (:mod:`~drake_uav.identification.discovery.parsimony`); False fits the catalog's
-    structure as it is.
+    Examples
+    --------
+    >>> import dataclasses
+    >>> strict = dataclasses.replace(EvidenceRule(), p_value=1e-5, min_pse_reduction=0.05)
+    >>> strict.p_value, strict.folds
+    (1e-05, 5)
     """
 
     p_value: float = 1e-3
@@ -74,44 +102,102 @@ class EvidenceRule:
     named_first: bool = True
     parsimonious: bool = True
     adequacy: AdequacyRule = AdequacyRule()
-    """When the final fit's error is too far above the noise floor to call the model
-    complete (:mod:`~drake_uav.identification.discovery.adequacy`)."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Evidence:
-    """Statistics of one candidate (an effect on one coefficient)."""
+    """Statistics of one candidate (an effect on one coefficient).
+
+    Attributes
+    ----------
+    effect : str
+        The effect's name.
+    coefficient : str
+        The coefficient it was tested on.
+    columns : tuple of str
+        Its columns.
+    pse_reduction : float
+        Mean relative reduction of the held-out prediction error over the folds.
+    folds_improved : int
+        Folds whose held-out error it lowered.
+    f_statistic : float
+        Partial F statistic.
+    p_value : float
+        Partial F-test p-value with the effective sample size.
+    delta_bic : float
+        BIC(with) - BIC(without), effective sample size; negative favours the effect.
+    passed : bool
+        Whether it passed every threshold of the :class:`EvidenceRule`.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import discover, samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CD",))
+    >>> best = result.rounds[0][0]                       # round 1, the best candidate
+    >>> best.effect, best.coefficient, best.passed, best.folds_improved
+    ('thrust_propwash', 'CD', True, 5)
+    """
 
     effect: str
     coefficient: str
     columns: tuple[str, ...]
     pse_reduction: float
-    """Mean relative reduction of the held-out prediction error over the folds."""
     folds_improved: int
     f_statistic: float
     p_value: float
-    """Partial F-test p-value with the effective sample size."""
     delta_bic: float
-    """BIC(with) - BIC(without), effective sample size; negative favours the effect."""
     passed: bool
 
 
 @dataclasses.dataclass(frozen=True)
 class FoundEffect:
-    """A finding: an effect the loop added, with its evidence and identified parameters,
-    or a calibration error the data-compatibility check corrected (:data:`Finding`)."""
+    """A finding: an effect the loop added, or a calibration error the data check corrected.
+
+    An effect comes with its evidence and identified parameters; a calibration error
+    (:data:`Finding`) with its estimate.
+
+    Attributes
+    ----------
+    name : str
+        The effect's name.
+    explanation : str
+        One line on the physics.
+    kind : str
+        ``"aerodynamic"`` (changes the dynamics), ``"sensor"`` (corrupts the data) or
+        ``"calibration"`` (a sensor error the compatibility check estimated and removed).
+    coefficients : tuple of str
+        The coefficients it acts on (none for a calibration error).
+    evidence : tuple of Evidence
+        Its evidence on each coefficient it entered.
+    parameters : Mapping[str, (float, float)]
+        ``"<coefficient>:<column>" -> (estimate, sigma)``; a calibration error's
+        ``"<name> [<unit>]" -> (estimate, sigma)``.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import discover, samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CD",))
+    >>> found = result.found[0]
+    >>> found.name, found.kind, found.coefficients, list(found.parameters)
+    ('thrust_propwash', 'aerodynamic', ('CD',), ['CD:Tc'])
+    """
 
     name: str
     explanation: str
     kind: str
-    """``"aerodynamic"`` (changes the dynamics), ``"sensor"`` (corrupts the data) or
-    ``"calibration"`` (a sensor error the compatibility check estimated and removed)."""
     coefficients: tuple[str, ...]
-    """The coefficients it acts on (none for a calibration error)."""
     evidence: tuple[Evidence, ...]
     parameters: Mapping[str, tuple[float, float]]
-    """``"<coefficient>:<column>" -> (estimate, sigma)``; a calibration error's
-    ``"<name> [<unit>]" -> (estimate, sigma)``."""
 
 
 Finding = FoundEffect
@@ -132,34 +218,66 @@ class HeldOutCheck:
     it. The least-squares fit's, the best predictor of the measured coefficient from the
     measured regressors, which no noise model enters, must improve as much. A term named
     like a derivative of known sign must have a plausible value (:attr:`implausible`).
+
+    Attributes
+    ----------
+    effect : str
+        The effect's name.
+    coefficient : str
+        The coefficient.
+    stage : str
+        "round": when the effect won a round; "final": against the final fit without it.
+    rms_without : float
+        Held-out equation-error RMS of the fit without the effect [-].
+    rms_with : float
+        The same with the effect [-].
+    contribution : float
+        RMS over the held-out samples of the change the effect makes to the prediction [-].
+    threshold : float
+        Smallest contribution that matters [-]: the larger of the two shares of the rule.
+    kept : bool
+        The decision.
+    min_gain : float
+        Smallest held-out prediction-error reduction kept (fraction of the PSE without).
+    own_noise : float
+        Mean square that the noise sources only the effect's columns depend on add to the
+        held-out error of the fit with it [-]
+        (:func:`~drake_uav.identification.statistics.errors_in_variables.noise_error_energy`).
+    prediction_gain : float
+        Held-out mean-square reduction of the least-squares prediction with the effect,
+        fraction of the one without [-].
+    implausible : str
+        Why a term of the effect fitted on the training part is not the physics it names
+        (a value outside
+        :data:`~drake_uav.identification.discovery.plausibility.PLAUSIBLE_RANGES`: a
+        downwash lag's alpha-dot derivative of the wrong sign); "" when none is.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import discover, samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CD",))
+    >>> check = result.checks[0]
+    >>> check.effect, check.stage, check.kept, bool(check.rms_with < check.rms_without)
+    ('thrust_propwash', 'round', True, True)
     """
 
     effect: str
     coefficient: str
     stage: str
-    """"round": when the effect won a round; "final": against the final fit without it."""
     rms_without: float
-    """Held-out equation-error RMS of the fit without the effect [-]."""
     rms_with: float
-    """The same with the effect [-]."""
     contribution: float
-    """RMS over the held-out samples of the change the effect makes to the prediction [-]."""
     threshold: float
-    """Smallest contribution that matters [-]: the larger of the two shares of the rule."""
     kept: bool
     min_gain: float = 0.0
-    """Smallest held-out prediction-error reduction kept (fraction of the PSE without)."""
     own_noise: float = 0.0
-    """Mean square that the noise sources only the effect's columns depend on add to the
-    held-out error of the fit with it [-]
-    (:func:`~drake_uav.identification.statistics.errors_in_variables.noise_error_energy`)."""
     prediction_gain: float = float("inf")
-    """Held-out mean-square reduction of the least-squares prediction with the effect,
-    fraction of the one without [-]."""
     implausible: str = ""
-    """Why a term of the effect fitted on the training part is not the physics it names
-    (a value outside :data:`~drake_uav.identification.discovery.plausibility.PLAUSIBLE_RANGES`:
-    a downwash lag's alpha-dot derivative of the wrong sign); "" when none is."""
 
     @property
     def gain(self) -> float:
@@ -191,7 +309,45 @@ class HeldOutCheck:
 
 @dataclasses.dataclass(frozen=True)
 class CoefficientFit:
-    """A fitted coefficient model: structure, OLS result and held-out error."""
+    """A fitted coefficient model: structure, fit and held-out error.
+
+    Attributes
+    ----------
+    coefficient : str
+        The coefficient.
+    names : tuple of str
+        Its terms (catalog derivatives, then ``"<effect>:<column>"``).
+    result : RegressionResult
+        The bias-compensated fit on the training part.
+    rms_train : float
+        Training equation-error RMS [-].
+    rms_holdout : float
+        Held-out equation-error RMS [-].
+    holdout_residual : numpy.ndarray
+        Equation error on the held-out samples [-].
+    holdout_design : numpy.ndarray of shape (N_holdout, n)
+        Regressor columns on the held-out samples, in ``names`` order.
+    diagnosis : ResidualDiagnosis
+        Of the training residual.
+    holdout_noise : PropagatedNoise or None
+        The sensor noise the errors-in-variables fit carries to ``holdout_design`` and to
+        the held-out coefficient (the noise floor of ``rms_holdout`` reads it).
+    training_design : numpy.ndarray of shape (N_train, n) or None
+        Regressor columns on the training samples, in ``names`` order.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import discover, samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CD",))
+    >>> fit = result.final["CD"]
+    >>> fit.names[-1], bool(fit.rms_holdout < result.baseline["CD"].rms_holdout)
+    ('thrust_propwash:Tc', True)
+    """
 
     coefficient: str
     names: tuple[str, ...]
@@ -200,36 +356,63 @@ class CoefficientFit:
     rms_holdout: float
     holdout_residual: np.ndarray
     holdout_design: np.ndarray
-    """(N_holdout, n) regressor columns on the held-out samples, in ``names`` order."""
     diagnosis: ResidualDiagnosis
     holdout_noise: PropagatedNoise | None = None
-    """The sensor noise the errors-in-variables fit carries to ``holdout_design`` and to the
-    held-out coefficient (the noise floor of ``rms_holdout`` reads it)."""
     training_design: np.ndarray | None = None
-    """(N_train, n) regressor columns on the training samples, in ``names`` order."""
 
 
 @dataclasses.dataclass(frozen=True)
 class DiscoveryResult:
-    """Everything the loop found, before and after."""
+    """Everything the loop found, before and after.
+
+    Attributes
+    ----------
+    baseline : Mapping[str, CoefficientFit]
+        Coefficient -> the fit of the catalog's (pruned) terms.
+    final : Mapping[str, CoefficientFit]
+        Coefficient -> the fit with the effects found.
+    found : tuple of FoundEffect
+        The effects added, in the order found.
+    rounds : tuple of tuple of Evidence
+        Ranked evidence of every round.
+    holdout_start : float
+        Time [s] where the held-out tail begins.
+    checks : tuple of HeldOutCheck
+        Every held-out decision on a passing candidate, in the order made.
+    skipped : Mapping[str, str]
+        Coefficients asked for but not fitted -> why (they do not vary in the samples).
+    adequacy : Mapping[str, Adequacy]
+        Fitted coefficient -> its final fit's error against the noise floor.
+    dropped : Mapping[str, tuple of DroppedTerm]
+        Fitted coefficient -> the catalog's terms its baseline dropped, which the flight
+        does not support (:mod:`~drake_uav.identification.discovery.parsimony`); each is 0
+        in the identified model.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> from drake_uav.identification import discover, samples_from_log
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde()).subset(slice(0, 1000))   # 20 s
+    >>> result = discover(samples, aerosonde(), coefficients=("CD",))
+    >>> result.message
+    'missing effect(s) found: thrust_propwash (CD)'
+    >>> before, after = result.rms_change()["CD"]
+    >>> bool(after < before)
+    True
+    """
 
     baseline: Mapping[str, CoefficientFit]
     final: Mapping[str, CoefficientFit]
     found: tuple[FoundEffect, ...]
     rounds: tuple[tuple[Evidence, ...], ...]
-    """Ranked evidence of every round."""
     holdout_start: float
-    """Time [s] where the held-out tail begins."""
     checks: tuple[HeldOutCheck, ...] = ()
-    """Every held-out decision on a passing candidate, in the order made."""
     skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
-    """Coefficients asked for but not fitted -> why (they do not vary in the samples)."""
     adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
-    """Fitted coefficient -> its final fit's error against the noise floor."""
     dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
-    """Fitted coefficient -> the catalog's terms its baseline dropped, which the flight does
-    not support (:mod:`~drake_uav.identification.discovery.parsimony`); each is 0 in the identified
-    model."""
 
     @property
     def incomplete(self) -> dict[str, Adequacy]:
@@ -263,6 +446,12 @@ class DiscoveryResult:
             else found
 
     def rms_change(self) -> dict[str, tuple[float, float]]:
-        """Held-out equation-error RMS (before, after) per coefficient."""
+        """Held-out equation-error RMS before and after, per coefficient.
+
+        Returns
+        -------
+        dict of str to (float, float)
+            Coefficient -> (baseline, final) RMS [-].
+        """
         return {k: (self.baseline[k].rms_holdout, self.final[k].rms_holdout)
                 for k in self.baseline}

@@ -140,37 +140,83 @@ DIRECTIONS = {
 
 @dataclasses.dataclass(frozen=True)
 class VectorEffect:
-    """A force along a direction the log defines (see the module docstring)."""
+    """A force along a direction the log defines (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        Its name in the findings.
+    explanation : str
+        One line on the physics.
+    direction : str
+        Kind, a key of :data:`DIRECTIONS`.
+    unit_vectors : callable or None
+        The direction's unit vectors on samples; None for a point not located yet
+        (:attr:`fitted`).
+    signals : tuple of str
+        ``AeroSamples.signals`` the direction needs.
+    magnitude : str or None
+        ``AeroSamples.signals`` channel the force is proportional to (None: constant).
+    lever_arm : bool
+        Fit the application point (its moment on ``C_l, C_m, C_n``); False: at the
+        reference point (the centre of gravity).
+    point : (float, float, float) or None
+        The NED point [m] of a ``"towards_point"`` direction (None: not located yet).
+    searched : int
+        Candidate points the point was chosen from (0: given; see
+        :mod:`~drake_uav.identification.discovery.fitted_point`).
+    linearised : bool
+        With the point's shift parameters ``Fp_n, Fp_e, Fp_d`` (its uncertainty).
+
+    Examples
+    --------
+    >>> wind = vector_effect("ground_velocity")
+    >>> wind.direction, wind.lever_arm
+    ('ground_velocity', False)
+    """
 
     name: str
     explanation: str
     direction: str
-    """Kind, a key of :data:`DIRECTIONS`."""
     unit_vectors: Direction | None
-    """None for a point not located yet (:attr:`fitted`)."""
     signals: tuple[str, ...] = ()
-    """``AeroSamples.signals`` the direction needs."""
     magnitude: str | None = None
-    """``AeroSamples.signals`` channel the force is proportional to (None: constant)."""
     lever_arm: bool = False
-    """Fit the application point (its moment on ``C_l, C_m, C_n``); False: at the
-    reference point (the centre of gravity)."""
     point: tuple[float, float, float] | None = None
-    """The NED point [m] of a ``"towards_point"`` direction (None: not located yet)."""
     searched: int = 0
-    """Candidate points the point was chosen from (0: given; see
-    :mod:`~drake_uav.identification.discovery.fitted_point`)."""
     linearised: bool = False
-    """With the point's shift parameters ``Fp_n, Fp_e, Fp_d`` (its uncertainty)."""
 
     def available(self, samples: AeroSamples) -> bool:
-        """True when the samples carry every signal the effect needs."""
+        """Whether the samples carry every signal the effect needs.
+
+        Parameters
+        ----------
+        samples : AeroSamples
+            The samples.
+
+        Returns
+        -------
+        bool
+            True when the effect can be tested on them.
+        """
         needed = self.signals + ((self.magnitude,) if self.magnitude else ())
         return all(s in samples.signals for s in needed)
 
     def candidate(self, params: FixedWingParams) -> Candidate:
-        """The effect as a plant-agnostic candidate of the evidence rule: its parameters
-        shared by every coefficient it moves, tested jointly."""
+        """The effect as a plant-agnostic candidate of the evidence rule.
+
+        Its parameters are shared by every coefficient it moves, tested jointly.
+
+        Parameters
+        ----------
+        params : FixedWingParams
+            The aircraft the columns are computed for.
+
+        Returns
+        -------
+        Candidate
+            The joint candidate.
+        """
         return Candidate(self.name, self.explanation, COEFFICIENTS,
                          lambda samples, k: self.columns(samples, params, k),
                          parameters=self.parameters, joint=True, searched=self.searched)
@@ -181,7 +227,20 @@ class VectorEffect:
         return self.direction == "towards_point" and (self.point is None or self.searched > 0)
 
     def at(self, point: Sequence[float], searched: int) -> VectorEffect:
-        """This effect towards ``point`` (NED [m]), chosen from ``searched`` candidates."""
+        """This effect towards ``point``, chosen from ``searched`` candidates.
+
+        Parameters
+        ----------
+        point : sequence of float
+            The point [m, NED].
+        searched : int
+            Number of candidate points it was chosen from.
+
+        Returns
+        -------
+        VectorEffect
+            The located effect.
+        """
         point = tuple(float(x) for x in point)
         return dataclasses.replace(self, unit_vectors=_towards(point), point=point,
                                    searched=searched)
@@ -207,8 +266,23 @@ class VectorEffect:
 
     def columns(self, samples: AeroSamples, params: FixedWingParams,
                 coefficient: str) -> dict[str, np.ndarray]:
-        """Regressor columns of every parameter on ``coefficient`` (zeros where it does not
-        enter)."""
+        """Regressor columns of every parameter on ``coefficient`` (zeros where it does not enter).
+
+        Parameters
+        ----------
+        samples : AeroSamples
+            The samples.
+        params : FixedWingParams
+            The aircraft (mass, wing area and reference lengths that turn a force into a
+            coefficient).
+        coefficient : str
+            The coefficient.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Parameter name -> (N,) column.
+        """
         view = samples.aligned(coefficient)
         zero = np.zeros(len(view))
         out = dict.fromkeys(self.parameters, zero)
@@ -241,11 +315,33 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
                   frame: str = "body", name: str | None = None) -> VectorEffect:
     """A :class:`VectorEffect` of a direction kind (:data:`DIRECTIONS`).
 
-    ``magnitude``: a logged channel the force is proportional to (None: constant);
-    ``lever_arm``: fit the application point; ``point``: the NED point [m] of
-    ``"towards_point"`` (None: located by the data in each round,
-    :mod:`~drake_uav.identification.discovery.fitted_point`); ``logged``, ``frame``: the three
-    channels and their frame (``"body"`` or ``"ned"``) of ``"logged"``.
+    Parameters
+    ----------
+    direction : str
+        A key of :data:`DIRECTIONS`.
+    magnitude : str, optional
+        A logged channel the force is proportional to (None: constant).
+    lever_arm : bool
+        Fit the application point.
+    point : sequence of float, optional
+        The NED point [m] of ``"towards_point"`` (None: located by the data in each round,
+        :mod:`~drake_uav.identification.discovery.fitted_point`).
+    logged : sequence of str
+        The three channels of ``"logged"``.
+    frame : str
+        Their frame, ``"body"`` or ``"ned"``.
+    name : str, optional
+        The effect's name (None: from the direction and the options).
+
+    Returns
+    -------
+    VectorEffect
+        The effect.
+
+    Raises
+    ------
+    ValueError
+        For an unknown direction, or ``"logged"`` without three channels and a frame.
     """
     if direction not in DIRECTIONS:
         raise ValueError(f"direction: one of {', '.join(DIRECTIONS)}, got {direction!r}")
@@ -282,14 +378,30 @@ def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bo
 
 def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
                           located_point: bool = True) -> list[VectorEffect]:
-    """The vector effects the discovery loop tries, for each magnitude of ``magnitudes``
-    (None: constant; a name: that logged channel).
+    """The vector effects the discovery loop tries.
 
     A force along a body axis at the centre of gravity is the per-coefficient
     ``constant_body_force``: here a body-axis force always has its lever arm. The forces
-    against the GPS velocity and towards a point the data locate
-    (``force_towards_point``, :mod:`~drake_uav.identification.discovery.fitted_point`; left out
-    with ``located_point`` False) need the GPS in the samples' signals.
+    against the GPS velocity and towards a point the data locate (``force_towards_point``,
+    :mod:`~drake_uav.identification.discovery.fitted_point`) need the GPS in the samples'
+    signals.
+
+    Parameters
+    ----------
+    magnitudes : sequence of str or None
+        One set of effects per magnitude (None: constant; a name: that logged channel).
+    located_point : bool
+        Include the force towards a point the data locate.
+
+    Returns
+    -------
+    list of VectorEffect
+        The effects.
+
+    Examples
+    --------
+    >>> [effect.direction for effect in vector_effect_library(located_point=False)][:3]
+    ['body_x', 'body_y', 'body_z']
     """
     out = []
     for magnitude in magnitudes:
@@ -305,12 +417,20 @@ def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
 
 
 class JointSearch:
-    """The vector effects of one discovery: their columns, their joint evidence in each
-    round, their acceptance against the per-coefficient candidates and their parameters.
+    """The vector effects of one discovery, in every round.
 
-    ``search`` arguments are the discovery's ``_Search`` (its designs, held-out check and
-    sample variants); ``bases`` its round bases (design, effective sample size, fold
-    errors, block moments, basis).
+    Their columns, their joint evidence in each round, their acceptance against the
+    per-coefficient candidates and their parameters. ``search`` arguments of the methods
+    are the discovery's ``_Search`` (its designs, held-out check and sample variants);
+    ``bases`` its round bases (design, effective sample size, fold errors, block moments,
+    basis).
+
+    Parameters
+    ----------
+    effects : sequence of VectorEffect
+        The effects; those the samples cannot test are left out.
+    samples : AeroSamples
+        The samples.
     """
 
     def __init__(self, effects: Sequence[VectorEffect], samples: AeroSamples):
@@ -322,8 +442,22 @@ class JointSearch:
 
     def evidence(self, joint: Sequence[JointEvidence],
                  coefficients: Sequence[str] | None = None) -> list[Evidence]:
-        """One ``Evidence`` per effect and coefficient (``coefficients``: only those): the
-        joint statistics with the coefficient's own held-out reduction."""
+        """One :class:`Evidence` per effect and coefficient.
+
+        The joint statistics with the coefficient's own held-out reduction.
+
+        Parameters
+        ----------
+        joint : sequence of JointEvidence
+            The joint evidence.
+        coefficients : sequence of str, optional
+            Only these coefficients (None: all).
+
+        Returns
+        -------
+        list of Evidence
+            The per-coefficient evidence.
+        """
         return [e for j in joint for e in j.evidence()
                 if coefficients is None or e.coefficient in coefficients]
 
@@ -346,16 +480,48 @@ class JointSearch:
         return self._train[key]
 
     def candidates(self, used: set[str]) -> list[VectorEffect]:
-        """The effects not tried yet."""
+        """The effects not tried yet.
+
+        Parameters
+        ----------
+        used : set of str
+            Names of the effects tried.
+
+        Returns
+        -------
+        list of VectorEffect
+            The others.
+        """
         return [e for e in self.effects if e.name not in used]
 
     # -- evidence
 
     def score(self, search, bases: Mapping, rule: EvidenceRule, n_tests: int,
               used: set[str]) -> list[JointEvidence]:
-        """The joint evidence of every vector effect not tried yet. An effect towards a
-        point the data locate is tested at the best of its candidate points and carried
-        on at the refined one (:mod:`~drake_uav.identification.discovery.fitted_point`)."""
+        """The joint evidence of every vector effect not tried yet.
+
+        An effect towards a point the data locate is tested at the best of its candidate
+        points and carried on at the refined one
+        (:mod:`~drake_uav.identification.discovery.fitted_point`).
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        bases : Mapping[str, RoundBase]
+            The round bases.
+        rule : EvidenceRule
+            The thresholds.
+        n_tests : int
+            Number of candidates of the round (the Bonferroni factor).
+        used : set of str
+            Names of the effects tried.
+
+        Returns
+        -------
+        list of JointEvidence
+            One per effect scored.
+        """
         out = []
         for effect in self.candidates(used):
             located = self.locate(search, effect, bases) if effect.fitted else None
@@ -374,11 +540,26 @@ class JointSearch:
         return out
 
     def locate(self, search, effect: VectorEffect, bases: Mapping) -> PointFit | None:
-        """Where the data put the point of ``effect`` against the round's designs (None
-        when no force coefficient is fitted): the profile of the weighted, compensated
-        joint fit over the force coefficients (the first pass of :meth:`_score`) over the
-        candidate points, refined
-        (:class:`~drake_uav.identification.discovery.fitted_point.PointProfile`)."""
+        """Where the data put the point of ``effect`` against the round's designs.
+
+        The profile of the weighted, compensated joint fit over the force coefficients (the
+        first pass of :meth:`_score`) over the candidate points, refined
+        (:class:`~drake_uav.identification.discovery.fitted_point.PointProfile`).
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        effect : VectorEffect
+            A ``"towards_point"`` effect.
+        bases : Mapping[str, RoundBase]
+            The round bases.
+
+        Returns
+        -------
+        PointFit or None
+            The point; None when no force coefficient is fitted.
+        """
         train = search.pool.variants.samples
         if effect not in self._profiles:
             self._profiles[effect] = (PointProfile(positions(train), train.time), {})
@@ -427,14 +608,35 @@ class JointSearch:
 
     def accept(self, search, joint: Sequence[JointEvidence], named: Sequence, used: set[str],
                accept_named: Callable) -> FoundEffect | None:
-        """The round's winner, or None. A passing vector effect that removes more held-out
-        error than every passing per-coefficient effect (:attr:`JointEvidence.total`; a
-        per-coefficient effect's summed over the coefficients it passed on) is tried first,
-        then the per-coefficient effects (``accept_named(named, used)``), then the other
-        passing vector effects. A force towards a located point, one choice among the
-        grid's, goes first only when it removes :attr:`EvidenceRule.min_pse_reduction`
-        more on each coefficient its total sums over, as a data-driven product must on its
-        one coefficient. Every effect tried joins ``used``."""
+        """The round's winner, or None.
+
+        A passing vector effect that removes more held-out error than every passing
+        per-coefficient effect (:attr:`JointEvidence.total`; a per-coefficient effect's summed
+        over the coefficients it passed on) is tried first, then the per-coefficient effects
+        (``accept_named(named, used)``), then the other passing vector effects. A force
+        towards a located point, one choice among the grid's, goes first only when it removes
+        :attr:`EvidenceRule.min_pse_reduction` more on each coefficient its total sums over,
+        as a data-driven product must on its one coefficient. Every effect tried joins
+        ``used``.
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        joint : sequence of JointEvidence
+            The vector effects' evidence of the round.
+        named : sequence
+            The per-coefficient candidates' evidence of the round.
+        used : set of str
+            Names of the effects tried (updated).
+        accept_named : callable
+            ``accept_named(named, used) -> FoundEffect or None``.
+
+        Returns
+        -------
+        FoundEffect or None
+            The effect accepted.
+        """
         passing = sorted((j for j in joint if j.passed), key=lambda j: -j.total)
         totals: dict[str, float] = {}
         for e in named:
@@ -495,8 +697,22 @@ class JointSearch:
     # -- parameters
 
     def with_parameters(self, search, found: Sequence[FoundEffect]) -> list[FoundEffect]:
-        """``found`` with every vector effect's parameters from a joint refit against the
-        final fits of the coefficients it is kept on (:meth:`parameters`)."""
+        """``found`` with every vector effect's parameters from a joint refit.
+
+        Against the final fits of the coefficients it is kept on (:meth:`parameters`).
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        found : sequence of FoundEffect
+            The findings.
+
+        Returns
+        -------
+        list of FoundEffect
+            The findings, vector effects with their joint parameters.
+        """
         effects = {**{e.name: e for e in self.effects}, **self._accepted}
         return [dataclasses.replace(f, parameters=self.parameters(search, effects[f.name],
                                                                   f.coefficients))
@@ -504,17 +720,31 @@ class JointSearch:
 
     def parameters(self, search, effect: VectorEffect, coefficients: Sequence[str]
                    ) -> dict[str, tuple[float, float]]:
-        """Estimate and sigma of the effect's parameters, jointly over ``coefficients``:
-        ``F`` the magnitude [N] (gain [N per unit] of a logged magnitude), ``Fr_x`` ...
-        F times the application point [N m] where a moment coefficient carries it, and the
-        application point ``r_x`` ... [m] (delta method) where F is estimated too. A point
-        the data located: ``Fp_n, Fp_e, Fp_d``, F times its shift [N m] (the force
-        linearised about it), and the point ``p_n, p_e, p_d`` [m, NED] (the located one
-        moved by the shift: one Gauss-Newton step, its sigma by the delta method).
+        """Estimate and sigma of the effect's parameters, jointly over ``coefficients``.
 
-        The coefficients' own columns are refitted with them; the covariance is the
-        sandwich of all the estimating equations (each coefficient's and the weighted
-        shared ones) with the long-run covariance of their per-sample scores.
+        ``F`` the magnitude [N] (gain [N per unit] of a logged magnitude), ``Fr_x`` ... F times
+        the application point [N m] where a moment coefficient carries it, and the
+        application point ``r_x`` ... [m] (delta method) where F is estimated too. A point the
+        data located: ``Fp_n, Fp_e, Fp_d``, F times its shift [N m] (the force linearised
+        about it), and the point ``p_n, p_e, p_d`` [m, NED] (the located one moved by the
+        shift: one Gauss-Newton step, its sigma by the delta method). The coefficients' own
+        columns are refitted with them; the covariance is the sandwich of all the estimating
+        equations (each coefficient's and the weighted shared ones) with the long-run
+        covariance of their per-sample scores.
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        effect : VectorEffect
+            The effect.
+        coefficients : sequence of str
+            The coefficients it is kept on.
+
+        Returns
+        -------
+        dict of str to (float, float)
+            Parameter name -> (estimate, sigma).
         """
         if effect.fitted:
             effect = dataclasses.replace(effect, linearised=True)

@@ -62,35 +62,71 @@ LOGGED = "logged:"
 
 
 def logged(channel: str) -> str:
-    """The :attr:`AeroSamples.signals` key of the logged extra channel ``channel``."""
+    """The :attr:`AeroSamples.signals` key of the logged extra channel ``channel``.
+
+    Parameters
+    ----------
+    channel : str
+        The log channel.
+
+    Returns
+    -------
+    str
+        ``"logged:<channel>"``.
+    """
     return f"{LOGGED}{channel}"
 
 
 @dataclasses.dataclass(frozen=True)
 class MomentInputs:
-    """What the moment coefficients see where it differs from the forces: the regressors
-    through the moments' interval filter (:func:`~drake_uav.identification.samples.
-    isolation.isolate_coefficients`), on the samples' time base."""
+    """What the moment coefficients see where it differs from the forces.
+
+    The regressors through the moments' interval filter
+    (:func:`~drake_uav.identification.samples.isolation.isolate_coefficients`), on the
+    samples' time base.
+
+    Attributes
+    ----------
+    condition : AeroCondition
+        Air data, rates, controls and thrust coefficient as the moments see them.
+    dynamic_pressure : numpy.ndarray of shape (N,)
+        qbar [Pa].
+    throttle : numpy.ndarray of shape (N,)
+        [0..1].
+    thrust : numpy.ndarray of shape (N,)
+        [N].
+    thrust_airspeed_slope : numpy.ndarray of shape (N,) or None
+        d(thrust)/d(airspeed) [N/(m/s)] (None: thrust measured).
+    rate_derivatives : numpy.ndarray of shape (N, 3)
+        Body angular accelerations [rad/s^2].
+    logged : Mapping[str, numpy.ndarray]
+        The logged extra channels (``logged:<channel>``) through the moments' filter.
+    noise_variance : Mapping[str, float]
+        Noise variance of each smoothed source as the moments see it (units squared).
+    """
 
     condition: AeroCondition
-    """Air data, rates, controls and thrust coefficient as the moments see them."""
     dynamic_pressure: np.ndarray
-    """qbar [Pa]."""
     throttle: np.ndarray
-    """[0..1]."""
     thrust: np.ndarray
-    """[N]."""
     thrust_airspeed_slope: np.ndarray | None
-    """d(thrust)/d(airspeed) [N/(m/s)] (None: thrust measured)."""
     rate_derivatives: np.ndarray
-    """(N, 3) body angular accelerations [rad/s^2]."""
     logged: Mapping[str, np.ndarray]
-    """The logged extra channels (``logged:<channel>``) through the moments' filter."""
     noise_variance: Mapping[str, float]
-    """Noise variance of each smoothed source as the moments see it (units squared)."""
 
     def subset(self, index) -> MomentInputs:
-        """The samples selected by a boolean mask or an index array."""
+        """The samples selected by a boolean mask or an index array.
+
+        Parameters
+        ----------
+        index : numpy.ndarray of bool or int
+            The selection.
+
+        Returns
+        -------
+        MomentInputs
+            The selected samples.
+        """
         return MomentInputs(
             AeroCondition(*(np.broadcast_to(f, self.throttle.shape)[index]
                             for f in self.condition)),
@@ -104,56 +140,99 @@ class MomentInputs:
 class AeroSamples:
     """Flight samples ready for regression: the conditions and the measured coefficients.
 
+    Made by :func:`~drake_uav.identification.samples.flight_data.samples_from_log` (or
+    :func:`~drake_uav.identification.samples.isolation.isolate_coefficients` from arrays);
+    every array has one entry per sample.
+
+    Attributes
+    ----------
+    time : numpy.ndarray of shape (N,)
+        [s], uniformly sampled.
+    condition : AeroCondition
+        Air data [m/s, rad], body rates [rad/s], controls [rad] and thrust coefficient,
+        arrays.
+    coefficients : Mapping[str, numpy.ndarray]
+        Measured ``CL, CD, CY, Cl, Cm, Cn`` [-].
+    dynamic_pressure : numpy.ndarray of shape (N,)
+        qbar [Pa].
+    throttle : numpy.ndarray of shape (N,)
+        [0..1].
+    thrust : numpy.ndarray of shape (N,)
+        Thrust used in the isolation [N].
+    rate_derivatives : numpy.ndarray of shape (N, 3)
+        Body angular accelerations [rad/s^2].
+    specific_force : numpy.ndarray of shape (N, 3)
+        Accelerometer [m/s^2].
+    signals : Mapping[str, numpy.ndarray]
+        Any other logged signals (altitude, attitude, ...), by name, same length; the
+        extra channels of the log, smoothed like the regressors, as ``logged:<channel>``.
+    noise_variance : Mapping[str, float]
+        Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r, ax,
+        ay, az`` and ``logged:<channel>`` (units squared), for errors-in-variables
+        corrections.
+    thrust_airspeed_slope : numpy.ndarray of shape (N,) or None
+        d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured).
+    thrust_correction_terms : tuple of str
+        The throttle terms of a thrust identified from this flight
+        (:data:`~drake_uav.model.propeller.THROTTLE_TERMS`), which the discovery fits again
+        with C_D (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`);
+        empty for the catalog's thrust or a measured one.
+    reference_area : float
+        Wing area S [m^2] the coefficients refer to.
+    moments : MomentInputs or None
+        What the moment coefficients see where it differs from the forces (the regressors
+        through their interval filter), or None when forces and moments see the same.
+    signal_units : Mapping[str, str]
+        Unit of each signal of ``signals``.
+
     Examples
     --------
-    >>> samples = samples_from_log(log, aerosonde())     # doctest: +SKIP
-    >>> samples.coefficients["CL"], samples.condition.alpha        # doctest: +SKIP
-    >>> samples.aligned("Cm").condition.elevator   # as the moments see it  # doctest: +SKIP
+    >>> from drake_uav.identification.samples.flight_data import samples_from_log
+    >>> from importlib.resources import files
+    >>> from drake_uav.io.readers import read_log
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde())
+    >>> sorted(samples.coefficients)
+    ['CD', 'CL', 'CY', 'Cl', 'Cm', 'Cn']
+    >>> samples.aligned("CL") is samples, samples.aligned("Cm") is samples.moment_view
+    (True, True)
+    >>> samples.aligned("Cm").condition.elevator.shape == samples.time.shape
+    True
     """
 
     time: np.ndarray
-    """[s], uniformly sampled."""
     condition: AeroCondition
-    """Air data [m/s, rad], body rates [rad/s], controls [rad] and thrust coefficient, arrays."""
     coefficients: Mapping[str, np.ndarray]
-    """Measured ``CL, CD, CY, Cl, Cm, Cn`` [-]."""
     dynamic_pressure: np.ndarray
-    """qbar [Pa]."""
     throttle: np.ndarray
-    """[0..1]."""
     thrust: np.ndarray
-    """Thrust used in the isolation [N]."""
     rate_derivatives: np.ndarray
-    """(N, 3) body angular accelerations [rad/s^2]."""
     specific_force: np.ndarray
-    """(N, 3) accelerometer [m/s^2]."""
     signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
-    """Any other logged signals (altitude, attitude, ...), by name, same length; the
-    extra channels of the log, smoothed like the regressors, as ``logged:<channel>``."""
     noise_variance: Mapping[str, float] = dataclasses.field(default_factory=dict)
-    """Estimated white-noise variance of the smoothed ``airspeed, alpha, beta, p, q, r, ax,
-    ay, az`` and ``logged:<channel>`` (units squared), for errors-in-variables corrections."""
     thrust_airspeed_slope: np.ndarray | None = None
-    """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)] (None: thrust measured)."""
     thrust_correction_terms: tuple[str, ...] = ()
-    """The throttle terms of a thrust identified from this flight
-    (:data:`~drake_uav.model.propeller.THROTTLE_TERMS`), which the discovery fits again
-    with C_D (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`);
-    empty for the catalog's thrust or a measured one."""
     reference_area: float = 1.0
-    """Wing area S [m^2] the coefficients refer to."""
     moments: MomentInputs | None = None
-    """What the moment coefficients see where it differs from the forces (the regressors
-    through their interval filter), or None when forces and moments see the same."""
     signal_units: Mapping[str, str] = dataclasses.field(default_factory=dict)
-    """Unit of each logged extra channel of :attr:`signals` (``logged:<channel>``)."""
 
     def __len__(self) -> int:
         return len(self.time)
 
     def aligned(self, coefficient: str) -> AeroSamples:
-        """The samples whose regressors belong with ``coefficient``: :attr:`moment_view` for
-        ``Cl, Cm, Cn`` when there is one, else these samples."""
+        """The samples whose regressors belong with ``coefficient``.
+
+        Parameters
+        ----------
+        coefficient : str
+            ``CL, CD, CY, Cl, Cm`` or ``Cn``.
+
+        Returns
+        -------
+        AeroSamples
+            :attr:`moment_view` for ``Cl, Cm, Cn`` when there is one, else these samples.
+        """
         if coefficient in MOMENTS and self.moments is not None:
             return self.moment_view
         return self
@@ -173,7 +252,18 @@ class AeroSamples:
             noise_variance=m.noise_variance, moments=None)
 
     def with_moments(self, update) -> AeroSamples:
-        """A copy whose :attr:`moments` (when there are any) is ``update(moments)``."""
+        """A copy whose :attr:`moments` (when there are any) is ``update(moments)``.
+
+        Parameters
+        ----------
+        update : callable
+            ``MomentInputs -> MomentInputs``.
+
+        Returns
+        -------
+        AeroSamples
+            The copy (these samples when there are no moments).
+        """
         return self if self.moments is None else dataclasses.replace(
             self, moments=update(self.moments))
 
@@ -182,6 +272,16 @@ class AeroSamples:
 
         Every coefficient divides by qbar, so d/dVa = -2 C / Va; the wind-axis
         rotation gives d C_L / d alpha = -C_D and d C_D / d alpha = C_L.
+
+        Parameters
+        ----------
+        coefficient : str
+            The measured coefficient.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``airspeed`` [1/(m/s)], ``alpha``, ``beta`` [1/rad] -> (N,) sensitivity.
         """
         value = self.coefficients[coefficient]
         out = {"airspeed": -2.0 * value / self.condition.airspeed}
@@ -198,8 +298,22 @@ class AeroSamples:
         return out
 
     def perturbed(self, signal: str, delta: float) -> AeroSamples:
-        """A copy with ``delta`` added to one air-data signal (``airspeed``, ``alpha``, ``beta``)
-        as the forces and the moments see it; the dynamic pressure follows the airspeed."""
+        """A copy with ``delta`` added to one air-data signal, as the forces and the moments see it.
+
+        The dynamic pressure (and a thrust computed from the airspeed) follow the airspeed.
+
+        Parameters
+        ----------
+        signal : str
+            ``airspeed``, ``alpha`` or ``beta``.
+        delta : float
+            The step [m/s or rad].
+
+        Returns
+        -------
+        AeroSamples
+            The perturbed copy.
+        """
         condition, q_bar, thrust = _perturbed_air_data(
             self.condition, self.dynamic_pressure, self.thrust, self.thrust_airspeed_slope,
             self.reference_area, signal, delta)
@@ -211,7 +325,18 @@ class AeroSamples:
             condition=condition, dynamic_pressure=q_bar, thrust=thrust)
 
     def subset(self, index) -> AeroSamples:
-        """The samples selected by a boolean mask or an index array."""
+        """The samples selected by a boolean mask or an index array.
+
+        Parameters
+        ----------
+        index : numpy.ndarray of bool or int
+            The selection.
+
+        Returns
+        -------
+        AeroSamples
+            The selected samples (both views).
+        """
 
         def pick(values):
             return values[index]

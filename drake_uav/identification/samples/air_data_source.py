@@ -43,19 +43,28 @@ _DESCRIPTION = {
 
 @dataclasses.dataclass(frozen=True)
 class FlowAngles:
-    """The flow angles of one log segment, as channels of its log."""
+    """The flow angles of one log segment, as channels of its log.
+
+    Attributes
+    ----------
+    mode : str
+        "vanes", "estimate" or "ahrs".
+    log : FlightLog
+        The segment's log, holding ``channels``.
+    channels : (str, str)
+        Alpha and beta channels [rad].
+    error_variance : dict of str to float or None
+        Mean error variance of ``alpha, beta`` [rad^2] of an estimate (None: a sensor,
+        whose noise the isolation reads from the data).
+    warnings : tuple of str
+        What the estimate could not determine (a wind the segment does not observe).
+    """
 
     mode: str
-    """"vanes", "estimate" or "ahrs"."""
     log: FlightLog
-    """The segment's log, holding ``channels``."""
     channels: tuple[str, str]
-    """Alpha and beta channels [rad]."""
     error_variance: dict[str, float] | None
-    """Mean error variance of ``alpha, beta`` [rad^2] of an estimate (None: a sensor,
-    whose noise the isolation reads from the data)."""
     warnings: tuple[str, ...] = ()
-    """What the estimate could not determine (a wind the segment does not observe)."""
 
     @property
     def description(self) -> str:
@@ -64,7 +73,30 @@ class FlowAngles:
 
 
 def choose_air_data(log: FlightLog, mode: str, source: str = "flight log") -> str:
-    """The mode ``auto`` resolves to for ``log``; checks the channels a mode needs."""
+    """The air-data mode ``auto`` resolves to for ``log``; checks the channels a mode needs.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    mode : str
+        One of :data:`AIR_DATA_MODES` ("auto" picks the vanes when logged, else the
+        estimate).
+    source : str
+        What to call the log in messages (its file name).
+
+    Returns
+    -------
+    str
+        The resolved mode.
+
+    Raises
+    ------
+    ValueError
+        For an unknown mode.
+    FlightLogError
+        Naming the missing channel of the mode.
+    """
     if mode not in AIR_DATA_MODES:
         raise ValueError(f"air_data: unknown mode {mode!r} (known: {', '.join(AIR_DATA_MODES)})")
     if mode == "auto":
@@ -88,8 +120,27 @@ def flow_angles(log: FlightLog, params, mode: str,
                 noise_std: dict[str, float] | None = None) -> FlowAngles:
     """The flow angles of one continuous segment ``log`` by a resolved ``mode``.
 
-    ``noise_std`` (log channel -> standard deviation) tunes the estimator; None
-    lets it use its documented defaults.
+    Parameters
+    ----------
+    log : FlightLog
+        One continuous segment.
+    params : FixedWingParams
+        The aircraft (the estimate's model).
+    mode : str
+        A resolved mode (:func:`choose_air_data`).
+    noise_std : dict of str to float, optional
+        Log channel -> noise standard deviation for the estimator; None lets it use its
+        documented defaults.
+
+    Returns
+    -------
+    FlowAngles
+        The flow-angle channels and, for an estimate, their error variance.
+
+    Raises
+    ------
+    FlightLogError
+        When the air data cannot be estimated (no GPS velocity).
     """
     if mode != "estimate":
         return FlowAngles(mode, log, _CHANNELS[mode], None)

@@ -31,8 +31,21 @@ time base to count as uniform."""
 
 
 def decimation_factor(time: np.ndarray, rate_hz: float) -> int:
-    """``m`` when ``time`` [s] is uniform at ``m`` times ``rate_hz`` [Hz] (``m >= 2``,
-    an integer), else 1 (the log is resampled onto the grid)."""
+    """The integer factor by which a uniform log is faster than the sample rate wanted.
+
+    Parameters
+    ----------
+    time : numpy.ndarray of shape (N,)
+        Sample times [s].
+    rate_hz : float
+        The rate wanted [Hz].
+
+    Returns
+    -------
+    int
+        ``m >= 2`` when ``time`` is uniform at ``m`` times ``rate_hz``, else 1 (the log is
+        then resampled onto the grid).
+    """
     steps = np.diff(np.asarray(time, dtype=float))
     if steps.size == 0:
         return 1
@@ -45,18 +58,48 @@ def decimation_factor(time: np.ndarray, rate_hz: float) -> int:
 
 
 def binned_channels(log: FlightLog, rate_hz: float) -> tuple[str, ...]:
-    """The channels of ``log`` :func:`bin_means` averages: all but those the log says were
-    recorded no faster than ``rate_hz`` [Hz]."""
+    """The channels of ``log`` that :func:`bin_means` averages.
+
+    All but those the log says were recorded no faster than ``rate_hz``.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    rate_hz : float
+        The rate wanted [Hz].
+
+    Returns
+    -------
+    tuple of str
+        The channel names.
+    """
     return tuple(n for n in log.names
                  if (r := logged_rate(log, n)) is None or r > rate_hz * (1 + UNIFORM_TOLERANCE))
 
 
 def bin_means(log: FlightLog, factor: int, rate_hz: float) -> FlightLog:
-    """``log`` with each run of ``factor`` consecutive samples replaced by its mean, time
-    included, the mean times put on the uniform grid that fits them best where the log's
-    clock jitters (the samples left over at the end are dropped). Channels logged no faster
-    than ``rate_hz`` [Hz] (:func:`binned_channels`) are interpolated at the means' times
-    instead. A wrapped angle (the yaw) is averaged unwrapped and wrapped again."""
+    """``log`` with each run of ``factor`` consecutive samples replaced by its mean.
+
+    Time is averaged too, the mean times put on the uniform grid that fits them best where
+    the log's clock jitters (the samples left over at the end are dropped). Channels logged
+    no faster than ``rate_hz`` (:func:`binned_channels`) are interpolated at the means'
+    times instead. A wrapped angle (the yaw) is averaged unwrapped and wrapped again.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    factor : int
+        Number of samples per mean.
+    rate_hz : float
+        The rate of the result [Hz].
+
+    Returns
+    -------
+    FlightLog
+        The decimated log, with the units and metadata of ``log``.
+    """
     n = (len(log.time) // factor) * factor
     time = log.time[:n].reshape(-1, factor).mean(axis=1)
     steps = np.diff(time)

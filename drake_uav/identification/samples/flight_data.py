@@ -117,10 +117,25 @@ to regress on (a flag, a mode, a battery level logged once a minute)."""
 
 
 def usable_extras(log: FlightLog, exclude=()) -> tuple[dict[str, str], tuple[str, ...]]:
-    """The extra channels of ``log`` the main job tests (name -> unit) and one note per
-    extra channel left out: not finite, constant, or changing fewer than
-    :data:`MIN_EXTRA_CHANGES` times. ``exclude``: channels that are not extra here (the
-    flow angles in use)."""
+    """The extra channels of ``log`` the main job tests, and why the others are left out.
+
+    A channel is left out when it is not finite, constant, or changes fewer than
+    :data:`MIN_EXTRA_CHANGES` times.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    exclude : iterable of str
+        Channels that are not extra here (the flow angles in use).
+
+    Returns
+    -------
+    usable : dict of str to str
+        Channel -> unit of each usable extra channel.
+    notes : tuple of str
+        One note per extra channel left out.
+    """
     usable, notes = {}, []
     for name, unit in extra_channels(log, exclude).items():
         values = log[name]
@@ -140,12 +155,26 @@ def usable_extras(log: FlightLog, exclude=()) -> tuple[dict[str, str], tuple[str
 
 def white_noise_variance(values: np.ndarray, rate_hz: float,
                          commands: np.ndarray | None = None, averaged: int = 1) -> float:
-    """Variance of the white-noise floor of a uniformly sampled signal [unit^2] (of the
-    mean of ``averaged`` consecutive samples).
+    """Variance of the white-noise floor of a uniformly sampled signal.
 
-    ``values`` sampled at ``rate_hz`` [Hz]; ``commands`` (n, m) the logged commands
-    on the same samples, whose coherent part is set aside
-    (:func:`~drake_uav.estimation.sensor_noise.noise_floor_variance`).
+    Of the mean of ``averaged`` consecutive samples; the commands' coherent part is set
+    aside (:func:`~drake_uav.estimation.sensor_noise.noise_floor_variance`).
+
+    Parameters
+    ----------
+    values : numpy.ndarray of shape (n,)
+        The signal.
+    rate_hz : float
+        Its sample rate [Hz].
+    commands : numpy.ndarray of shape (n, m), optional
+        The logged commands on the same samples.
+    averaged : int
+        Number of consecutive samples averaged.
+
+    Returns
+    -------
+    float
+        The variance [unit^2].
     """
     return noise_floor_variance(values, rate_hz, commands, averaged)
 
@@ -154,14 +183,27 @@ def raw_noise_variance(log: FlightLog, declared: Mapping[str, float] | None = No
                        air_density: float | None = None, averaged: int = 1) -> dict[str, float]:
     """Noise variance of the raw channels the isolation needs, by isolation name.
 
-    ``declared`` (log channel -> standard deviation [channel unit], the user's
-    sensor specs) wins where it names a channel; the airspeed's may also come
-    from a declared ``pitot_qbar`` [Pa], carried through ``Va = sqrt(2 q / rho)``
-    at the log's median airspeed with ``air_density`` [kg/m^3]. The other
-    channels' noise is read from the data (:func:`white_noise_variance`, the
-    log's commands set aside) at the rate the channel was logged
-    (:func:`native_noise_variance`); with ``averaged`` > 1, that of the means of that many
-    consecutive samples of the log.
+    ``declared`` wins where it names a channel; the airspeed's may also come from a
+    declared ``pitot_qbar`` [Pa], carried through ``Va = sqrt(2 q / rho)`` at the log's
+    median airspeed. The other channels' noise is read from the data
+    (:func:`white_noise_variance`, the log's commands set aside) at the rate the channel
+    was logged (:func:`native_noise_variance`).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    declared : Mapping[str, float], optional
+        Log channel -> standard deviation [channel unit], the user's sensor specs.
+    air_density : float, optional
+        [kg/m^3], for a declared ``pitot_qbar``.
+    averaged : int
+        With ``averaged`` > 1, the variance of the means of that many consecutive samples.
+
+    Returns
+    -------
+    dict of str to float
+        Isolation source (``airspeed``, ``alpha``, ..., ``az``) -> variance [unit^2].
     """
     std = _declared_std(log, declared or {}, air_density)
     return {name: (std[channel] ** 2 if channel in std
@@ -202,15 +244,28 @@ def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
 
 
 def native_noise_variance(log: FlightLog, channel: str, averaged: int = 1) -> float:
-    """White-noise variance of ``channel`` at the rate it was logged [unit^2]; with
-    ``averaged`` > 1, of the mean of that many consecutive samples of the log
-    (:mod:`~drake_uav.identification.samples.decimation`).
+    """White-noise variance of ``channel`` at the rate it was logged.
 
     A channel logged slower than the log's time base was interpolated onto it,
     which averages neighbouring samples and hides their noise. It is taken back to
     its own rate (every k-th sample); of the k phases, the one with the highest
     floor lies closest to the logged samples and gives the estimate (a mean of the log's
     samples holds ``averaged / k`` of its own).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    channel : str
+        The channel.
+    averaged : int
+        With ``averaged`` > 1, of the mean of that many consecutive samples of the log
+        (:mod:`~drake_uav.identification.samples.decimation`).
+
+    Returns
+    -------
+    float
+        The variance [unit^2].
     """
     rate = 1.0 / float(np.median(np.diff(log.time)))
     logged = logged_rate(log, channel)
@@ -291,17 +346,34 @@ def _renamed(log: FlightLog, sources: dict[str, str]) -> FlightLog:
 def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
                   hold_period: float | None = None,
                   span: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Held commands on the sample times ``time``: (at the instants, over the intervals).
+    """Held commands on the sample times ``time``: at the instants, and over the intervals.
 
-    ``values`` (N, m) are logged at ``stamps`` [s]. The commands are issued every
-    ``hold_period`` [s] from the first stamp and held until the next issue
-    (default: the log's step, every command logged); commands issued between two
-    logged ones (a log thinned after the flight) are interpolated. The first
-    result is the command in effect at each instant, the last one issued
-    strictly before it (a sample and a command with the same stamp: the sample
-    comes first); the second is the average of the held commands over
-    ``[time_k, time_(k+1))`` (the last row over one more step), what the rate
-    increments integrate; with ``span`` [s], over ``[time_k, time_k + span)``.
+    The commands are issued every ``hold_period`` from the first stamp and held until the
+    next issue (default: the log's step, every command logged); commands issued between
+    two logged ones (a log thinned after the flight) are interpolated.
+
+    Parameters
+    ----------
+    stamps : numpy.ndarray of shape (N,)
+        Times the commands were logged [s].
+    values : numpy.ndarray of shape (N, m)
+        The logged commands.
+    time : numpy.ndarray of shape (n,)
+        Sample times [s].
+    hold_period : float, optional
+        Period of the command issues [s].
+    span : float, optional
+        Averaging span [s] of the second result (default: the sample intervals).
+
+    Returns
+    -------
+    instant : numpy.ndarray of shape (n, m)
+        The command in effect at each instant, the last one issued strictly before it (a
+        sample and a command with the same stamp: the sample comes first).
+    average : numpy.ndarray of shape (n, m)
+        The average of the held commands over ``[time_k, time_(k+1))`` (the last row over
+        one more step), what the rate increments integrate; with ``span``, over
+        ``[time_k, time_k + span)``.
     """
     stamps = np.asarray(stamps, dtype=float)
     values = np.asarray(values, dtype=float)
@@ -331,15 +403,26 @@ def held_commands(stamps: np.ndarray, values: np.ndarray, time: np.ndarray,
 
 
 def gps_signals(log: FlightLog, time: np.ndarray) -> dict[str, np.ndarray]:
-    """The GPS velocity [m/s] and position [m] of ``log`` on the sample times ``time`` [s],
-    by channel name: each triple (:data:`GPS_VELOCITY`, :data:`GPS_POSITION`) drawn as
-    straight lines between its fixes (extended along the first and last pair's slope at the
-    ends), and left out when the log lacks one of its channels or its fixes leave more than
-    :data:`GPS_MAX_GAP` of ``time``'s span uncovered.
+    """The GPS velocity [m/s] and position [m] of ``log`` on the sample times ``time``.
 
-    A fix is a sample where a channel of the triple changes (the log holds a slow receiver's
-    values until the next one; every sample of a triple that changes at most samples), with
+    Each triple (:data:`GPS_VELOCITY`, :data:`GPS_POSITION`) is drawn as straight lines
+    between its fixes (extended along the first and last pair's slope at the ends), and
+    left out when the log lacks one of its channels or its fixes leave more than
+    :data:`GPS_MAX_GAP` of ``time``'s span uncovered. A fix is a sample where a channel of
+    the triple changes (the log holds a slow receiver's values until the next one), with
     finite values that are not all zero (a receiver without a fix writes zeros or nothing).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    time : numpy.ndarray of shape (n,)
+        Sample times [s].
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Channel name -> (n,) values.
     """
     out = {}
     for names in (GPS_VELOCITY, GPS_POSITION):
@@ -383,7 +466,20 @@ def _between_fixes(stamps: np.ndarray, values: np.ndarray, time: np.ndarray) -> 
 
 
 def check_gaps(log: FlightLog, max_gap: float) -> None:
-    """Raises :class:`FlightLogError` at the first time step longer than ``max_gap`` [s]."""
+    """Check that no time step of ``log`` is longer than ``max_gap``.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    max_gap : float
+        Longest allowed step [s].
+
+    Raises
+    ------
+    FlightLogError
+        At the first longer step, naming its time.
+    """
     step = np.diff(log.time)
     bad = np.flatnonzero(step > max_gap)
     if bad.size:
@@ -395,22 +491,33 @@ def check_gaps(log: FlightLog, max_gap: float) -> None:
 
 @dataclasses.dataclass(frozen=True)
 class GriddedLog:
-    """A checked flight log on the samples' uniform time grid, ready for the isolation
-    (:func:`gridded_log`); the thrust identification
-    (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`) reads it too."""
+    """A checked flight log on the samples' uniform time grid, ready for the isolation.
+
+    Made by :func:`gridded_log`; the thrust identification
+    (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`) reads it too.
+
+    Attributes
+    ----------
+    log : FlightLog
+        The airborne channels on the grid (block means of the decimated samples).
+    controls : numpy.ndarray of shape (N, 4)
+        Elevator, aileron, rudder [rad] and throttle [0..1] as the forces see them.
+    moment_controls : numpy.ndarray of shape (N, 4)
+        The same controls as the moment coefficients see them.
+    signals : dict of str to numpy.ndarray
+        Attitude [rad], height [m] and the GPS triples, by :attr:`AeroSamples.signals` name.
+    noise_variance : dict of str to float
+        Raw white-noise variance of the isolation's sources and the extra channels.
+    extras : Mapping[str, str]
+        The extra channels carried into the samples (channel -> unit).
+    """
 
     log: FlightLog
-    """The airborne channels on the grid (block means of the decimated samples)."""
     controls: np.ndarray
-    """(N, 4) elevator, aileron, rudder [rad] and throttle [0..1] as the forces see them."""
     moment_controls: np.ndarray
-    """(N, 4) the same controls as the moment coefficients see them."""
     signals: dict[str, np.ndarray]
-    """Attitude [rad], height [m] and the GPS triples, by :attr:`AeroSamples.signals` name."""
     noise_variance: dict[str, float]
-    """Raw white-noise variance of the isolation's sources and the extra channels."""
     extras: Mapping[str, str]
-    """The extra channels carried into the samples (channel -> unit)."""
 
 
 def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
@@ -418,12 +525,30 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
                      flow_channels: tuple[str, str] = ("vane_alpha", "vane_beta"),
                      sensor_noise_std: dict[str, float] | None = None,
                      extras: Mapping[str, str] | None = None) -> AeroSamples:
-    """Regression samples (measured coefficients and regressors) from a flight log, with
-    the thrust of the aircraft's propulsion model.
+    """Regression samples (measured coefficients and regressors) from a flight log.
 
-    :func:`gridded_log` followed by :func:`isolated_samples`; the main job puts its thrust
-    identification between the two (:func:`~drake_uav.identification.pipeline.identify`).
-    The parameters are those of :func:`gridded_log`.
+    With the thrust of the aircraft's propulsion model: :func:`gridded_log` followed by
+    :func:`isolated_samples`; the main job puts its thrust identification between the two
+    (:func:`~drake_uav.identification.pipeline.identify`).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log, channels in SI units (module docstring).
+    params : FixedWingParams
+        The aircraft.
+    rate_hz : float
+        Rate of the samples [Hz].
+    max_gap : float
+        Longest allowed time between two samples [s].
+    min_airspeed : float
+        Samples below this airspeed [m/s] are cut from the ends of the log.
+    flow_channels : tuple of str
+        The channels holding the angle of attack and sideslip [rad].
+    sensor_noise_std : dict, optional
+        Log channel -> declared noise standard deviation [channel unit].
+    extras : Mapping, optional
+        Extra channels (channel -> unit) carried into the samples.
 
     Returns
     -------
@@ -437,12 +562,15 @@ def samples_from_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 5
 
     Examples
     --------
+    >>> from importlib.resources import files
     >>> from drake_uav.io.readers import read_log
-    >>> from drake_uav.vehicles.loading import load_fixed_wing
-    >>> samples = samples_from_log(read_log("flight.csv"), load_fixed_wing("aerosonde"),
-    ...                            rate_hz=50.0)                  # doctest: +SKIP
-    >>> sorted(samples.coefficients)                               # doctest: +SKIP
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> log = read_log(files("drake_uav") / "data" / "sample_flight.parquet")   # bundled
+    >>> samples = samples_from_log(log, aerosonde(), rate_hz=50.0)
+    >>> sorted(samples.coefficients)
     ['CD', 'CL', 'CY', 'Cl', 'Cm', 'Cn']
+    >>> float(samples.time[1] - samples.time[0])
+    0.02
     """
     return isolated_samples(gridded_log(log, params, rate_hz, max_gap, min_airspeed,
                                         flow_channels, sensor_noise_std, extras), params)

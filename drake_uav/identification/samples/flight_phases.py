@@ -42,16 +42,24 @@ hovering."""
 
 @dataclasses.dataclass(frozen=True)
 class PhaseSettings:
-    """Thresholds of the airborne detection."""
+    """Thresholds of the airborne detection.
+
+    Attributes
+    ----------
+    min_airspeed : float
+        Pitot airspeed above which the aircraft may be flying [m/s].
+    min_height : float
+        Height above the ground level [m] (used when ``baro_alt`` is logged).
+    min_duration : float
+        Shortest usable span [s].
+    margin : float
+        Trimmed from both ends of every span [s].
+    """
 
     min_airspeed: float = 8.0
-    """Pitot airspeed above which the aircraft may be flying [m/s]."""
     min_height: float = 5.0
-    """Height above the ground level [m] (used when ``baro_alt`` is logged)."""
     min_duration: float = 10.0
-    """Shortest usable span [s]."""
     margin: float = 1.0
-    """Trimmed from both ends of every span [s]."""
 
 
 DEFAULT_PHASES = PhaseSettings()
@@ -59,7 +67,18 @@ DEFAULT_PHASES = PhaseSettings()
 
 
 def mode_timeline(log: FlightLog) -> list[tuple[float, float, str]]:
-    """(start, end, mode) [s] spans of the logged flight modes, up to the log's end."""
+    """The spans of the logged flight modes, up to the log's end.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+
+    Returns
+    -------
+    list of (float, float, str)
+        (start [s], end [s], mode name) of each mode.
+    """
     entries = [(float(t), str(name)) for t, name in log.metadata.get("flight_modes") or []]
     end = float(log.time[-1])
     return [(t, entries[i + 1][0] if i + 1 < len(entries) else end, name)
@@ -100,10 +119,26 @@ def _airborne(log: FlightLog, settings: PhaseSettings) -> np.ndarray:
 
 def usable_spans(log: FlightLog, settings: PhaseSettings = DEFAULT_PHASES,
                  segment: tuple[float, float] | None = None) -> list[tuple[float, float]]:
-    """Airborne, continuous fixed-wing spans (start, end) [s] of ``log``.
+    """Airborne, continuous fixed-wing spans of ``log``.
 
-    ``segment`` restricts them to a chosen time span. Raises :class:`FlightLogError`
-    with the reason when no span is left ("no airborne segment: ...").
+    Parameters
+    ----------
+    log : FlightLog
+        The flight log.
+    settings : PhaseSettings
+        Thresholds of the airborne detection.
+    segment : (float, float), optional
+        Restricts the spans to this time span [s].
+
+    Returns
+    -------
+    list of (float, float)
+        (start, end) [s] of each span.
+
+    Raises
+    ------
+    FlightLogError
+        With the reason when no span is left ("no airborne segment: ...").
     """
     if "pitot_airspeed" not in log:
         dropped = [s for s in log.metadata.get("dropped_streams") or []

@@ -92,13 +92,28 @@ through them."""
 
 
 def interval_averages(values: np.ndarray) -> np.ndarray:
-    """(N - 1, ...) averages over the sample intervals of a smooth, uniformly sampled signal.
+    """Averages over the sample intervals of a smooth, uniformly sampled signal.
 
     The average of the cubic through the four nearest samples (the quadratic through
     three at the first and last interval): exact to O(step^4). The trapezoid
     ``(y_k + y_(k+1)) / 2`` falls short of the true average of a sinusoid of frequency
     ``w`` by ``(w step)^2 / 12``, 0.3 % at 1.5 Hz and 50 Hz, and would bias the
     damping derivatives of the moments by as much.
+
+    Parameters
+    ----------
+    values : numpy.ndarray of shape (N, ...)
+        The samples, along the first axis.
+
+    Returns
+    -------
+    numpy.ndarray of shape (N - 1, ...)
+        The interval averages.
+
+    Raises
+    ------
+    ValueError
+        With fewer than 3 samples.
     """
     y = np.asarray(values, dtype=float)
     if y.shape[0] < 3:
@@ -121,11 +136,27 @@ def _interval_filter(weights: np.ndarray, interval_values: np.ndarray) -> np.nda
 
 def smoothed_noise_variance(time: np.ndarray, raw: np.ndarray, window: float = 0.2,
                             polyorder: int = 3) -> np.ndarray:
-    """White-noise variance left in the Savitzky-Golay smoothed ``raw`` (per column).
+    """White-noise variance left in the Savitzky-Golay smoothed ``raw``, per column.
 
     The raw noise variance is read from ``raw - smooth(raw)``, which removes the
     (smooth) flight signal and keeps ``(1 - 2 h0 + sum h^2)`` of white noise; the
     smoothed signal keeps ``sum h^2`` of it (``h`` the filter coefficients).
+
+    Parameters
+    ----------
+    time : numpy.ndarray of shape (N,)
+        Uniform sample times [s].
+    raw : numpy.ndarray of shape (N,) or (N, m)
+        The raw samples.
+    window : float
+        Filter length [s].
+    polyorder : int
+        Filter polynomial order.
+
+    Returns
+    -------
+    numpy.ndarray
+        Noise variance of each column after smoothing, in the unit of ``raw`` squared.
     """
     h = _smoothing_coefficients(time, window, polyorder)
     detail = raw - differentiate(time, raw, window, polyorder, deriv=0)
@@ -152,10 +183,7 @@ def isolate_coefficients(
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
     All signals are smoothed by the Savitzky-Golay filter of length
-    ``derivative_window`` [s] that also differentiates the rates.
-    ``raw_noise_variance`` gives the white-noise variance of the raw
-    ``airspeed, alpha, beta, p, q, r, ax, ay, az`` samples (e.g. from sensor
-    specifications); missing entries are estimated from the data.
+    ``derivative_window`` that also differentiates the rates.
 
     Forces and moments see held (stepwise) controls differently. The
     accelerometer samples the force at an instant: ``controls`` are the
@@ -167,26 +195,44 @@ def isolate_coefficients(
     controls that vary smoothly). The moment coefficients' regressors are in
     :attr:`AeroSamples.moments` (:meth:`AeroSamples.aligned`).
 
-    Shapes: ``specific_force`` (N, 3) [m/s^2], ``rates`` (N, 3) [rad/s],
-    ``air_data`` (N, 3) [Va m/s, alpha rad, beta rad], ``controls`` and
-    ``moment_controls`` (N, 4) [elevator, aileron, rudder rad, throttle].
-    ``thrust`` [N] defaults to the params' propulsion model at the measured
-    airspeed and throttle (then the same for forces and moments).
-    ``thrust_airspeed_slope`` (N,) [N/(m/s)] goes with a ``thrust`` computed from the
-    measured airspeed (an identified thrust model): its dT/dVa, which the
-    errors-in-variables corrections carry; None for a thrust measured directly.
-    ``thrust_correction_terms`` name the throttle terms such a model was identified with
-    (:attr:`AeroSamples.thrust_correction_terms`).
-
-    ``logged`` maps extra channels of the log (a tension, a voltage) to their raw
-    samples (N,) and unit: they go through the same filters as the regressors (the
-    sample smoothing for the forces, the interval filter for the moments) into
-    ``signals["logged:<channel>"]``, with their noise variance (``raw_noise_variance``
-    may give it under the same key, else it is estimated like the others).
-
-    The fourteen parameters are the flight's arrays as the sensors give them (six), the
-    isolation's setting (one) and the optional inputs of the thrust, the moments' controls
-    and the extra signals, each None by default.
+    Parameters
+    ----------
+    params : FixedWingParams
+        The aircraft (mass, inertia, reference lengths, propulsion model).
+    time : numpy.ndarray of shape (N,)
+        Uniform sample times [s].
+    specific_force : numpy.ndarray of shape (N, 3)
+        Accelerometer, body axes [m/s^2].
+    rates : numpy.ndarray of shape (N, 3)
+        Body rates p, q, r [rad/s].
+    air_data : numpy.ndarray of shape (N, 3)
+        Airspeed [m/s], alpha [rad], beta [rad].
+    controls : numpy.ndarray of shape (N, 4)
+        Elevator, aileron, rudder [rad] and throttle [0..1] in effect at each sample.
+    thrust : numpy.ndarray of shape (N,), optional
+        Thrust [N]; default the params' propulsion model at the measured airspeed and
+        throttle (then the same for forces and moments).
+    signals : Mapping[str, numpy.ndarray], optional
+        Other signals (attitude, height, ...) carried into :attr:`AeroSamples.signals`.
+    derivative_window : float
+        Length of the smoothing and differentiating filter [s].
+    raw_noise_variance : Mapping[str, float], optional
+        White-noise variance of the raw ``airspeed, alpha, beta, p, q, r, ax, ay, az``
+        samples (e.g. from sensor specifications); missing entries are estimated from the
+        data.
+    moment_controls : numpy.ndarray of shape (N, 4), optional
+        The controls averaged over the sample intervals, as the moments see them.
+    thrust_airspeed_slope : numpy.ndarray of shape (N,), optional
+        dT/dVa [N/(m/s)] of a ``thrust`` computed from the measured airspeed (an identified
+        thrust model), which the errors-in-variables corrections carry; None for a thrust
+        measured directly.
+    logged : Mapping[str, (numpy.ndarray, str)], optional
+        Extra channels of the log (a tension, a voltage) -> (raw samples (N,), unit): they
+        go through the same filters as the regressors into ``signals["logged:<channel>"]``,
+        with their noise variance (``raw_noise_variance`` may give it under the same key).
+    thrust_correction_terms : tuple of str
+        The throttle terms an identified thrust model was fitted with
+        (:attr:`AeroSamples.thrust_correction_terms`).
 
     Returns
     -------
@@ -201,9 +247,18 @@ def isolate_coefficients(
 
     Examples
     --------
-    >>> samples = isolate_coefficients(aerosonde(), time, specific_force, rates,
-    ...                                air_data, controls)           # doctest: +SKIP
-    >>> samples.coefficients["CL"]                                   # doctest: +SKIP
+    >>> import numpy as np
+    >>> from drake_uav.vehicles.fixed_wing import aerosonde
+    >>> time = np.arange(200) / 50.0
+    >>> wave = np.sin(np.pi * time)
+    >>> specific_force = np.column_stack([0.1 * wave, 0.0 * wave, -9.81 + 0.5 * wave])
+    >>> rates = np.column_stack([0.05 * wave, 0.1 * wave, 0.0 * wave])
+    >>> air_data = np.column_stack([20.0 + wave, 0.05 + 0.02 * wave, 0.01 * wave])
+    >>> controls = np.column_stack([-0.05 + 0.02 * wave, 0 * wave, 0 * wave, 0.5 + 0 * wave])
+    >>> samples = isolate_coefficients(aerosonde(), time, specific_force, rates, air_data,
+    ...                                controls)
+    >>> sorted(samples.coefficients), samples.coefficients["CL"].shape
+    (['CD', 'CL', 'CY', 'Cl', 'Cm', 'Cn'], (200,))
     """
     time = np.asarray(time, dtype=float)
     arrays = _checked_arrays(len(time), specific_force=specific_force, rates=rates,
@@ -465,9 +520,44 @@ def monte_carlo_sigmas(
     samples: int = 1_000_000,
     seed: int = 0,
 ) -> dict[str, float]:
-    """:func:`monte_carlo_sigma` of each output of ``function`` (name -> array), from one
-    set of draws: each output's sigma is the one :func:`monte_carlo_sigma` gives for it
-    alone with the same ``seed``."""
+    """:func:`monte_carlo_sigma` of each output of ``function``, from one set of draws.
+
+    Each output's sigma is the one :func:`monte_carlo_sigma` gives for it alone with the
+    same ``seed``.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(*inputs) -> {name: array}``, vectorised over the draws.
+    ranges : numpy.ndarray of shape (n, 2)
+        Lower and upper bound of each input.
+    error_std : numpy.ndarray of shape (n,)
+        Standard deviation of each input's error.
+    correlation, error_correlation : numpy.ndarray of shape (n, n), optional
+        Correlation of the inputs (Gaussian copula) and of their errors.
+    samples : int
+        Number of draws.
+    seed : int
+        Seed of the draws.
+
+    Returns
+    -------
+    dict of str to float
+        Output name -> normal-equivalent standard deviation of its error.
+
+    Raises
+    ------
+    ValueError
+        When ``ranges`` or ``error_std`` have the wrong shape or sign.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sigmas = monte_carlo_sigmas(lambda x: {"double": 2.0 * x, "same": x},
+    ...                             np.array([[0.0, 1.0]]), np.array([0.1]), samples=200_000)
+    >>> round(sigmas["double"], 2), round(sigmas["same"], 2)
+    (0.2, 0.1)
+    """
     ranges = np.asarray(ranges, dtype=float)
     error_std = np.asarray(error_std, dtype=float)
     n = ranges.shape[0]

@@ -80,9 +80,25 @@ _RATES = ("p", "q", "r")
 
 @functools.lru_cache(maxsize=32)
 def smoothing_gains(step: float, window: float = ISOLATION_WINDOW) -> tuple[float, float]:
-    """``(sum h^2, sum d^2 [1/s^2])`` of the isolation's Savitzky-Golay smoothing ``h`` and
-    derivative ``d`` for a sample ``step`` [s]: white noise of variance ``v`` leaves
-    ``v sum h^2`` in the smoothed signal and ``v sum d^2`` in its derivative."""
+    """Noise gains of the isolation's Savitzky-Golay smoothing ``h`` and derivative ``d``.
+
+    White noise of variance ``v`` leaves ``v sum h^2`` in the smoothed signal and
+    ``v sum d^2`` in its derivative.
+
+    Parameters
+    ----------
+    step : float
+        Sample step [s].
+    window : float
+        Filter length [s].
+
+    Returns
+    -------
+    sum_h2 : float
+        ``sum h^2`` [-].
+    sum_d2 : float
+        ``sum d^2`` [1/s^2].
+    """
     half = int(round(window / step)) + 2
     time = np.arange(2 * half + 1) * step
     impulse = np.zeros(time.size)
@@ -92,13 +108,24 @@ def smoothing_gains(step: float, window: float = ISOLATION_WINDOW) -> tuple[floa
 
 
 def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]:
-    """Noise variance per sample of every source (module table) as the signals of
-    ``coefficient`` carry it [unit^2]; sources without noise are left out.
+    """Noise variance per sample of every source as the signals of ``coefficient`` carry it.
 
     The smoothed channels' variances are those of the view the coefficient uses
     (:meth:`AeroSamples.aligned`: the moments' interval filter changes them); a
     derivative's is the raw channel's (the force view's over ``sum h^2``) times
     ``sum d^2``.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    coefficient : str
+        The measured coefficient.
+
+    Returns
+    -------
+    dict of str to float
+        Source (module table) -> variance [unit^2]; sources without noise are left out.
     """
     view = samples.aligned(coefficient).noise_variance
     out = {s: float(view[s]) for s in (*AIR_DATA_SOURCES, *_RATES) if s in view}
@@ -111,17 +138,54 @@ def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]
 
 
 def noise_sources(variance: Mapping[str, float]) -> tuple[str, ...]:
-    """The sources of ``variance`` in :data:`STEPS` order, the logged channels after."""
+    """The sources of ``variance`` in :data:`STEPS` order, the logged channels after.
+
+    Parameters
+    ----------
+    variance : Mapping[str, float]
+        Source -> noise variance.
+
+    Returns
+    -------
+    tuple of str
+        The source names.
+    """
     return (*(s for s in STEPS if s in variance), *(s for s in variance if s not in STEPS))
 
 
 def source_step(source: str) -> float:
-    """Finite-difference step of a source: :data:`STEPS`, else :data:`LOGGED_STEP`."""
+    """Finite-difference step of a source: :data:`STEPS`, else :data:`LOGGED_STEP`.
+
+    Parameters
+    ----------
+    source : str
+        The source name.
+
+    Returns
+    -------
+    float
+        The step, in the source's unit.
+    """
     return STEPS.get(source, LOGGED_STEP)
 
 
 def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
-    """A copy of ``samples`` (both views) with ``delta`` added to one source's signal."""
+    """A copy of ``samples`` (both views) with ``delta`` added to one source's signal.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    source : str
+        An air-data source, a rate derivative or a logged channel (module table).
+    delta : float
+        The step, in the source's unit.
+
+    Returns
+    -------
+    AeroSamples
+        The perturbed copy.
+    """
     if source.startswith(LOGGED):
         return dataclasses.replace(
             samples.with_moments(lambda m: dataclasses.replace(
@@ -144,7 +208,7 @@ def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
 
 def observation_sensitivity(samples: AeroSamples, coefficient: str,
                             params: FixedWingParams) -> dict[str, np.ndarray]:
-    """d(measured coefficient)/d(source) per sample [1/unit].
+    """d(measured coefficient)/d(source) per sample.
 
     The air data's from :meth:`AeroSamples.observation_sensitivity`; a moment
     coefficient also moves with the gyros (the gyroscopic term ``w x J w``) and with the
@@ -152,6 +216,20 @@ def observation_sensitivity(samples: AeroSamples, coefficient: str,
     :func:`~drake_uav.model.isolation.moment_coefficients` (exact: it is quadratic in the
     rates and linear in their derivatives). The accelerometers enter the force
     coefficients alone and are not sources of the regressors.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    coefficient : str
+        The measured coefficient.
+    params : FixedWingParams
+        The aircraft (inertia and reference lengths).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Source -> (N,) sensitivity [1/unit].
     """
     view = samples.aligned(coefficient)
     out = view.observation_sensitivity(coefficient)
@@ -178,13 +256,30 @@ def observation_sensitivity(samples: AeroSamples, coefficient: str,
 def noise_variance_per_sample(samples: AeroSamples, coefficient: str, params: FixedWingParams,
                               noise: PropagatedNoise | None, theta: np.ndarray
                               ) -> dict[str, np.ndarray]:
-    """Source -> (N,) variance of the equation error of the fit ``theta`` that the source's
-    noise gives at each sample of ``samples``: ``var_s (dz/ds - dx/ds . theta)^2`` summed as
-    :mod:`~drake_uav.identification.assessment.noise_floor` explains.
+    """Source -> variance of the equation error of the fit ``theta`` that its noise gives.
 
-    ``noise`` is the noise the fit's design carries on ``samples`` (None: the coefficient's
-    own, without regressors); the accelerometers' noise, which enters the force
-    coefficients alone, is added.
+    ``var_s (dz/ds - dx/ds . theta)^2`` at each sample, summed as
+    :mod:`~drake_uav.identification.assessment.noise_floor` explains; the accelerometers'
+    noise, which enters the force coefficients alone, is added.
+
+    Parameters
+    ----------
+    samples : AeroSamples
+        The samples.
+    coefficient : str
+        The measured coefficient.
+    params : FixedWingParams
+        The aircraft.
+    noise : PropagatedNoise or None
+        The noise the fit's design carries on ``samples`` (None: the coefficient's own,
+        without regressors).
+    theta : numpy.ndarray of shape (n,)
+        The fit.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Source -> (N,) variance [-].
     """
     if noise is None:
         noise = PropagatedNoise(len(theta), {}, observation_sensitivity(

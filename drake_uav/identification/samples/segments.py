@@ -21,16 +21,44 @@ __all__ = ["concatenate_samples", "delayed", "span_starts"]
 
 
 def span_starts(time: np.ndarray) -> np.ndarray:
-    """Indices of the first sample of each span of joined samples (0, then every sample
-    after a gap longer than 1.5 sampling periods) of the times ``time`` [s]."""
+    """Indices of the first sample of each span of joined samples.
+
+    0, then every sample after a gap longer than 1.5 sampling periods.
+
+    Parameters
+    ----------
+    time : numpy.ndarray of shape (N,)
+        Sample times [s], increasing.
+
+    Returns
+    -------
+    numpy.ndarray of int
+        The start indices.
+    """
     step = np.diff(time)
     return np.concatenate([[0], np.flatnonzero(step > 1.5 * np.median(step)) + 1])
 
 
 def delayed(time: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
-    """``values`` at ``time - delay`` [s], straight lines between samples; within the first
-    ``delay`` of each span of the samples (joined spans keep their gaps) the span's first
-    value, since what came before is not in the log."""
+    """``values`` at ``time - delay``, straight lines between samples.
+
+    Within the first ``delay`` of each span of the samples (joined spans keep their gaps)
+    the span's first value, since what came before is not in the log.
+
+    Parameters
+    ----------
+    time : numpy.ndarray of shape (N,)
+        Sample times [s].
+    values : numpy.ndarray of shape (N,)
+        The signal.
+    delay : float
+        The delay [s].
+
+    Returns
+    -------
+    numpy.ndarray of shape (N,)
+        The delayed signal.
+    """
     starts = span_starts(time)
     span_start = time[starts][np.searchsorted(starts, np.arange(len(time)), side="right") - 1]
     return np.interp(np.maximum(time - delay, span_start), time, values)
@@ -41,10 +69,24 @@ def _joined(parts: Sequence, pick) -> np.ndarray:
 
 
 def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
-    """One :class:`AeroSamples` of the segments ``parts`` (in time order).
+    """One :class:`AeroSamples` of the segments ``parts``, in time order.
 
     Noise variances are the sample-weighted means of the segments' estimates.
-    Raises ValueError when the parts overlap in time or differ in what they hold.
+
+    Parameters
+    ----------
+    parts : sequence of AeroSamples
+        The segments' samples, in time order.
+
+    Returns
+    -------
+    AeroSamples
+        The joined samples (``parts[0]`` itself when there is one part).
+
+    Raises
+    ------
+    ValueError
+        When the parts overlap in time or differ in what they hold.
     """
     parts = sorted(parts, key=lambda p: p.time[0])
     if len(parts) == 1:

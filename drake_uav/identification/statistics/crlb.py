@@ -61,6 +61,12 @@ def crlb_ols(X, noise_std: float) -> np.ndarray:
     ndarray
         (n, n) the bound on the covariance of any unbiased estimate of theta.
 
+    Raises
+    ------
+    ValueError
+        When ``X`` is not (N, n) with N >= n, holds NaN or inf or an all-zero column, or
+        ``noise_std`` is not positive.
+
     Examples
     --------
     >>> import numpy as np

@@ -66,10 +66,29 @@ __all__ = [
 def normalization_matrix(error_std=None, error_cov=None, n_cols: int = 0) -> np.ndarray:
     """Upper-triangular error std matrix C with C^T C = W_T (Vaiopoulos 2017, eq. 4.38-4.40).
 
-    ``error_std`` (n_cols,) gives C = diag(error_std); ``error_cov`` (n_cols, n_cols) gives the
-    Cholesky factor. Neither gives the identity (plain TLS). Entries must be positive here; the
-    batch :func:`~.regression.tls` replaces zero stds of exact columns
-    before calling this.
+    TLS and GTLS normalise the augmented data ``[X | z]`` by ``C^-1`` so that its noise is
+    isotropic. Entries must be positive here; the batch :func:`~.regression.tls` replaces
+    zero stds of exact columns before calling this.
+
+    Parameters
+    ----------
+    error_std : array_like of shape (n_cols,), optional
+        Noise std of each column, in the column's unit; gives C = diag(error_std).
+    error_cov : array_like of shape (n_cols, n_cols), optional
+        Noise covariance of one row (symmetric positive definite); gives its Cholesky factor.
+    n_cols : int
+        Number of columns of ``[X | z]``.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n_cols, n_cols)
+        C; the identity (plain TLS) when neither ``error_std`` nor ``error_cov`` is given.
+
+    Raises
+    ------
+    ValueError
+        If both are given, a shape is wrong, ``error_cov`` is not symmetric positive
+        definite or an ``error_std`` entry is not finite and positive.
     """
     if error_std is not None and error_cov is not None:
         raise ValueError("give error_std or error_cov, not both")
@@ -105,6 +124,25 @@ class PropagatedNoise:
     order the noise of row t is ``sum_s J_(s,t) n_(s,t)``, so its moments are
     ``sum_s var_s J_s^T J_s``: sample-dependent, which no single row covariance ``W_T``
     describes.
+
+    Attributes
+    ----------
+    columns : int
+        Number of regressor columns n.
+    regressors : Mapping[str, numpy.ndarray]
+        Source name -> (N, n) sensitivities of the regressors to that source.
+    observation : Mapping[str, numpy.ndarray]
+        Source name -> (N,) sensitivity of the observation to that source.
+    variance : Mapping[str, float]
+        Source name -> noise variance, in the source's unit squared.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> noise = PropagatedNoise(1, {"pitot": np.ones((4, 1))}, {}, {"pitot": 0.25})
+    >>> C_xx, c_xz = noise.moments()
+    >>> float(C_xx[0, 0]), float(c_xz[0])
+    (1.0, 0.0)
     """
 
     columns: int
@@ -114,7 +152,20 @@ class PropagatedNoise:
     variance: Mapping[str, float]
 
     def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
-        """Expected ``(dX^T dX, dX^T dz)`` over ``rows`` (a mask or indices; None: all)."""
+        """Expected noise moments ``(dX^T dX, dX^T dz)`` summed over some rows.
+
+        Parameters
+        ----------
+        rows : array_like or slice, optional
+            A boolean mask, indices or a slice of the samples; None: all samples.
+
+        Returns
+        -------
+        C_xx : numpy.ndarray of shape (n, n)
+            Expected ``dX^T dX``.
+        c_xz : numpy.ndarray of shape (n,)
+            Expected ``dX^T dz``.
+        """
         C_xx, c_xz = np.zeros((self.columns, self.columns)), np.zeros(self.columns)
         for source, J in self.regressors.items():
             Jr = J if rows is None else J[rows]
@@ -126,9 +177,23 @@ class PropagatedNoise:
         return C_xx, c_xz
 
     def extended(self, regressors: Mapping[str, np.ndarray], n_new: int) -> PropagatedNoise:
-        """The noise of ``n_new`` added columns appended; ``regressors`` maps a source to
-        their (N, n_new) sensitivities (missing: the columns do not depend on it). A source
-        the present columns do not depend on joins when ``variance`` knows it."""
+        """The noise of the design with ``n_new`` columns appended.
+
+        A source the present columns do not depend on joins when ``variance`` knows it.
+
+        Parameters
+        ----------
+        regressors : Mapping[str, numpy.ndarray]
+            Source name -> (N, n_new) sensitivities of the added columns (a source missing:
+            the columns do not depend on it).
+        n_new : int
+            Number of added columns.
+
+        Returns
+        -------
+        PropagatedNoise
+            The noise of the n + n_new columns, with the same observation and variances.
+        """
         new = {}
         for source in (*self.regressors, *(s for s in regressors if s not in self.regressors
                                            and s in self.variance)):
@@ -144,8 +209,29 @@ class PropagatedNoise:
 
 
 def compensated_normal_equations(X, z, noise: PropagatedNoise, rows=None):
-    """Bias-compensated normal equations ``(X^T X - E[dX^T dX], X^T z - E[dX^T dz])``
-    over ``rows`` (Fuller 1987, eq. 2.2.4, with sample-dependent noise moments)."""
+    """Bias-compensated normal equations ``(X^T X - E[dX^T dX], X^T z - E[dX^T dz])``.
+
+    Fuller 1987, eq. 2.2.4, with sample-dependent noise moments: their solution is
+    the estimate that least squares would give on the noise-free regressors.
+
+    Parameters
+    ----------
+    X : numpy.ndarray of shape (N, n)
+        Measured regressors.
+    z : numpy.ndarray of shape (N,)
+        Measured observation.
+    noise : PropagatedNoise
+        Noise of the regressors and the observation.
+    rows : array_like or slice, optional
+        The samples summed over (mask, indices or slice); None: all.
+
+    Returns
+    -------
+    A : numpy.ndarray of shape (n, n)
+        Compensated normal matrix.
+    b : numpy.ndarray of shape (n,)
+        Compensated right-hand side.
+    """
     X = X if rows is None else X[rows]
     z = z if rows is None else z[rows]
     C_xx, c_xz = noise.moments(rows)
@@ -161,6 +247,19 @@ class BlockMoments:
     totals minus one block, so the K fits need one pass over the data, not K; a design
     extended by a few columns needs only the products of the new columns
     (:meth:`extended`).
+
+    Attributes
+    ----------
+    edges : tuple of int
+        Block boundaries: block k holds rows ``edges[k]:edges[k + 1]``.
+    xx : numpy.ndarray of shape (K, n, n)
+        ``X_k^T X_k``.
+    xz : numpy.ndarray of shape (K, n)
+        ``X_k^T z_k``.
+    noise_xx : numpy.ndarray of shape (K, n, n)
+        Expected ``dX_k^T dX_k`` (:meth:`PropagatedNoise.moments` on block k).
+    noise_xz : numpy.ndarray of shape (K, n)
+        Expected ``dX_k^T dz_k``.
     """
 
     edges: tuple[int, ...]
@@ -177,7 +276,24 @@ class BlockMoments:
     @classmethod
     def of(cls, X: np.ndarray, z: np.ndarray, noise: PropagatedNoise,
            edges) -> BlockMoments:
-        """The block sums of the design ``(X, z)`` with regressor noise ``noise``."""
+        """The block sums of the design ``(X, z)`` with regressor noise ``noise``.
+
+        Parameters
+        ----------
+        X : numpy.ndarray of shape (N, n)
+            Regressors.
+        z : numpy.ndarray of shape (N,)
+            Observation.
+        noise : PropagatedNoise
+            Noise of the regressors and the observation.
+        edges : sequence of int
+            Block boundaries, from 0 to N.
+
+        Returns
+        -------
+        BlockMoments
+            The per-block sums.
+        """
         edges = tuple(int(e) for e in edges)
         blocks = [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
         xx = np.stack([X[b].T @ X[b] for b in blocks])
@@ -190,14 +306,29 @@ class BlockMoments:
                  X_new: np.ndarray, J_new: Mapping[str, np.ndarray]) -> BlockMoments:
         """The block sums of ``[X | X_new]``, with the noise of :meth:`PropagatedNoise.extended`.
 
-        ``(X, z, noise)`` is the design these sums were built from; ``X_new`` (N, q) the
-        added columns, ``J_new`` their (N, q) sensitivities to each noise source (a source
-        missing: the columns do not depend on it; one ``X`` does not depend on counts
-        when ``noise.variance`` knows it). Only the new rows of the moments are computed.
+        Only the new rows of the moments are computed. ``X_new`` (N, m, q) and ``J_new``
+        values of the same shape are m alternative extensions at once (the candidates of a
+        search): every array of the result then has a leading axis m.
 
-        ``X_new`` (N, m, q) and ``J_new`` values of the same shape are m alternative
-        extensions at once (the candidates of a search): every array of the result then
-        has a leading axis m.
+        Parameters
+        ----------
+        X : numpy.ndarray of shape (N, p)
+            The regressors these sums were built from.
+        z : numpy.ndarray of shape (N,)
+            The observation these sums were built from.
+        noise : PropagatedNoise
+            The noise these sums were built from.
+        X_new : numpy.ndarray of shape (N, q) or (N, m, q)
+            The added columns.
+        J_new : Mapping[str, numpy.ndarray]
+            Source name -> sensitivities of the added columns, shaped as ``X_new`` (a source
+            missing: the columns do not depend on it; a source joins when
+            ``noise.variance`` knows it).
+
+        Returns
+        -------
+        BlockMoments
+            The sums of the extended design (with a leading axis m for a batch).
         """
         batch = X_new.ndim == 3
         if not batch:
@@ -224,20 +355,43 @@ class BlockMoments:
         return BlockMoments(self.edges, xx[0], xz[0], noise_xx[0], noise_xz[0])
 
     def total(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Over all rows: the compensated normal equations ``(A, b)`` and the noise
-        moments ``(C_xx, c_xz)`` (with the leading axis of a batch)."""
+        """The compensated normal equations and the noise moments over all rows.
+
+        Returns
+        -------
+        A, b : numpy.ndarray
+            Compensated normal equations, (n, n) and (n,) (with the leading axis of a batch).
+        C_xx, c_xz : numpy.ndarray
+            Expected noise moments, (n, n) and (n,).
+        """
         C_xx, c_xz = self.noise_xx.sum(axis=-3), self.noise_xz.sum(axis=-2)
         return self.xx.sum(axis=-3) - C_xx, self.xz.sum(axis=-2) - c_xz, C_xx, c_xz
 
     def held_in_least_squares(self) -> tuple[np.ndarray, np.ndarray]:
-        """(K, n, n) and (K, n): the plain normal equations without block k (least squares,
-        no noise compensation; with the leading axis of a batch)."""
+        """The plain normal equations without block k, for every k.
+
+        Least squares, no noise compensation.
+
+        Returns
+        -------
+        A : numpy.ndarray of shape (K, n, n)
+            ``X^T X`` without block k (with the leading axis of a batch).
+        b : numpy.ndarray of shape (K, n)
+            ``X^T z`` without block k.
+        """
         return (self.xx.sum(axis=-3)[..., None, :, :] - self.xx,
                 self.xz.sum(axis=-2)[..., None, :] - self.xz)
 
     def held_in(self) -> tuple[np.ndarray, np.ndarray]:
-        """(K, n, n) and (K, n): the compensated normal equations without block k (with
-        the leading axis of a batch)."""
+        """The compensated normal equations without block k, for every k.
+
+        Returns
+        -------
+        A : numpy.ndarray of shape (K, n, n)
+            Compensated normal matrix without block k (with the leading axis of a batch).
+        b : numpy.ndarray of shape (K, n)
+            Compensated right-hand side without block k.
+        """
         A, b, _, _ = self.total()
         return (A[..., None, :, :] - (self.xx - self.noise_xx),
                 b[..., None, :] - (self.xz - self.noise_xz))
@@ -261,7 +415,20 @@ def _add_new_rows(xx: np.ndarray, xz: np.ndarray, weight: float, new: np.ndarray
 def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``A^-1 b`` with A equilibrated to a unit diagonal (least squares if A is singular).
 
-    ``A`` (n, n) and ``b`` (n,), or stacks of them, (K, n, n) and (K, n), solved together.
+    Equilibration keeps coefficients of very different scales (per radian and per
+    throttle) from losing digits.
+
+    Parameters
+    ----------
+    A : numpy.ndarray of shape (n, n) or (K, n, n)
+        Normal matrix, or a stack of them solved together.
+    b : numpy.ndarray of shape (n,) or (K, n)
+        Right-hand side(s).
+
+    Returns
+    -------
+    numpy.ndarray of shape (n,) or (K, n)
+        The solution(s).
     """
     scale = np.sqrt(np.maximum(np.diagonal(A, axis1=-2, axis2=-1), 1e-300))
     try:
@@ -274,11 +441,22 @@ def solve_normal_equations(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def is_well_posed(A: np.ndarray, tolerance: float = 1e-8):
-    """True when the compensated normal matrix ``A`` is safely positive definite.
+    """Whether the compensated normal matrix ``A`` is safely positive definite.
 
     Removing the noise moments can make a nearly collinear design indefinite: its
-    columns are then not separable from the regressor noise. A stack (..., n, n) gives
-    an array of answers.
+    columns are then not separable from the regressor noise.
+
+    Parameters
+    ----------
+    A : array_like of shape (n, n) or (..., n, n)
+        Compensated normal matrix, or a stack of them.
+    tolerance : float
+        Smallest eigenvalue of the unit-diagonal ``A`` accepted.
+
+    Returns
+    -------
+    bool or numpy.ndarray of bool
+        The answer, one per matrix of a stack.
     """
     A = np.asarray(A, dtype=float)
     diagonal = np.diagonal(A, axis1=-2, axis2=-1)
@@ -291,10 +469,27 @@ def is_well_posed(A: np.ndarray, tolerance: float = 1e-8):
 
 
 def moment_scores(X, z, theta, noise: PropagatedNoise) -> np.ndarray:
-    """(N, n) per-sample terms of the compensated normal equations at ``theta``.
+    """Per-sample terms of the compensated normal equations at ``theta``.
 
     ``x_t (z_t - x_t^T theta)`` plus the sample's expected regressor-noise part
-    ``sum_s var_s J_(s,t) (J_(s,t)^T theta - dz_t/ds)``; they sum to zero at the estimate.
+    ``sum_s var_s J_(s,t) (J_(s,t)^T theta - dz_t/ds)``; they sum to zero at the estimate,
+    and their long-run covariance gives the sandwich covariance.
+
+    Parameters
+    ----------
+    X : numpy.ndarray of shape (N, n)
+        Regressors.
+    z : numpy.ndarray of shape (N,)
+        Observation.
+    theta : numpy.ndarray of shape (n,)
+        Parameters.
+    noise : PropagatedNoise
+        Noise of the regressors and the observation.
+
+    Returns
+    -------
+    numpy.ndarray of shape (N, n)
+        The scores ``psi_t``.
     """
     psi = X * (z - X @ theta)[:, None]
     for source, J in noise.regressors.items():
@@ -304,10 +499,26 @@ def moment_scores(X, z, theta, noise: PropagatedNoise) -> np.ndarray:
 
 
 def noise_error_energy(theta, C_xx, c_xz):
-    """Expected regressor-noise part ``theta^T C_xx theta - 2 theta^T c_xz`` of the observed
-    squared error ``|z - X theta|^2`` (noise moments from :meth:`PropagatedNoise.moments`).
+    """Expected regressor-noise part of the observed squared error ``|z - X theta|^2``.
 
-    Stacks (m, n), (m, n, n), (m, n) give the (m,) energies of m fits."""
+    ``theta^T C_xx theta - 2 theta^T c_xz``, with the noise moments of
+    :meth:`PropagatedNoise.moments`: what the regressor noise adds to the observed error
+    of a fit.
+
+    Parameters
+    ----------
+    theta : array_like of shape (n,) or (m, n)
+        Parameters, or m fits.
+    C_xx : numpy.ndarray of shape (n, n) or (m, n, n)
+        Expected ``dX^T dX``.
+    c_xz : numpy.ndarray of shape (n,) or (m, n)
+        Expected ``dX^T dz``.
+
+    Returns
+    -------
+    float or numpy.ndarray of shape (m,)
+        The energy, in the observation's unit squared.
+    """
     theta = np.asarray(theta)
     if theta.ndim == 1:
         return float(theta @ C_xx @ theta - 2.0 * theta @ c_xz)
@@ -319,8 +530,20 @@ def noise_error_energy(theta, C_xx, c_xz):
 
 
 def sandwich_covariance(A_inv: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """``A^-1 S A^-1`` (symmetrised): covariance of the root of ``sum_t psi_t = 0`` whose
-    Jacobian is ``-A`` and whose summed scores have covariance ``S``."""
+    """``A^-1 S A^-1`` (symmetrised): the covariance of the root of ``sum_t psi_t = 0``.
+
+    Parameters
+    ----------
+    A_inv : numpy.ndarray of shape (n, n)
+        Inverse of ``A``, minus the Jacobian of the summed scores.
+    S : numpy.ndarray of shape (n, n)
+        Covariance of the summed scores.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, n)
+        The parameter covariance.
+    """
     covariance = A_inv @ S @ A_inv
     return 0.5 * (covariance + covariance.T)
 
@@ -328,11 +551,27 @@ def sandwich_covariance(A_inv: np.ndarray, S: np.ndarray) -> np.ndarray:
 def white_noise_covariance(A_inv, s2: float, noise_xx, noise_xv, n_rows: float) -> np.ndarray:
     """Sandwich covariance for white Gaussian row errors (Fuller 1987, Thm 2.3.2).
 
-    The summed scores have covariance ``s^2 A + N (s^2 S_uu - S_uv S_uv^T)``: ``s2`` the
-    equation-error variance, ``noise_xx`` ``S_uu`` the regressor-noise covariance of one
-    row, ``noise_xv`` ``S_uv`` its covariance with the equation error, ``n_rows`` N.
+    The summed scores have covariance ``s^2 A + N (s^2 S_uu - S_uv S_uv^T)``.
     ``A^-1 A A^-1 = A^-1`` is written out: ``s^2 A^-1`` (Vaiopoulos 2017, eq. 4.62) plus
     the term of order (regressor noise / regressor signal)^2.
+
+    Parameters
+    ----------
+    A_inv : numpy.ndarray of shape (n, n)
+        Inverse of the compensated normal matrix.
+    s2 : float
+        Equation-error variance s^2.
+    noise_xx : numpy.ndarray of shape (n, n)
+        ``S_uu``, the regressor-noise covariance of one row.
+    noise_xv : numpy.ndarray of shape (n,)
+        ``S_uv``, its covariance with the equation error.
+    n_rows : float
+        Number of rows N.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, n)
+        The parameter covariance.
     """
     second = n_rows * A_inv @ (s2 * noise_xx - np.outer(noise_xv, noise_xv)) @ A_inv
     covariance = s2 * A_inv + second
@@ -342,9 +581,20 @@ def white_noise_covariance(A_inv, s2: float, noise_xx, noise_xv, n_rows: float) 
 def restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.ndarray):
     """Inverse of an information matrix on the complement of unidentifiable directions.
 
-    ``info_eq`` is given in equilibrated coordinates (theta_eq = scale * theta), ``null_dirs``
-    holds the orthonormal raw unidentifiable directions (rows). Returns the raw covariance
-    factor B (B^T I B)^-1 B^T, B an orthonormal raw basis of the complement of ``null_dirs``.
+    Parameters
+    ----------
+    info_eq : numpy.ndarray of shape (n, n)
+        Information matrix in equilibrated coordinates (theta_eq = scale * theta).
+    null_dirs : numpy.ndarray of shape (m, n)
+        Orthonormal raw unidentifiable directions (rows); may be empty.
+    scale : numpy.ndarray of shape (n,)
+        The equilibration scale.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, n)
+        The raw covariance factor ``B (B^T I B)^-1 B^T``, B an orthonormal raw basis of
+        the complement of ``null_dirs`` (zero along them).
     """
     n = info_eq.shape[0]
     if null_dirs.shape[0] == 0:
@@ -361,7 +611,18 @@ def restricted_inverse(info_eq: np.ndarray, null_dirs: np.ndarray, scale: np.nda
 
 
 def orthonormal_columns(A: np.ndarray) -> np.ndarray:
-    """Orthonormal basis (columns) of the range of A, empty if A has no columns."""
+    """Orthonormal basis (columns) of the range of ``A``.
+
+    Parameters
+    ----------
+    A : numpy.ndarray of shape (n, m)
+        Any matrix.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, r)
+        r = rank of ``A`` columns; empty if ``A`` has no columns or is zero.
+    """
     if A.shape[1] == 0:
         return A
     u, s, _ = np.linalg.svd(A, full_matrices=False)
@@ -372,19 +633,44 @@ def orthonormal_columns(A: np.ndarray) -> np.ndarray:
 
 
 def excitation_threshold(n_rows: float, n_params: int, snr_min: float, scale: float = 1.0):
-    """Singular-value threshold of sufficient excitation (Vaiopoulos 2017, eq. 4.68-4.69),
-    normalised units.
+    """Singular-value threshold of sufficient excitation (Vaiopoulos 2017, eq. 4.68-4.69).
 
-    ``(1 + S/n) * sqrt(scale * (n_rows - n_params))``: the noise energy of a normalised
-    direction is ``scale * (n_rows - n_params)`` (Vaiopoulos 2017, eq. 4.67), ``scale`` = 1
-    when the error covariance is exact. ``n_rows`` may be an effective (forgetting-weighted)
-    row count.
+    ``(1 + S/n) * sqrt(scale * (n_rows - n_params))`` in normalised units: the noise
+    energy of a normalised direction is ``scale * (n_rows - n_params)`` (Vaiopoulos 2017,
+    eq. 4.67). A direction whose singular value is below it is not excited.
+
+    Parameters
+    ----------
+    n_rows : float
+        Number of rows; may be an effective (forgetting-weighted) row count.
+    n_params : int
+        Number of parameters.
+    snr_min : float
+        Smallest signal-to-noise ratio S/n accepted.
+    scale : float
+        Error-variance scale, 1 when the error covariance is exact.
+
+    Returns
+    -------
+    float
+        The threshold, in the units of the normalised singular values.
     """
     return (1.0 + snr_min) * np.sqrt(scale * max(n_rows - n_params, 0.0))
 
 
 def weight_matrix(weights) -> np.ndarray | None:
-    """W (n, n) of the minimum-norm choice from a matrix, a diagonal (n,) or None (identity)."""
+    """The weight matrix W of the minimum-norm choice.
+
+    Parameters
+    ----------
+    weights : array_like of shape (n, n) or (n,), optional
+        A matrix, or its diagonal; None: the identity.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n, n) or None
+        W, or None for the identity.
+    """
     if weights is None:
         return None
     w = np.asarray(weights, dtype=float)
@@ -404,19 +690,34 @@ def _null_basis(g: np.ndarray, g_norm: float) -> np.ndarray:
 def tls_solution(s, V, C_inv, k: int, weights=None, *, with_directions: bool = True):
     """Weighted minimum-norm TLS solution from the SVD of the normalised augmented matrix.
 
-    Args:
-        s: singular values (n+1,) in decreasing order. V: right singular vectors (n+1, n+1),
-            columns. C_inv: inverse error std matrix (n+1, n+1).
-        k: number of excited directions (<= n); k = n is plain TLS/GTLS (Vaiopoulos 2017,
-            eq. 4.61).
-        weights: W (n, n) or its diagonal (n,) for min ||W theta|| (Vaiopoulos 2017, eq.
-            4.76); None = identity.
-        with_directions: also return the unidentifiable directions (else None, faster).
+    With k < n the data excite only k directions, and the estimate is the one of
+    least ``||W theta||`` among those that fit (Vaiopoulos 2017, eq. 4.75-4.79).
 
-    Returns:
-        (theta, k_used, directions): estimate (n,), the number of directions actually kept
-        (lowered if the kept subspace cannot represent [theta; -1], the non-generic TLS case),
-        and the orthonormal parameter-space directions (rows) the data do not determine.
+    Parameters
+    ----------
+    s : numpy.ndarray of shape (n+1,)
+        Singular values in decreasing order.
+    V : numpy.ndarray of shape (n+1, n+1)
+        Right singular vectors, as columns.
+    C_inv : numpy.ndarray of shape (n+1, n+1)
+        Inverse error std matrix.
+    k : int
+        Number of excited directions (<= n); k = n is plain TLS/GTLS (Vaiopoulos 2017,
+        eq. 4.61).
+    weights : array_like of shape (n, n) or (n,), optional
+        W or its diagonal for min ||W theta|| (Vaiopoulos 2017, eq. 4.76); None: identity.
+    with_directions : bool
+        Also return the unidentifiable directions (else None, faster).
+
+    Returns
+    -------
+    theta : numpy.ndarray of shape (n,)
+        The estimate.
+    k_used : int
+        The number of directions actually kept (lowered if the kept subspace cannot
+        represent ``[theta; -1]``, the non-generic TLS case).
+    directions : numpy.ndarray of shape (n - k_used, n) or None
+        Orthonormal parameter-space directions (rows) the data do not determine.
     """
     n = V.shape[0] - 1
     Wm = weight_matrix(weights)
@@ -453,6 +754,22 @@ def compensated_gram(s, V, C, k: int) -> np.ndarray:
     The measured Gram matrix minus the noise energy ``s_min^2`` along every one of the ``k``
     retained singular directions (Vaiopoulos 2017, eq. 4.63): the SVD form of the bias
     compensation, with the noise scale estimated by the smallest singular value.
+
+    Parameters
+    ----------
+    s : numpy.ndarray of shape (n+1,)
+        Singular values in decreasing order.
+    V : numpy.ndarray of shape (n+1, n+1)
+        Right singular vectors, as columns.
+    C : numpy.ndarray of shape (n+1, n+1)
+        Error std matrix.
+    k : int
+        Number of retained directions.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n+1, n+1)
+        The compensated Gram matrix.
     """
     energy = np.clip(s[:k] ** 2 - s[-1] ** 2, 0.0, None)
     CV = C.T @ V[:, :k]
@@ -460,17 +777,35 @@ def compensated_gram(s, V, C, k: int) -> np.ndarray:
 
 
 def tls_covariance(s, V, C, theta, k: int, directions, n_rows: float, scale: float):
-    """Asymptotic covariance of the (PCA-)TLS estimate (Vaiopoulos 2017, eq. 4.62-4.63, 4.80;
-    Fuller 1987, Thm 2.3.2).
+    """Asymptotic covariance of the (PCA-)TLS estimate.
 
-    Args:
-        s, V: SVD of the normalised augmented matrix (singular values, right vectors as columns).
-        C: error std matrix (n+1, n+1), W_T = C^T C. theta: estimate (n,). k: kept directions.
-        directions: unidentifiable parameter directions (rows); the covariance is zero along them.
-        n_rows: (effective) number of rows. scale: error-variance scale factor (1 if C exact).
+    Vaiopoulos 2017, eq. 4.62-4.63, 4.80; Fuller 1987, Thm 2.3.2.
 
-    Returns:
-        (covariance (n, n), equation-error variance s^2 = scale [theta; -1]^T W_T [theta; -1]).
+    Parameters
+    ----------
+    s : numpy.ndarray of shape (n+1,)
+        Singular values of the normalised augmented matrix.
+    V : numpy.ndarray of shape (n+1, n+1)
+        Its right singular vectors, as columns.
+    C : numpy.ndarray of shape (n+1, n+1)
+        Error std matrix, W_T = C^T C.
+    theta : numpy.ndarray of shape (n,)
+        The estimate.
+    k : int
+        Number of kept directions.
+    directions : numpy.ndarray of shape (m, n)
+        Unidentifiable parameter directions (rows); the covariance is zero along them.
+    n_rows : float
+        (Effective) number of rows.
+    scale : float
+        Error-variance scale factor (1 if C is exact).
+
+    Returns
+    -------
+    covariance : numpy.ndarray of shape (n, n)
+        The parameter covariance.
+    s2 : float
+        Equation-error variance ``scale [theta; -1]^T W_T [theta; -1]``.
     """
     n = theta.size
     W_T = C.T @ C

@@ -84,6 +84,12 @@ def forgetting_time(forgetting: float, sample_rate: float, fraction: float = 0.0
     float
         [s].
 
+    Raises
+    ------
+    ValueError
+        When ``forgetting`` or ``fraction`` is outside (0, 1) or ``sample_rate`` is not
+        positive.
+
     Examples
     --------
     >>> round(forgetting_time(0.999, 50.0), 1)   # ln(0.05) / (50 ln(0.999))
@@ -109,10 +115,28 @@ def vff_forgetting(
 ) -> float:
     """Variable forgetting factor of Vaiopoulos 2017, eq. 4.114-4.115 (Paleologu et al. 2008).
 
-    ``sigma_nu``: short-window std of the a-priori error; ``sigma_eps``: long-window std (the
-    noise level); ``sigma_q``: short-window rms of q = x P x^T. No model change is declared while
-    sigma_nu <= gamma sigma_eps (returns lambda_max); otherwise
+    No model change is declared while sigma_nu <= gamma sigma_eps (lambda_max); otherwise
     min(sigma_q sigma_eps / (varsigma + |sigma_nu - sigma_eps|), lambda_max).
+
+    Parameters
+    ----------
+    sigma_nu : float
+        Short-window std of the a-priori error (units of z).
+    sigma_eps : float
+        Long-window std of the a-priori error, the noise level (units of z).
+    sigma_q : float
+        Short-window rms of q = x P x^T.
+    gamma : float
+        Dead band of the change detection.
+    lambda_max : float
+        Forgetting factor without a detected change.
+    varsigma : float
+        Small constant against division by zero (units of z).
+
+    Returns
+    -------
+    float
+        The forgetting factor lambda.
     """
     if sigma_nu <= gamma * sigma_eps:
         return lambda_max
@@ -126,13 +150,28 @@ class VariableForgetting:
     Vaiopoulos 2017 gives ranges only; how the defaults were chosen is in
     ``docs/identification.md``.
 
-    Attributes:
-        k_e: short window, lambda_e = 1 - 1/(k_e n) for sigma_nu and sigma_q (k_e >= 2).
-        k_eps: long window, lambda_eps = 1 - 1/(k_eps n) for sigma_eps (k_eps > k_e).
-        gamma: dead band, no change declared while sigma_nu <= gamma sigma_eps (1 < gamma <= 2).
-        varsigma: small constant against division by zero (units of z).
-        lambda_max: forgetting factor without a detected change (1 keeps all data).
-        lambda_min: lower bound on lambda (a safeguard added here; 0 disables it).
+    Attributes
+    ----------
+    k_e : float
+        Short window, lambda_e = 1 - 1/(k_e n) for sigma_nu and sigma_q (k_e >= 2).
+    k_eps : float
+        Long window, lambda_eps = 1 - 1/(k_eps n) for sigma_eps (k_eps > k_e).
+    gamma : float
+        Dead band, no change declared while sigma_nu <= gamma sigma_eps (1 < gamma <= 2).
+    varsigma : float
+        Small constant against division by zero (units of z).
+    lambda_max : float
+        Forgetting factor without a detected change (1 keeps all data).
+    lambda_min : float
+        Lower bound on lambda (a safeguard added here; 0 disables it).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rls = RecursiveOLS(1, VariableForgetting(lambda_min=0.9))
+    >>> history = rls.run(np.ones((20, 1)), np.full(20, 3.0))
+    >>> round(float(rls.theta[0]), 6), history.forgetting.shape
+    (3.0, (20,))
     """
 
     k_e: float = 2.0
@@ -143,7 +182,13 @@ class VariableForgetting:
     lambda_min: float = 0.0
 
     def validate(self) -> None:
-        """Raise ValueError naming the first invalid field."""
+        """Check the settings.
+
+        Raises
+        ------
+        ValueError
+            Naming the first invalid field and its allowed range.
+        """
         if not self.k_e >= 2.0:
             raise ValueError(f"k_e must be >= 2, got {self.k_e}")
         if not self.k_eps > self.k_e:
@@ -162,13 +207,18 @@ class VariableForgetting:
 class ExcitationStatus:
     """On-line excitation monitor output.
 
-    Attributes:
-        singular_values: (n,) singular values of the information gathered so far (normalised
-            units, largest first).
-        threshold: excitation threshold (1 + S/n) sqrt(N_eff - n) (Vaiopoulos 2017, eq. 4.68).
-        excited: (n,) True for singular directions above the threshold.
-        identifiable: (n,) True for parameters that do not load on an un-excited direction.
-        unidentifiable: (n - rank, n) orthonormal parameter-space directions not excited.
+    Attributes
+    ----------
+    singular_values : numpy.ndarray of shape (n,)
+        Singular values of the information gathered so far (normalised units, largest first).
+    threshold : float
+        Excitation threshold (1 + S/n) sqrt(N_eff - n) (Vaiopoulos 2017, eq. 4.68).
+    excited : numpy.ndarray of bool, shape (n,)
+        True for singular directions above the threshold.
+    identifiable : numpy.ndarray of bool, shape (n,)
+        True for parameters that do not load on an un-excited direction.
+    unidentifiable : numpy.ndarray of shape (n - rank, n)
+        Orthonormal parameter-space directions not excited.
     """
 
     singular_values: np.ndarray
@@ -187,8 +237,12 @@ class ExcitationStatus:
 class RecursiveHistory:
     """Time histories from :meth:`RecursiveOLS.run` / :meth:`RecursiveTLS.run`.
 
-    Attributes:
-        estimate: (N, n) estimate after each sample. forgetting: (N,) lambda used at each sample.
+    Attributes
+    ----------
+    estimate : numpy.ndarray of shape (N, n)
+        Estimate after each sample.
+    forgetting : numpy.ndarray of shape (N,)
+        Forgetting factor lambda used at each sample.
     """
 
     estimate: np.ndarray
@@ -279,7 +333,13 @@ class _Recursive:
         return self.state.size
 
     def set_state(self, state) -> None:
-        """Overwrite the estimator state with a vector from :attr:`state` (no reallocation)."""
+        """Overwrite the estimator state with a vector from :attr:`state` (no reallocation).
+
+        Parameters
+        ----------
+        state : array_like of shape (state_size,)
+            A state vector of an estimator of the same settings.
+        """
         np.copyto(self.state, state)
 
     @property
@@ -325,7 +385,25 @@ class _Recursive:
         return max(lam, cfg.lambda_min)
 
     def run(self, X, z) -> RecursiveHistory:
-        """Process the rows of X (N, n) and z (N,) in order; return the histories."""
+        """Process the rows of ``X`` and ``z`` in order.
+
+        Parameters
+        ----------
+        X : array_like of shape (N, n)
+            Regressor rows.
+        z : array_like of shape (N,)
+            Observations.
+
+        Returns
+        -------
+        RecursiveHistory
+            The estimate and forgetting factor after each row.
+
+        Raises
+        ------
+        ValueError
+            When the shapes do not match the number of parameters.
+        """
         X = np.ascontiguousarray(X, dtype=float)
         z = np.asarray(z, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.n or z.shape != (X.shape[0],):
@@ -386,8 +464,9 @@ class RecursiveOLS(_Recursive):
     >>> import numpy as np
     >>> rls = RecursiveOLS(2)
     >>> for x in np.linspace(-1.0, 1.0, 50):
-    ...     _ = rls.update([1.0, x], 0.5 + 2.0 * x)        # doctest: +SKIP
-    >>> np.round(rls.theta, 3)                              # doctest: +SKIP
+    ...     rls.update([1.0, x], 0.5 + 2.0 * x)
+    >>> np.round(rls.theta, 3).tolist()
+    [0.5, 2.0]
     """
 
     _J = 5  # weighted residual sum of squares, after the common scalars
@@ -429,12 +508,29 @@ class RecursiveOLS(_Recursive):
 
     @classmethod
     def from_batch(cls, result, forgetting=1.0, *, p0: float = 1e6, **kwargs) -> RecursiveOLS:
-        """Continue a batch :class:`RegressionResult` on-line (hybrid start, Vaiopoulos 2017, eq.
-        4.4).
+        """Continue a batch :class:`RegressionResult` on-line.
+
+        Hybrid start, Vaiopoulos 2017, eq. 4.4.
 
         The estimate, P = covariance / noise_std^2, the residual sum of squares and the row count
         are taken over, so with forgetting 1 the recursion continues the batch OLS exactly.
         Unidentifiable directions of the batch result get a diffuse P (``p0``).
+
+        Parameters
+        ----------
+        result : RegressionResult
+            The batch fit.
+        forgetting : float or VariableForgetting
+            Constant lambda in (0, 1] or a :class:`VariableForgetting`.
+        p0 : float
+            Diffuse P along the unidentifiable directions (per unit regressor^2).
+        **kwargs
+            Further arguments of :class:`RecursiveOLS`.
+
+        Returns
+        -------
+        RecursiveOLS
+            The estimator, in the state of the batch fit.
         """
         cov = np.array(result.covariance, dtype=float)
         cov += p0 * result.noise_std**2 * (result.unidentifiable.T @ result.unidentifiable)
@@ -452,8 +548,17 @@ class RecursiveOLS(_Recursive):
         return est
 
     def update(self, x, z: float) -> None:
-        """One RLS step with regressor row x (n,) and observation z
-        (Vaiopoulos 2017, eq. 4.98-4.101)."""
+        """One RLS step with one regressor row and its observation.
+
+        Vaiopoulos 2017, eq. 4.98-4.101.
+
+        Parameters
+        ----------
+        x : array_like of shape (n,)
+            Regressor row.
+        z : float
+            Observation.
+        """
         P, theta, Px, k = self.P, self.theta, self._Px, self._k
         np.dot(P, x, out=Px)
         q = float(np.dot(x, Px))
@@ -484,18 +589,47 @@ class RecursiveOLS(_Recursive):
         return math.sqrt(max(self._scalars[self._J], 0.0) / dof)
 
     def covariance(self) -> np.ndarray:
-        """Parameter covariance sigma^2 P, (n, n)."""
+        """Parameter covariance sigma^2 P.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, n)
+            In the units of theta squared.
+        """
         return self.noise_std**2 * self.P.copy()
 
     def sigma(self) -> np.ndarray:
-        """One-sigma parameter uncertainties, (n,)."""
+        """One-sigma parameter uncertainties.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            In the units of theta.
+        """
         return self.noise_std * np.sqrt(np.clip(np.diag(self.P), 0.0, None))
 
     def excitation(self, regressor_std, snr_min: float = 1.0) -> ExcitationStatus:
-        """Excitation of the regressors seen so far against their noise level ``regressor_std``.
+        """Excitation of the regressors seen so far against their noise level.
 
-        The information P^-1, normalised by the regressor noise std (n,) (use a small value for
-        an exact column), has singular values compared with (1 + S/n) sqrt(N_eff - n).
+        The information P^-1, normalised by the regressor noise std, has singular values
+        compared with (1 + S/n) sqrt(N_eff - n).
+
+        Parameters
+        ----------
+        regressor_std : array_like of shape (n,)
+            Noise std of each regressor (use a small value for an exact column).
+        snr_min : float
+            S/n of the excitation test.
+
+        Returns
+        -------
+        ExcitationStatus
+            Singular values, threshold and identifiable parameters.
+
+        Raises
+        ------
+        ValueError
+            When an entry of ``regressor_std`` is not positive.
         """
         c = _check_vector("regressor_std", regressor_std, self.n)
         if not (c > 0).all():
@@ -515,6 +649,10 @@ class RecursiveOLS(_Recursive):
 
 class RecursiveTLS(_Recursive):
     """Recursive PCA-GTLS by recursive SVD (Vaiopoulos 2017, Algorithms 1-2), with CFF or VFF.
+
+    The nine constructor parameters are those of :func:`~.regression.tls` (the error
+    model, the excitation test, the minimum-norm weights) plus the forgetting and the
+    prior, keyword-only past ``error_std``.
 
     Parameters
     ----------
@@ -546,9 +684,14 @@ class RecursiveTLS(_Recursive):
     ValueError
         Without ``error_std`` or ``error_cov``.
 
-    The nine constructor parameters are those of :func:`~.regression.tls` (the error
-    model, the excitation test, the minimum-norm weights) plus the forgetting and the
-    prior, keyword-only past ``error_std``.
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rtls = RecursiveTLS(2, error_std=[1e-6, 0.01, 0.01])
+    >>> for x in np.linspace(-1.0, 1.0, 50):
+    ...     rtls.update([1.0, x], 0.5 + 2.0 * x)
+    >>> np.round(rtls.theta, 3).tolist(), rtls.rank
+    ([0.5, 2.0], 2)
     """
 
     _RANK = 5  # number of excited directions, after the common scalars
@@ -630,7 +773,20 @@ class RecursiveTLS(_Recursive):
         return max(thr, (self.n + 1) * _EPS * float(self.s[0]))
 
     def update(self, x, z: float) -> None:
-        """Append the row [x, z] (Algorithm 2) and re-solve the PCA-GTLS problem (Algorithm 1)."""
+        """Append the row ``[x, z]`` (Algorithm 2) and re-solve the PCA-GTLS problem (Algorithm 1).
+
+        Parameters
+        ----------
+        x : array_like of shape (n,)
+            Regressor row.
+        z : float
+            Observation.
+
+        Raises
+        ------
+        numpy.linalg.LinAlgError
+            When LAPACK's SVD fails.
+        """
         n = self.n
         d = self._d
         d[:n] = x
@@ -691,12 +847,25 @@ class RecursiveTLS(_Recursive):
         return cov
 
     def covariance(self) -> np.ndarray:
-        """Asymptotic covariance of the current estimate (errors_in_variables.tls_covariance),
-        (n, n)."""
+        """Asymptotic covariance of the current estimate.
+
+        As :func:`~.errors_in_variables.tls_covariance` computes it.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n, n)
+            In the units of theta squared.
+        """
         return self._covariance(self._directions())
 
     def sigma(self) -> np.ndarray:
-        """One-sigma uncertainties, inf for parameters on un-excited directions, (n,)."""
+        """One-sigma uncertainties, inf for parameters on un-excited directions.
+
+        Returns
+        -------
+        numpy.ndarray of shape (n,)
+            In the units of theta.
+        """
         directions = self._directions()
         ok = unidentifiable_loading(directions, self.n) <= LOADING_TOL
         cov = self._covariance(directions)
@@ -709,8 +878,15 @@ class RecursiveTLS(_Recursive):
         return math.sqrt(self._scale() * float(w @ self.C.T @ self.C @ w))
 
     def excitation(self) -> ExcitationStatus:
-        """Excitation of the tracked augmented matrix (Vaiopoulos 2017, eq. 4.68-4.70)
-        at the last update."""
+        """Excitation of the tracked augmented matrix at the last update.
+
+        Vaiopoulos 2017, eq. 4.68-4.70.
+
+        Returns
+        -------
+        ExcitationStatus
+            Singular values, threshold and identifiable parameters.
+        """
         thr = self._threshold()
         s = self.s[: self.n].copy()
         return _loadings_status(s, thr, s > thr, self._directions(), self.n)

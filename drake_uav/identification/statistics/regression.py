@@ -96,7 +96,21 @@ EXACT_COLUMN_REL = 1e-6
 
 
 class IdentificationWarning(UserWarning):
-    """Base class of the warnings of the identification package."""
+    """Base class of the warnings of the identification package.
+
+    Filter on it to silence or catch every warning of the package at once.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("error", IdentificationWarning)
+    ...     try:
+    ...         warnings.warn("too little excitation", InsufficientExcitationWarning)
+    ...     except IdentificationWarning as caught:
+    ...         print(type(caught).__name__)
+    InsufficientExcitationWarning
+    """
 
 
 class InsufficientExcitationWarning(IdentificationWarning):
@@ -104,6 +118,17 @@ class InsufficientExcitationWarning(IdentificationWarning):
 
     The estimator returned the reduced answer: it estimates what the data support and lists the
     parameter combinations it could not identify in ``RegressionResult.unidentifiable``.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> x = np.linspace(-1.0, 1.0, 50)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     fit = ols(np.column_stack([x, x]), 2.0 * x)     # two copies of one column
+    >>> caught[0].category.__name__, fit.rank
+    ('InsufficientExcitationWarning', 1)
     """
 
 
@@ -111,28 +136,57 @@ class InsufficientExcitationWarning(IdentificationWarning):
 class RegressionResult:
     """Estimate and statistics of one linear regression, whatever the method.
 
-    Attributes:
-        method: "OLS", "TLS", "GTLS" or "PCA-TLS" (TLS/GTLS reduced to the excited directions).
-        names: parameter names, length n.
-        estimate: parameter vector theta (n,), units of z per unit of each regressor.
-        covariance: parameter covariance (n, n) of the identifiable part (zero along
-            ``unidentifiable``).
-        sigma: one-standard-deviation uncertainty of each parameter (n,); inf when not identifiable.
-        t_statistic: theta / sigma (n,), 0 where sigma is inf (Vaiopoulos 2017, eq. 4.12).
-        significant: |t| above the two-sided Student-t quantile with ``dof`` degrees of freedom.
-        identifiable: False for parameters loading on an unidentifiable direction (n,).
-        noise_std: estimated standard deviation of the equation error z - X theta (units of z).
-        r_squared: coefficient of determination 1 - SSE/SST (equals Vaiopoulos 2017, eq. 4.25
-            for OLS with a constant column); nan when z is constant.
-        residual: z - X theta (N,), with the measured regressors.
-        dof: degrees of freedom N - rank.
-        rank: number of parameter directions the data support (n when fully identifiable).
-        singular_values: of the column-equilibrated X (OLS) or of the normalised [X | z] (TLS).
-        excitation_threshold: singular-value threshold used to count supported directions.
-        condition_number: condition number of the column-equilibrated (normalised) regressor
-            matrix, inf if singular.
-        unidentifiable: (n - rank, n) orthonormal parameter-space directions the data do not fix.
-        t_critical: the Student-t quantile used for ``significant``.
+    Returned by :func:`ols`, :func:`tls`, :func:`pca_tls` and :func:`bcls`.
+
+    Attributes
+    ----------
+    method : str
+        "OLS", "TLS", "GTLS", "PCA-TLS" (TLS/GTLS reduced to the excited directions) or
+        "BCLS".
+    names : tuple of str
+        Parameter names, length n.
+    estimate : numpy.ndarray of shape (n,)
+        Parameter vector theta, units of z per unit of each regressor.
+    covariance : numpy.ndarray of shape (n, n)
+        Parameter covariance of the identifiable part (zero along ``unidentifiable``).
+    sigma : numpy.ndarray of shape (n,)
+        One-standard-deviation uncertainty of each parameter; inf when not identifiable.
+    t_statistic : numpy.ndarray of shape (n,)
+        theta / sigma, 0 where sigma is inf (Vaiopoulos 2017, eq. 4.12).
+    significant : numpy.ndarray of bool, shape (n,)
+        |t| above the two-sided Student-t quantile with ``dof`` degrees of freedom.
+    identifiable : numpy.ndarray of bool, shape (n,)
+        False for parameters loading on an unidentifiable direction.
+    noise_std : float
+        Estimated standard deviation of the equation error z - X theta (units of z).
+    r_squared : float
+        Coefficient of determination 1 - SSE/SST (equals Vaiopoulos 2017, eq. 4.25 for OLS
+        with a constant column); nan when z is constant.
+    residual : numpy.ndarray of shape (N,)
+        z - X theta, with the measured regressors.
+    dof : int
+        Degrees of freedom N - rank.
+    rank : int
+        Number of parameter directions the data support (n when fully identifiable).
+    singular_values : numpy.ndarray
+        Of the column-equilibrated X (OLS) or of the normalised [X | z] (TLS).
+    excitation_threshold : float
+        Singular-value threshold used to count supported directions.
+    condition_number : float
+        Condition number of the column-equilibrated (normalised) regressor matrix, inf if
+        singular.
+    unidentifiable : numpy.ndarray of shape (n - rank, n)
+        Orthonormal parameter-space directions the data do not fix.
+    t_critical : float
+        The Student-t quantile used for ``significant``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.linspace(-1.0, 1.0, 50)
+    >>> fit = ols(np.column_stack([np.ones(50), x]), 1.0 + 3.0 * x, names=["c", "slope"])
+    >>> fit.names, fit.rank, bool(fit.identifiable.all())
+    (('c', 'slope'), 2, True)
     """
 
     method: str
@@ -159,7 +213,13 @@ class RegressionResult:
         return float(self.estimate[self.names.index(name)])
 
     def table(self) -> str:
-        """Plain-text table: name, estimate, +-1 sigma, t, significant."""
+        """Plain-text table of the estimate: name, estimate, +-1 sigma, t, significant.
+
+        Returns
+        -------
+        str
+            One header line and one line per parameter.
+        """
         lines = [
             f"{self.method}: R^2 = {self.r_squared:.4f}, noise std = {self.noise_std:.4g}, "
             f"rank {self.rank}/{len(self.names)}, cond = {self.condition_number:.3g}",
@@ -180,8 +240,22 @@ class RegressionResult:
 
 
 def f_survival(f_stat, dfn, dfd):
-    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom (elementwise;
-    a float for scalars)."""
+    """P(F > f_stat) of the F distribution with (dfn, dfd) degrees of freedom.
+
+    Parameters
+    ----------
+    f_stat : float or array_like
+        The F statistic(s).
+    dfn : float or array_like
+        Numerator degrees of freedom.
+    dfd : float or array_like
+        Denominator degrees of freedom.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The survival probability, elementwise (a float for scalars).
+    """
     from scipy.special import fdtrc
 
     return fdtrc(dfn, dfd, f_stat)
@@ -218,7 +292,19 @@ def r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
     Block (tall-skinny) QR is as stable as one QR of A and faster for long flight records:
     LAPACK on a few hundred rows stays in cache and single-threaded, while a multi-threaded
     BLAS can spend far longer synchronising its threads on one tall factorisation than
-    computing it (a hundredfold on a loaded machine).
+    computing it.
+
+    Parameters
+    ----------
+    A : numpy.ndarray of shape (N, n)
+        The matrix.
+    chunk : int
+        Rows per block.
+
+    Returns
+    -------
+    numpy.ndarray of shape (min(N, n), n)
+        R.
     """
     if A.shape[0] <= chunk:
         return np.linalg.qr(A, mode="r")
@@ -227,7 +313,20 @@ def r_factor(A: np.ndarray, chunk: int = 512) -> np.ndarray:
 
 
 def unidentifiable_loading(directions: np.ndarray, n: int) -> np.ndarray:
-    """Squared projection of each parameter axis on the unidentifiable subspace, (n,) in [0, 1]."""
+    """Squared projection of each parameter axis on the unidentifiable subspace.
+
+    Parameters
+    ----------
+    directions : numpy.ndarray of shape (m, n)
+        Orthonormal unidentifiable directions (rows); may be empty.
+    n : int
+        Number of parameters.
+
+    Returns
+    -------
+    numpy.ndarray of shape (n,)
+        In [0, 1]: 0 for a parameter the data fix, 1 for one they do not touch.
+    """
     if directions.size == 0:
         return np.zeros(n)
     return np.sum(directions**2, axis=0)
@@ -334,11 +433,47 @@ def regression_result(
     directions,
     confidence,
 ):
-    """The common RegressionResult (significance, R^2, identifiability) of an estimate.
+    """The common :class:`RegressionResult` (significance, R^2, identifiability) of an estimate.
 
-    Keyword-only, one parameter per field of the result the estimators compute
-    (fourteen): each estimator fills them from its own decomposition, so no smaller
-    grouping is shared by all of them.
+    Keyword-only, one parameter per field of the result the estimators compute: each
+    estimator fills them from its own decomposition, so no smaller grouping is shared by
+    all of them.
+
+    Parameters
+    ----------
+    method : str
+        Name of the estimator.
+    names : sequence of str
+        Parameter names.
+    theta : numpy.ndarray of shape (n,)
+        The estimate.
+    covariance : numpy.ndarray of shape (n, n)
+        Its covariance.
+    noise_std : float
+        Equation-error std (units of z).
+    residual : numpy.ndarray of shape (N,)
+        z - X theta.
+    z : numpy.ndarray of shape (N,)
+        The observation (for R^2).
+    dof : int
+        Degrees of freedom.
+    rank : int
+        Number of supported parameter directions.
+    singular_values : array_like
+        Singular values of the (normalised) design.
+    threshold : float
+        Excitation threshold on them.
+    condition : float
+        Condition number of the design.
+    directions : numpy.ndarray of shape (n - rank, n)
+        Unidentifiable directions.
+    confidence : float
+        Two-sided confidence level of the significance test, in (0, 1).
+
+    Returns
+    -------
+    RegressionResult
+        The result.
     """
     n = theta.size
     identifiable = unidentifiable_loading(directions, n) <= LOADING_TOL
@@ -591,9 +726,9 @@ def bcls(X, z, noise: PropagatedNoise, *, names=None, confidence: float = 0.95,
     >>> rng = np.random.default_rng(2)
     >>> x = rng.normal(size=1000)
     >>> X = np.column_stack([np.ones(1000), x + 0.3 * rng.normal(size=1000)])
-    >>> noise = PropagatedNoise(2, {"x": np.array([[0.0, 1.0]])}, {}, {"x": 0.09})
-    >>> fit = bcls(X, 1.5 * x, noise)                       # doctest: +SKIP
-    >>> round(float(fit.estimate[1]), 1)                    # doctest: +SKIP
+    >>> noise = PropagatedNoise(2, {"x": np.tile([0.0, 1.0], (1000, 1))}, {}, {"x": 0.09})
+    >>> fit = bcls(X, 1.5 * x, noise)
+    >>> round(float(fit.estimate[1]), 1)
     1.5
     """
     X, z = _as_data(X, z)
