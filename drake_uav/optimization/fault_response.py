@@ -338,8 +338,11 @@ class FaultResponse:
         """Flies a plan; with ``allocation`` (n) [N] the reference thrusts are that
         allocation scaled to the plan's total thrust (category I: the only thrusts that
         leave the attitude alone, e.g. the pair opposite each other)."""
-        accel = self._acceleration(x)
-        ref = plan_reference(self.params, x, accel, waypoints, durations, self.health,
+        # The plan starts at zero acceleration: the acceleration under the thrust just lost
+        # would make it fall with the vehicle, and the one the current attitude gives at
+        # hover thrust (up to g tan 35 deg after an escape) would make it keep accelerating;
+        # the NMPC's attitude error absorbs the jump instead.
+        ref = plan_reference(self.params, x, np.zeros(3), waypoints, durations, self.health,
                              self.settings.landing)
         if allocation is not None and allocation.sum() > 0:
             total = ref.thrusts.sum(axis=1, keepdims=True)
@@ -347,14 +350,6 @@ class FaultResponse:
                 total / allocation.sum(), 0.0, 1.0))
         self.mpc.set_objective(reference=ref, start_time=t, state_weight=weight)
         self.phase = phase
-
-    @staticmethod
-    def _acceleration(x) -> np.ndarray:
-        """Initial acceleration of a plan: zero. The acceleration under the thrust just
-        lost makes the plan fall with the vehicle, and the one the current attitude gives
-        at hover thrust (up to g tan 35 deg after an escape) makes it keep accelerating;
-        the NMPC's attitude error absorbs the jump instead."""
-        return np.zeros(3)
 
     # ------------------------------------------------------------------ per step
     def step(self, t: float, x) -> tuple[np.ndarray, str, float]:
