@@ -107,25 +107,21 @@ def test_category_III_lands_on_the_safe_point(tubes, name):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [
-    "IVa",
-    pytest.param("IVb", marks=pytest.mark.xfail(strict=True, reason=(
-        "motors 2 and 4 leave 20 N of thrust with zero yaw torque for a 19.6 N weight: "
-        "the vehicle spins (yaw rate to 9 rad/s with state noise) and the RMSE after the "
-        "fault is about 4x the fault-free one"))),
-])
-def test_category_IV_tracks_within_twice_the_fault_free_error(tubes, name):
-    """Both runs read a noisy state (StateNoise, seed 1): without noise the fault-free
-    RMSE is below a micrometre and no ratio means anything."""
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("name", ["IVa", "IVb"])
+def test_category_IV_tracks_within_twice_the_fault_free_error(tubes, name, seed):
+    """Both runs read a noisy state (StateNoise): without noise the fault-free RMSE is
+    below a micrometre and no ratio means anything. Every seed must hold (no failure
+    tolerated); the controller's yaw-rate weight and period were chosen on seeds 11-13."""
     sc = scenario(name)
-    run = fly_scenario(sc, tube_for=tubes, sensor_noise=StateNoise(), seed=1)
+    run = fly_scenario(sc, tube_for=tubes, sensor_noise=StateNoise(), seed=seed)
     params = fault_vehicle()
     free = fly_fault(params, scenario_reference(sc, params), (), sc.duration,
-                     sensor_noise=StateNoise(), seed=1)
+                     sensor_noise=StateNoise(), seed=seed)
     _report(name, run)
     faulty, clean = run.position_rmse(sc.fault_time), free.position_rmse(sc.fault_time)
-    print(f"{name}: position RMSE after the fault {100 * faulty:.2f} cm, fault-free "
-          f"{100 * clean:.2f} cm (ratio {faulty / clean:.2f})")
+    print(f"{name} seed {seed}: position RMSE after the fault {100 * faulty:.2f} cm, "
+          f"fault-free {100 * clean:.2f} cm (ratio {faulty / clean:.2f})")
     assert run.category == Category.IV and run.touchdown is None
     assert free.category == Category.NONE
     assert faulty <= 2.0 * clean

@@ -118,15 +118,15 @@ SCENARIOS: dict[str, FaultScenario] = {sc.name: sc for sc in (
     FaultScenario("I", "motors 3 and 4 (adjacent: no closure) at 10 s, 10 m up",
                   (3, 4), 10.0, ((0.0, 0.0, -10.0), (4.0, 2.0, -10.0), (8.0, 0.0, -10.0),
                                  (4.0, -3.0, -10.0), (0.0, 0.0, -10.0)), 20.0, Category.I),
-    FaultScenario("IIa", "motors 0 and 3 at 3 s, just after an upset (a roll torque of 4 N m "
+    FaultScenario("IIa", "motors 0 and 3 at 3 s, just after an upset (a roll torque of 4.25 N m "
                   "for 0.22 s) in a dash towards the unsafe disc (10, 0) R 6; free fall "
                   "would land inside", (0, 3), 3.0, ((0.0, 0.0, -8.0), (12.0, 0.0, -8.0)),
                   8.0, Category.II, UnsafeDisc((10.0, 0.0), 6.0),
-                  upset=(2.78, 0.22, (4.0, 0.0, 0.0))),
-    FaultScenario("IIb", "motors 1 and 5 at 3 s, just after an upset (a roll torque of 4 N m "
+                  upset=(2.78, 0.22, (4.25, 0.0, 0.0))),
+    FaultScenario("IIb", "motors 1 and 5 at 3 s, just after an upset (a roll torque of 4.25 N m "
                   "for 0.22 s); unsafe disc (5, 7) R 5 (NED (5, -7)); free fall would land "
                   "outside", (1, 5), 3.0, ((0.0, 0.0, -8.0), (12.0, 4.0, -8.0)), 8.0,
-                  Category.II, UnsafeDisc((5.0, -7.0), 5.0), upset=(2.78, 0.22, (4.0, 0.0, 0.0))),
+                  Category.II, UnsafeDisc((5.0, -7.0), 5.0), upset=(2.78, 0.22, (4.25, 0.0, 0.0))),
     FaultScenario("IIIa", "motors 0 and 3 at 7 s, before a fast loop (banks to 59 deg) that "
                   "comes too close to the recovery tube's boundary; land at (0, 0)", (0, 3),
                   7.0, _DASH, 13.5, Category.III, waypoint_times=_DASH_TIMES, stops=(2,)),

@@ -199,14 +199,19 @@ class FaultResponseSettings:
     """Weights and gains of :class:`FaultResponse` (error layout of the NMPC: position,
     attitude, velocity, rates; the source gives none)."""
 
-    nmpc: NmpcSettings = NmpcSettings()
-    """Horizon, nodes, period and the nominal (pre-fault) weights."""
-    tracking_weight: tuple = (20.0,) * 3 + (5.0, 5.0, 0.0) + (2.0,) * 3 + (0.2,) * 3
+    nmpc: NmpcSettings = NmpcSettings(period=0.0125)
+    """Horizon, nodes, period and the nominal (pre-fault) weights. The period is half the
+    shooting interval (80 Hz, 40 nodes over 1 s): after an unbalanced failure the vehicle
+    spins (5-6 rad/s within 18 s for motors 2 and 4), and at 40 Hz the body turns 8 deg
+    between two commands, which doubles the position error; fault-free tracking is the same
+    at both rates (its error is the state noise's)."""
+    tracking_weight: tuple = (20.0,) * 3 + (5.0, 5.0, 0.0) + (2.0,) * 3 + (0.2, 0.2, 0.02)
     """IV (and the landing phases): the nominal weights with the yaw free (no weight on
-    the yaw error). The yaw rate keeps its weight: without it the spin of an unbalanced
-    failure (motors 2 and 4) grows without bound (70 rad/s after 18 s, 1.75 rad per
-    control period, where the RTI prediction no longer holds); with it the spin stays
-    near 3 rad/s."""
+    the yaw error) and a light weight on the yaw rate. An unbalanced failure (motors 2
+    and 4) leaves a yaw torque to be traded against the position: with the yaw rate
+    weighed like the roll and pitch rates the controller lets the vehicle sink rather
+    than spin (about 4x the fault-free position error); with no weight the spin of a
+    long flight has no bound (the model has no yaw damping)."""
     impact_weight: tuple = (0.0, 0.0, 20.0) + (5.0, 5.0, 0.0) + (0.0, 0.0, 10.0) \
         + (0.2, 0.2, 0.0)
     """I: altitude, tilt, vertical speed and roll/pitch rates only."""
@@ -225,6 +230,10 @@ class FaultResponseSettings:
     default: the tube's value grows with a yaw rate beyond its limit, which the failures
     that must spin exceed; with a noisy state it raised the position RMSE of motors 2 and 4
     failed from 4.3 cm to 31 cm (docs/faults.md)."""
+    yaw_allocation_weight: float = 0.1
+    """Weight of the yaw-torque row when the mission's wrench is allocated on the healthy
+    motors and they cannot produce all of it (thrust and roll/pitch torques weigh 1): the
+    yaw is the axis given up after a failure."""
     escape_max_tilt: float = np.radians(35.0)
     """Largest escape tilt [rad]: eq. 5.23 gives ``cos phi = F_z / F_max``, 60 deg for an
     opposite pair of this vehicle; above the cap the thrust is lowered to ``F_z / cos
@@ -299,7 +308,8 @@ class FaultResponse:
         if category == Category.IV and self.tube_for is not None and s.tube_terminal:
             region = SublevelTerminal(self.tube_for(self.failed))
         self.mpc = TrackingNmpc(self.params, None, dataclasses.replace(
-            s.nmpc, state_weight=weight), reference=self.reference, health=health,
+            s.nmpc, state_weight=weight), reference=self._healthy_reference(health),
+            health=health,
             bounds=np.asarray(s.bounds, dtype=float), terminal_region=region)
         if category == Category.IV:
             self.phase = Phase.TRACKING
@@ -320,6 +330,17 @@ class FaultResponse:
                 self.mpc.set_objective(state_weight=s.escape_weight)
             else:
                 self._land_ahead(t, x)
+
+    def _healthy_reference(self, health) -> ReferenceTable:
+        """The mission with its reference wrench (thrust and torques) allocated anew on the
+        healthy motors: its thrusts are the NMPC's input reference, so thrusts left on the
+        failed motors' share would pull every step towards an unbalanced yaw torque. Where
+        the healthy motors cannot produce the wrench, the yaw torque gives way first
+        (:attr:`FaultResponseSettings.yaw_allocation_weight`)."""
+        wrench = self.reference.thrusts @ self.params.allocation_matrix.T
+        thrusts = self.params.thrusts_for_wrench(
+            wrench, health, yaw_weight=self.settings.yaw_allocation_weight)
+        return ReferenceTable(self.reference.time, self.reference.state, thrusts)
 
     def _impact_waypoints(self, x):
         """Stop the horizontal motion and descend straight down."""

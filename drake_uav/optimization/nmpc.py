@@ -536,8 +536,16 @@ class TrackingNmpc:
             X[0] = self._x
             return X, self._ur[:-1] * (self.f_max > 0)
         X, U = self._guess
-        U = np.vstack([U[1:], U[-1:]])
-        X = np.vstack([X[1:], rk4_step(X[-1], U[-1] * self.health, self.h, self.params)])
+        X = np.vstack([X, rk4_step(X[-1], U[-1] * self.health, self.h, self.params)])
+        U = np.vstack([U, U[-1:], U[-1:]])
+        # one control period later: the nodes move by period / h intervals (one when the
+        # period is the shooting interval, the default)
+        s = self.settings.period / self.h
+        nodes = np.arange(len(X) - 1) + s
+        k = np.minimum(nodes.astype(int), len(X) - 2)
+        w = (nodes - k)[:, None]
+        X = X[k] * (1.0 - w) + X[k + 1] * w
+        U = U[k[:-1]] * (1.0 - w[:-1]) + U[k[:-1] + 1] * w[:-1]
         X[0] = self._x
         return X, U
 

@@ -167,13 +167,16 @@ class MultirotorParams:
             raise ValueError(f"health must be {self.num_motors} values in [0, 1], got {health}")
         return self.allocation_matrix * h
 
-    def thrusts_for_wrench(self, wrench, health=None) -> np.ndarray:
+    def thrusts_for_wrench(self, wrench, health=None, yaw_weight: float = 1.0) -> np.ndarray:
         """Motor thrusts [N] producing ``wrench = [F, tau_x, tau_y, tau_z]``.
 
         Minimum-norm solution of ``A diag(h) f = wrench``; failed motors get 0.
         When it leaves ``[0, f_max]``, the bounded least-squares solution is
         returned instead (it then matches the wrench only as closely as the
-        limits allow). ``wrench`` may be (4,) or (N, 4).
+        limits allow), with the yaw-torque row weighted by ``yaw_weight`` (below 1:
+        the yaw torque gives way before the thrust and the roll/pitch torques, as
+        after a motor failure, where the yaw is left free). ``wrench`` may be (4,)
+        or (N, 4).
         """
         A = self.effective_allocation(health)
         active = np.any(A != 0.0, axis=0)
@@ -182,8 +185,9 @@ class MultirotorParams:
         targets = np.atleast_2d(w)
         f = targets @ np.linalg.pinv(A).T
         outside = np.any((f < -1e-9) | (f > self.f_max + 1e-9), axis=1)
+        rows = np.array([1.0, 1.0, 1.0, yaw_weight])[:, None]
         for k in np.flatnonzero(outside):
-            f[k] = lsq_linear(A, targets[k], bounds=(0.0, self.f_max)).x
+            f[k] = lsq_linear(rows * A, rows[:, 0] * targets[k], bounds=(0.0, self.f_max)).x
         thrusts = np.zeros((len(targets), self.num_motors))
         thrusts[:, active] = np.clip(f, 0.0, self.f_max)
         return thrusts if w.ndim == 2 else thrusts[0]
