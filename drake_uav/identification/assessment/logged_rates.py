@@ -251,7 +251,7 @@ class LoggedRates:
                 short.append((rate / needed, channel, rate, needed, reason))
         if not short:
             return None
-        _, channel, rate, needed, reason = min(short)
+        _, channel, rate, needed, reason = min(short, key=lambda s: s[0])
         return RateLimit(need.term, need.what, need.kind, channel, rate, needed, reason)
 
     def limits(self, needs: Iterable[RateNeed]) -> tuple[RateLimit, ...]:
