@@ -5,6 +5,7 @@ ground-station CSV export and as a MAVLink telemetry log, against the same at it
 
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from drake_uav.io.flight_log import FlightLog
 from drake_uav.io.grouped_csv_writer import write_grouped_csv
 from drake_uav.io.tlog_writer import write_tlog
 from drake_uav.reporting.explanations import residual_meaning
+from drake_uav.reporting.identification_report import write_report
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
@@ -144,6 +146,15 @@ def test_a_10_hz_imu_and_3_hz_commands_claim_nothing_and_name_what_they_cannot_s
     products = [n.removeprefix("data_driven:").split("*") for n in tested
                 if n.startswith("data_driven:")]
     assert products and all(set(p) <= {"alpha", "beta"} for p in products)
+    if kind == "tlog":  # the report and summary.json list them under their own heading
+        folder = write_report(run, tmp_path / "report")
+        report = (folder / "report.md").read_text()
+        assert "## Not identifiable at the logged rates" in report
+        assert "| actuator_time_delay | time delay | cmd_elevator | 3 | 50 |" in report
+        assert re.search(r"\| Cl_p \| - \| [^\n]* \| not at the logged rates \|", report)
+        listed = json.loads((folder / "summary.json").read_text())[
+            "not_identifiable_at_logged_rates"]
+        assert {r["term"] for r in listed} == UNSUPPORTED
 
 
 def test_at_its_own_rates_the_bundled_sample_still_finds_the_propwash_alone(tmp_path, capsys):

@@ -291,7 +291,11 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
                     "summary.json; docs/main_job.md, \"Baseline\"). C_D's `thrust:` rows, where "
                     "the thrust was identified from the flight: by how much that thrust exceeds "
                     "the one the data now give, per unit of each throttle term, fitted again "
-                    "with the effects on the drag axis.")
+                    "with the effects on the drag axis."
+                    + (" A term marked *not at the logged rates* needs channels logged faster "
+                       "than this log's (Not identifiable at the logged rates): its value is "
+                       "not identified by this flight." if run.rate_limits else ""))
+    limited = {limit.term for limit in run.rate_limits}
     for k, fit in run.discovery.final.items():
         r = fit.result
         report.add_table(
@@ -299,7 +303,9 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
               "sigma": r.sigma[i], "catalog": catalog.get(n),
               "(estimate - catalog) / sigma": (None if n not in catalog or not r.sigma[i]
                                                else (r.estimate[i] - catalog[n]) / r.sigma[i]),
-              "t": r.t_statistic[i], "significant": bool(r.significant[i])}
+              "t": r.t_statistic[i],
+              "significant": "not at the logged rates" if n in limited
+              else bool(r.significant[i])}
              for i, n in enumerate(fit.names)]
             + [{"parameter": t.term, "unit": _derivative_unit(t.term), "estimate": 0.0,
                 "catalog": catalog.get(t.term), "significant": "dropped"}
