@@ -21,7 +21,8 @@ The rules, each from what the term is fitted on:
   interpolated channel logged at ``f_s`` passes a frequency ``f`` with the gain
   ``sinc^2(f / f_s)`` of linear interpolation; it carries the band when that gain at
   ``f_b`` is no worse than the isolation's own there, ``1 / sqrt(2)``: ``f_s >= f_b /
-  0.319`` (15.5 Hz on the default grid, :func:`interpolated_rate`).
+  0.319`` (15.5 Hz on the default grid, :func:`interpolated_rate`), or the grid's rate
+  where that is lower (a channel at the grid's rate is not interpolated).
 * **Held channels** (the commands: the autopilot holds each output until it writes the
   next) are exact on the grid only when logged at least once per grid step. Logged at a
   period ``T`` longer than the step, the held value lags the one the aircraft flew by a
@@ -82,9 +83,13 @@ def analysis_band(grid_rate_hz: float, window: float = ISOLATION_WINDOW) -> floa
     Returns
     -------
     float
-        The frequency [Hz] where the filter's gain first falls to ``1 / sqrt(2)``.
+        The frequency [Hz] where the filter's gain first falls to ``1 / sqrt(2)``; the
+        grid's Nyquist frequency where it never does, or where the window holds too few
+        samples for the filter.
     """
     length = int(round(window * grid_rate_hz)) | 1
+    if length <= _POLYORDER:
+        return grid_rate_hz / 2.0
     frequency, response = freqz(savgol_coeffs(length, _POLYORDER), worN=8192, fs=grid_rate_hz)
     below = np.flatnonzero(np.abs(response) < _HALF_POWER)
     return float(frequency[below[0]]) if below.size else grid_rate_hz / 2.0
@@ -226,7 +231,8 @@ class LoggedRates:
             return self.grid_rate_hz, ("a held command logged less than once per grid step "
                                        "lags the one flown by up to its period, which reads "
                                        "as a delay")
-        return interpolated_rate(self.band_hz), (
+        # A channel logged at the grid's rate is on the grid: nothing is interpolated.
+        return min(interpolated_rate(self.band_hz), self.grid_rate_hz), (
             f"linear interpolation must pass the {self.band_hz:.2g} Hz band the isolation "
             "fits on at -3 dB")
 
