@@ -23,11 +23,13 @@ from drake_uav.identification.assessment.logged_rates import (
     interpolated_rate,
     logged_rates,
 )
+from drake_uav.identification.statistics.residuals import diagnose
 from drake_uav.io import read_log
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.io.grouped_csv_writer import write_grouped_csv
 from drake_uav.io.tlog_writer import write_tlog
 from drake_uav.reporting.explanations import residual_meaning
+from drake_uav.reporting.figures import spectral_density_plot
 from drake_uav.reporting.identification_report import write_report
 from drake_uav.vehicles.fixed_wing import aerosonde
 
@@ -104,6 +106,20 @@ def test_no_spectral_peak_is_named_above_the_native_nyquist_frequency():
     thinned, = residual_meaning({"Cl": Diagnosis()}, 0.05, nyquist_hz=5.0)
     assert "12 Hz, 2 Hz" in full
     assert "spectral peak at 2 Hz" in thinned and "12 Hz" not in thinned
+
+
+def test_the_residual_spectrum_is_drawn_up_to_the_native_nyquist_frequency_only():
+    rng = np.random.default_rng(3)
+    t = np.arange(3000) / 50.0
+    diagnosis = diagnose(rng.normal(size=t.size) + np.sin(2 * np.pi * 12.0 * t), 50.0)
+    full = spectral_density_plot({"Cl": diagnosis})
+    thinned = spectral_density_plot({"Cl": diagnosis}, nyquist_hz=5.0)
+    top = [max(line.get_xdata().max() for line in fig.axes[0].get_lines())
+           for fig in (full, thinned)]
+    assert top[0] == pytest.approx(25.0) and top[1] <= 5.0
+    marked = [float(t.get_text().split()[0]) for t in full.axes[0].texts]
+    assert len(marked) == 1 and marked[0] == pytest.approx(12.0, abs=0.2)
+    assert not thinned.axes[0].texts  # the 12 Hz peak is not marked
 
 
 @pytest.fixture(scope="module")
