@@ -189,14 +189,26 @@ class RateLimit:
     reason: str
 
     def message(self) -> str:
-        """One line: ``"Cl_p (damping derivative): not identifiable at the logged rates:
-        imu_p logged at 10 Hz, needs 15.5 Hz (...)"``."""
+        """The limit in one line.
+
+        Returns
+        -------
+        str
+            ``"Cl_p (damping derivative): not identifiable at the logged rates: imu_p
+            logged at 10 Hz, needs 15.5 Hz (<reason>)"``.
+        """
         return (f"{self.term} ({self.what}): not identifiable at the logged rates: "
                 f"{self.channel} logged at {self.native_rate_hz:.3g} Hz, needs "
                 f"{self.needed_rate_hz:.3g} Hz ({self.reason})")
 
     def summary(self) -> dict:
-        """JSON-ready fields."""
+        """JSON-ready fields (``summary.json``'s ``not_identifiable_at_logged_rates``).
+
+        Returns
+        -------
+        dict
+            The attributes by name.
+        """
         return dataclasses.asdict(self)
 
 
@@ -222,7 +234,22 @@ class LoggedRates:
     band_hz: float
 
     def needed_rate(self, channel: str, kind: str) -> tuple[float, str]:
-        """(rate [Hz] a term of ``kind`` needs of ``channel``, the rule in one clause)."""
+        """The rate a term of ``kind`` needs of ``channel`` (module docstring).
+
+        Parameters
+        ----------
+        channel : str
+            The channel.
+        kind : str
+            :data:`BAND` or :data:`TIMING`.
+
+        Returns
+        -------
+        rate : float
+            The rate needed [Hz].
+        reason : str
+            The rule that sets it, in one clause.
+        """
         if kind == TIMING:
             return self.grid_rate_hz, (f"a time is resolved to one step of the "
                                        f"{self.grid_rate_hz:g} Hz grid; a coarser channel "
@@ -237,15 +264,40 @@ class LoggedRates:
             "fits on at -3 dB")
 
     def nyquist(self, channels: Iterable[str]) -> float:
-        """The lowest native Nyquist frequency [Hz] of ``channels`` (those in the log;
-        half the grid's rate when none is): no spectrum of a signal built from them means
-        anything above it."""
+        """The lowest native Nyquist frequency of ``channels``.
+
+        No spectrum of a signal built from them means anything above it.
+
+        Parameters
+        ----------
+        channels : iterable of str
+            The channels (those the log does not hold are left out).
+
+        Returns
+        -------
+        float
+            Half the lowest native rate [Hz]; half the grid's rate when none is in the log.
+        """
         rates = [self.rates[c] for c in channels if c in self.rates]
         return min([*rates, self.grid_rate_hz]) / 2.0
 
     def limit(self, need: RateNeed) -> RateLimit | None:
-        """Why the log cannot support ``need`` (None: it can). A channel the log does not
-        hold is not judged here (the term is not testable for another reason)."""
+        """Why the log cannot support ``need``.
+
+        A channel the log does not hold is not judged here (the term is not testable for
+        another reason).
+
+        Parameters
+        ----------
+        need : RateNeed
+            The term and its channels.
+
+        Returns
+        -------
+        RateLimit or None
+            The channel furthest below its need (the first of them on a tie); None when
+            every channel is fast enough.
+        """
         short = []
         for channel in need.channels:
             if channel not in self.rates:
@@ -261,7 +313,18 @@ class LoggedRates:
         return RateLimit(need.term, need.what, need.kind, channel, rate, needed, reason)
 
     def limits(self, needs: Iterable[RateNeed]) -> tuple[RateLimit, ...]:
-        """The needs the log cannot support, in the order given."""
+        """The needs the log cannot support.
+
+        Parameters
+        ----------
+        needs : iterable of RateNeed
+            The terms.
+
+        Returns
+        -------
+        tuple of RateLimit
+            One per term the log cannot support, in the order given.
+        """
         return tuple(limit for need in needs if (limit := self.limit(need)) is not None)
 
 
