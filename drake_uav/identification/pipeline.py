@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -27,8 +27,16 @@ from drake_uav.estimation.imu_position import (
     logged_imu_position,
 )
 from drake_uav.identification.assessment.identifiability import derivative_warnings
+from drake_uav.identification.assessment.logged_rates import LoggedRates, RateLimit, logged_rates
 from drake_uav.identification.assessment.near_ties import NearTie, accepted_evidence, near_ties
 from drake_uav.identification.assessment.noise_floor import NoiseFloor, held_out_noise_floor
+from drake_uav.identification.assessment.rate_needs import (
+    calibration_needs,
+    derivative_needs,
+    effect_needs,
+    product_needs,
+    without_unsupported,
+)
 from drake_uav.identification.assessment.reconstruction import Reconstruction, reconstruct
 from drake_uav.identification.discovery.coefficient_design import (
     IdentifiedDerivatives,
@@ -278,6 +286,12 @@ class IdentificationRun:
         The data-compatibility check of the airborne spans (docs/compatibility.md), whose
         significant calibration errors were removed before the isolation (None: samples
         given directly, or nothing to check).
+    logged_rates : LoggedRates or None
+        The log's native rates against the analysis grid (None: samples given directly).
+    rate_limits : tuple of RateLimit
+        The terms the log cannot support at its native rates, with the rates they need
+        (:mod:`~drake_uav.identification.assessment.logged_rates`): the effects among them
+        were not tested, the calibration errors not claimed.
 
     Examples
     --------
@@ -303,6 +317,8 @@ class IdentificationRun:
     coefficient_sigma: dict
     data: LogSelection | None = None
     compatibility: CompatibilityResult | None = None
+    logged_rates: LoggedRates | None = None
+    rate_limits: tuple[RateLimit, ...] = ()
 
     @functools.cached_property
     def noise_floors(self) -> dict[str, NoiseFloor]:
@@ -375,7 +391,8 @@ class IdentificationRun:
             ``dropped_terms`` (per coefficient, the figures that dropped each,
             :class:`~drake_uav.identification.discovery.parsimony.DroppedTerm`),
             ``warnings`` (:attr:`derivative_warnings`), ``near_ties`` (:attr:`near_ties`),
-            ``rounds`` (every candidate's evidence, ``accepted`` or not) and, when the
+            ``rounds`` (every candidate's evidence, ``accepted`` or not),
+            ``not_identifiable_at_logged_rates`` (:attr:`rate_limits`) and, when the
             data-compatibility check ran, ``compatibility``. Each entry of ``effects`` has
             ``name, kind, explanation, coefficients, evidence, parameters``.
         """
@@ -391,6 +408,7 @@ class IdentificationRun:
             "source": self.source,
             "aircraft": self.params.name,
             "data": None if self.data is None else self.data.summary(),
+            "not_identifiable_at_logged_rates": [r.summary() for r in self.rate_limits],
             "message": d.message,
             "findings": list(self.findings),
             "samples": len(self.samples),
@@ -649,20 +667,39 @@ def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions |
     moved = position is not None and any(position.position)
     if moved:
         log = accelerometers_at_cg(log, position.position)
-    compatibility = check_log_compatibility(log, params, source=source, segment=segment,
-                                            phases=phases, progress=say)
+    rates = logged_rates(log, options.rate_hz)
+    compatibility = without_unsupported(
+        check_log_compatibility(log, params, source=source, segment=segment, phases=phases,
+                                progress=say), rates.limits(calibration_needs()))
     if compatibility is not None:
         log = compatibility.corrected(log)
     command_delay = measured_command_delay(compatibility)
     samples, selection = select_samples(log, params, options, progress=say,
                                         throttle_delay=command_delay)
+    limits = rates.limits([*calibration_needs(), *effect_needs(selection.air_data),
+                           *derivative_needs(n for k in options.coefficients
+                                             for n in baseline_names(params, k))])
+    products = rates.limits(product_needs())
     run = identify_samples(samples, params, options, progress=say,
                            effects=testable_effects(selection.air_data, command_delay),
-                           vector_effects=testable_vector_effects(selection.air_data))
-    notes = ((position.note(),) if moved else ()) + selection.notes + run.discovery.notes
+                           vector_effects=testable_vector_effects(selection.air_data),
+                           untested={limit.term for limit in (*limits, *products)})
+    notes = ((position.note(),) if moved else ()) + selection.notes \
+        + _rate_notes(limits, len(products)) + run.discovery.notes
     selection = dataclasses.replace(selection, notes=notes,
                                     warnings=checked.notes + selection.warnings)
-    return dataclasses.replace(run, data=selection, compatibility=compatibility)
+    return dataclasses.replace(run, data=selection, compatibility=compatibility,
+                               logged_rates=rates, rate_limits=limits)
+
+
+def _rate_notes(limits: Sequence[RateLimit], products: int) -> tuple[str, ...]:
+    """One note naming the terms the log cannot support (none: no note)."""
+    if not limits:
+        return ()
+    untested = f"; nor {products} data-driven products of their signals" if products else ""
+    return (f"not identifiable at the logged rates (effects not tested, calibration errors "
+            f"not claimed, derivatives not trusted): {', '.join(r.term for r in limits)}"
+            f"{untested}; the channels and the rates they need are listed in the report",)
 
 
 def check_log_channels(log: FlightLog, params: FixedWingParams, *,
@@ -994,6 +1031,7 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
                      progress: Callable[[str], None] | None = None,
                      effects: Sequence[Effect] | None = None,
                      vector_effects: Sequence[VectorEffect] | None = None,
+                     untested: Collection[str] = (),
                      **changes) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
@@ -1019,6 +1057,9 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
         Called with one line per stage.
     effects, vector_effects : sequence, optional
         The candidate effects (None: the libraries).
+    untested : collection of str
+        Candidates not to test, by name (:func:`~drake_uav.identification.discovery.loop.
+        discover`).
     **changes
         Fields of :class:`IdentifyOptions` to change for this call.
 
@@ -1048,7 +1089,8 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
     reset_interval = options.reset_interval
     say = progress or (lambda message: None)
     result = discover(samples, params, effects=effects, vector_effects=vector_effects,
-                      rule=options.rule, progress=say, coefficients=options.coefficients)
+                      rule=options.rule, progress=say, coefficients=options.coefficients,
+                      untested=untested)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)

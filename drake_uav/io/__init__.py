@@ -10,7 +10,8 @@
   ``.tlog`` readers (:mod:`drake_uav.io.ardupilot`, :mod:`drake_uav.io.px4`,
   :mod:`drake_uav.io.tlog`) load on first use, because pymavlink and pyulog are slow
   to import. :func:`drake_uav.io.tlog_writer.write_tlog` writes a FlightLog as a
-  ``.tlog``; :mod:`drake_uav.io.esc` names the ESC telemetry channels.
+  ``.tlog``, :func:`drake_uav.io.grouped_csv_writer.write_grouped_csv` as a CSV with a
+  time column per group; :mod:`drake_uav.io.esc` names the ESC telemetry channels.
 * :func:`extra_channels`: the measured channels beyond the canonical ones (a tension,
   a battery voltage, ...) with their units; every non-canonical CSV column, a default
   set of physical signals of ``.bin`` and ``.ulg`` logs and the fields named with

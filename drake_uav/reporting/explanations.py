@@ -36,11 +36,13 @@ RESIDUAL_MEANING = (
 
 
 def residual_meaning(diagnoses: Mapping[str, ResidualDiagnosis],
-                     smoothing_time: float) -> list[str]:
+                     smoothing_time: float, nyquist_hz: float | None = None) -> list[str]:
     """One line per coefficient: is its residual white, and if not, what that says.
 
     ``smoothing_time`` [s]: the correlation time the isolation's smoothing gives white
-    noise (integrated autocorrelation time of the filter).
+    noise (integrated autocorrelation time of the filter). ``nyquist_hz``: the lowest native
+    Nyquist frequency [Hz] of the channels the coefficients are measured from; a spectral
+    peak above it is the resampling's, not the flight's, and is not named.
     """
     lines = []
     for k, d in diagnoses.items():
@@ -53,8 +55,9 @@ def residual_meaning(diagnoses: Mapping[str, ResidualDiagnosis],
                    * smoothing_time else "structure the model does not explain")
         text = (f"{k}: not white, correlation time {time:.2g} s (the smoothing alone gives "
                 f"{smoothing_time:.2g} s): {reading}")
-        if d.spectral_peaks:
-            peaks = ", ".join(f"{p.frequency:.3g} Hz" for p in d.spectral_peaks[:3])
+        shown = [p for p in d.spectral_peaks if nyquist_hz is None or p.frequency <= nyquist_hz]
+        if shown:
+            peaks = ", ".join(f"{p.frequency:.3g} Hz" for p in shown[:3])
             text += (f"; spectral peak at {peaks}: a periodic component (vibration, "
                      "propeller, a control limit cycle)")
         if d.drift_significant:

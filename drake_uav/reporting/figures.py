@@ -247,14 +247,23 @@ def spectral_density_plot(
     diagnoses: ResidualDiagnosis | Mapping[str, ResidualDiagnosis],
     *,
     unit: str = "-",
+    nyquist_hz: float | None = None,
 ) -> Figure:
-    """Welch PSD of the residual(s) [unit^2/Hz], log scale, significant peaks marked."""
+    """Welch PSD of the residual(s) [unit^2/Hz], log scale, significant peaks marked.
+
+    ``nyquist_hz``: the lowest native Nyquist frequency [Hz] of the channels the residual
+    is built from (:meth:`~drake_uav.identification.assessment.logged_rates.LoggedRates.
+    nyquist`); nothing above it is drawn, since a log resampled onto a faster grid holds
+    only its interpolation there."""
     fig, ax, series = _one_panel(diagnoses)
+    top = np.inf if nyquist_hz is None else nyquist_hz
     for color, label, d in series:
-        f, p = d.psd_frequencies[1:], d.psd[1:]
+        shown = d.psd_frequencies <= top
+        f, p = d.psd_frequencies[1:][shown[1:]], d.psd[1:][shown[1:]]
         ax.semilogy(f, p, lw=0.8, color=color, label=label)
-        ax.semilogy(d.psd_frequencies, d.psd_background, ":", lw=0.8, color=color)
-        for pk in d.spectral_peaks:
+        ax.semilogy(d.psd_frequencies[shown], d.psd_background[shown], ":", lw=0.8,
+                    color=color)
+        for pk in (pk for pk in d.spectral_peaks if pk.frequency <= top):
             ax.plot(pk.frequency, pk.psd, "v", color=color, ms=6)
             ax.annotate(f"{pk.frequency:.3g} Hz", (pk.frequency, pk.psd), fontsize="x-small",
                         xytext=(3, 4), textcoords="offset points", color=color)

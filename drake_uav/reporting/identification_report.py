@@ -30,6 +30,10 @@ from drake_uav.reporting.report import Report
 
 __all__ = ["write_report", "result_warnings", "ROUND_ROWS"]
 
+_IMU = ("imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r")
+"""The channels the coefficients are measured from: their residuals' spectra end at these
+channels' native Nyquist frequency."""
+
 _OUTPUT_UNITS = {"airspeed": "m/s", "alpha": "deg", "beta": "deg", "p": "deg/s", "q": "deg/s",
                  "r": "deg/s"}
 
@@ -66,6 +70,7 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
         f"t = {d.holdout_start:.1f} s.\n\n**Result: {d.message}.**")
     _add_data(report, run)
     _add_compatibility(report, run)
+    _add_rate_limits(report, run)
     _add_effects(report, run)
     _add_errors(report, run, run.noise_floors)
     _add_warnings(report, run.derivative_warnings)
@@ -114,6 +119,23 @@ def _add_compatibility(report: Report, run: IdentificationRun) -> None:
                     "redundancy of IMU, attitude, GPS, baro and air data (flight-path "
                     "reconstruction; docs/compatibility.md):\n\n"
                     + "\n".join(f"- {line}" for line in run.compatibility.lines()))
+
+
+def _add_rate_limits(report: Report, run: IdentificationRun) -> None:
+    """The terms the log's native rates cannot support, with the rates they need."""
+    if not run.rate_limits:
+        return
+    report.add_heading("Not identifiable at the logged rates")
+    report.add_text(
+        "Each channel is judged on the rate it was logged at, not on the grid the analysis "
+        "resamples it onto. The effects below were not tested, the calibration errors not "
+        "claimed, and the derivatives stay in the fit but are not identified by this flight, "
+        "whatever their values (docs/logged_rates.md). Where the model is still incomplete, "
+        "the missing part may lie in these terms: log the channels at the rates given.")
+    report.add_table([
+        {"term": r.term, "what": r.what, "channel": r.channel,
+         "logged [Hz]": r.native_rate_hz, "needed [Hz]": r.needed_rate_hz, "why": r.reason}
+        for r in run.rate_limits], formats={"logged [Hz]": ".3g", "needed [Hz]": ".3g"})
 
 
 def _add_effects(report: Report, run: IdentificationRun) -> None:
@@ -233,7 +255,8 @@ def _add_residual_meaning(report: Report, run: IdentificationRun) -> None:
     """What the whiteness of each residual says about the result."""
     report.add_heading("What the residuals say")
     lines = explanations.residual_meaning(
-        {k: f.diagnosis for k, f in run.discovery.final.items()}, run.smoothing_correlation_time)
+        {k: f.diagnosis for k, f in run.discovery.final.items()}, run.smoothing_correlation_time,
+        None if run.logged_rates is None else run.logged_rates.nyquist(_IMU))
     report.add_text(explanations.RESIDUAL_MEANING + "\n\n"
                     + "\n".join(f"- {line}" for line in lines))
 
@@ -268,7 +291,11 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
                     "summary.json; docs/main_job.md, \"Baseline\"). C_D's `thrust:` rows, where "
                     "the thrust was identified from the flight: by how much that thrust exceeds "
                     "the one the data now give, per unit of each throttle term, fitted again "
-                    "with the effects on the drag axis.")
+                    "with the effects on the drag axis."
+                    + (" A term marked *not at the logged rates* needs channels logged faster "
+                       "than this log's (Not identifiable at the logged rates): its value is "
+                       "not identified by this flight." if run.rate_limits else ""))
+    limited = {limit.term for limit in run.rate_limits}
     for k, fit in run.discovery.final.items():
         r = fit.result
         report.add_table(
@@ -276,7 +303,9 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
               "sigma": r.sigma[i], "catalog": catalog.get(n),
               "(estimate - catalog) / sigma": (None if n not in catalog or not r.sigma[i]
                                                else (r.estimate[i] - catalog[n]) / r.sigma[i]),
-              "t": r.t_statistic[i], "significant": bool(r.significant[i])}
+              "t": r.t_statistic[i],
+              "significant": "not at the logged rates" if n in limited
+              else bool(r.significant[i])}
              for i, n in enumerate(fit.names)]
             + [{"parameter": t.term, "unit": _derivative_unit(t.term), "estimate": 0.0,
                 "catalog": catalog.get(t.term), "significant": "dropped"}

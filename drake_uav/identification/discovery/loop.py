@@ -54,7 +54,7 @@ explain and no candidate that does, "the model is incomplete for C_D: ...".
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -260,8 +260,8 @@ class _Candidates:
 def discover(samples: AeroSamples, params: FixedWingParams,
              effects: Sequence[Effect] | None = None, rule: EvidenceRule | None = None,
              coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
-             progress=None, vector_effects: Sequence[VectorEffect] | None = None
-             ) -> DiscoveryResult:
+             progress=None, vector_effects: Sequence[VectorEffect] | None = None,
+             untested: Collection[str] = ()) -> DiscoveryResult:
     """Runs the residual -> effect -> refit loop on ``samples`` (module docstring).
 
     The loop's stages (baseline and pruning, rounds, final check, final fits, adequacy)
@@ -288,6 +288,10 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     vector_effects : sequence of VectorEffect, optional
         The forces tested jointly on the coefficients they move (None:
         :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`).
+    untested : collection of str
+        Candidates not to test, by name (named effects, ``data_driven:<a>*<b>`` products,
+        vector effects): those the data cannot support (a log's rates,
+        :mod:`~drake_uav.identification.assessment.logged_rates`).
 
     Returns
     -------
@@ -345,7 +349,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
 
     found: list[FoundEffect] = []
     rounds: list[tuple[Evidence, ...]] = []
-    used: set[str] = set()
+    used: set[str] = set(untested)  # never tried: as if tried already
     for round_index in range(rule.max_rounds):
         if progress:
             progress(f"discovery round {round_index + 1}: scoring candidate effects")
