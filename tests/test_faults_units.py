@@ -19,6 +19,7 @@ from drake_uav.optimization.fault_plans import LandingSettings, plan_reference
 from drake_uav.optimization.fault_response import Category, UnsafeDisc, classify_fault
 from drake_uav.optimization.min_snap import minimum_snap
 from drake_uav.optimization.nmpc import NmpcSettings
+from drake_uav.optimization.terminal_set import ReferenceTable
 from drake_uav.systems.faults import FaultInjector, FaultSupervisor, MotorFailure
 from drake_uav.systems.ground import Ground
 from drake_uav.systems.multirotor import MultirotorPlant
@@ -216,6 +217,29 @@ def test_ground_ends_the_simulation_at_touchdown(params):
     np.testing.assert_allclose(td[2:4], expected.point, atol=1e-4)
     assert abs(td[4]) < 1e-6
     assert td[7] == pytest.approx(expected.vertical_speed, abs=1e-4)
+
+
+def _hover_reference(params, seconds):
+    """A hover 2 m up for ``seconds`` [s] (thrusts shared equally)."""
+    t = np.arange(0.0, seconds + 1e-9, 0.05)
+    state = np.tile(np.r_[0.0, 0.0, -2.0, 1.0, np.zeros(9)], (len(t), 1))
+    thrusts = np.full((len(t), params.num_motors), params.weight / params.num_motors)
+    return ReferenceTable(t, state, thrusts)
+
+
+def test_a_tracked_mission_ends_after_it_and_a_falling_vehicle_flies_on(params):
+    ref = _hover_reference(params, 1.0)
+    tracked = fly_fault(params, ref, (), 30.0, end_after_mission=0.5)
+    print(f"tracked: ends at {tracked.time[-1]:.3f} s")
+    assert tracked.time[-1] == pytest.approx(1.5, abs=0.03)
+    assert tracked.touchdown is None
+    # motors 3 and 4 (no closure) at 0.5 s: category I, the run flies on
+    falling = fly_fault(params, ref, [MotorFailure(0.5, (3, 4))], 2.5, end_after_mission=0.5)
+    print(f"falling: category {falling.category.name}, ends at {falling.time[-1]:.3f} s")
+    assert falling.category == Category.I
+    assert falling.time[-1] == pytest.approx(2.5, abs=0.03)
+    with pytest.raises(ValueError, match="end_after_mission"):
+        fly_fault(params, ref, (), 30.0, end_after_mission=-1.0)
 
 
 def test_semidefinite_state_weight_is_accepted_and_negative_refused():

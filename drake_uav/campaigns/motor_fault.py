@@ -30,7 +30,8 @@ from drake_uav.diagrams.faults import FaultRun
 from drake_uav.optimization.allocation import closure_holds
 from drake_uav.optimization.fault_response import Category
 
-__all__ = ["motor_fault", "outcome", "TRACKED_RMSE", "SAFE_SPEED", "LANDING_TIME", "MISSIONS"]
+__all__ = ["motor_fault", "outcome", "TRACKED_RMSE", "SAFE_SPEED", "LANDING_TIME",
+           "TRACKING_END", "MISSIONS"]
 
 TRACKED_RMSE = 1.0
 """Position RMSE [m] after the fault below which a run still tracks."""
@@ -41,6 +42,9 @@ LANDING_TIME = 120.0
 missions: a stop from their top speed of about 8 m/s at the plans' mean braking carries the
 vehicle up to about 50 m from the safe point, which it then crosses at the 1 m/s mean
 cruise speed before an 8 m descent at 1 m/s (about 75 s in all)."""
+TRACKING_END = 2.0
+"""A run still tracking its mission (category IV) ends this long after the mission [s]
+(the landings fly on, up to :data:`LANDING_TIME` after the fault)."""
 MISSIONS = {"I": "I", "II": "IIa", "III": "IIIa", "IV": "IVa"}
 """Target -> the scenario whose mission (and disc) the campaign flies."""
 _REQUIRED = {Category.I: 1, Category.II: 2, Category.III: 3, Category.IV: 4}
@@ -101,7 +105,7 @@ def motor_fault(seed: int, params: dict) -> dict:
     duration = float(duration or max(base.duration, fault_time + LANDING_TIME))
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
     run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))),
-                       duration=duration)
+                       duration=duration, end_after_mission=TRACKING_END)
     rank = outcome(run)
     td, ff = run.touchdown, run.free_fall
     return {

@@ -124,6 +124,11 @@ class FaultRun:
         return float(np.sqrt(np.mean(e**2))) if len(e) else np.nan
 
 
+def _touched_down(ground: Ground, context) -> bool:
+    """Whether ``ground`` has recorded a touchdown in the diagram ``context``."""
+    return ground.GetOutputPort("touchdown").Eval(ground.GetMyContextFromRoot(context))[0] > 0
+
+
 def _check_failures(failures, duration: float, num_motors: int) -> tuple[MotorFailure, ...]:
     failures = tuple(failures)
     for k, f in enumerate(failures):
@@ -141,7 +146,7 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
               category: Category | None = None, margin: float = REFERENCE_MARGIN,
               sensor_noise: StateNoise | None = None, seed: int = 0,
               external_wrench: PiecewisePolynomial | None = None,
-              log_period: float = 0.025) -> FaultRun:
+              log_period: float = 0.025, end_after_mission: float | None = None) -> FaultRun:
     """Flies ``reference`` from its first state with the motor ``failures`` for up to
     ``duration`` [s] (less when the vehicle touches the ground).
 
@@ -178,6 +183,11 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
         [N m]) over time, e.g. an upset just before a failure.
     log_period : float
         Logging period [s].
+    end_after_mission : float, optional
+        With a value [s], a run still tracking the mission that long after its end (no
+        failure yet, or category IV) stops there instead of hovering until ``duration``;
+        a landing or an escape flies on. Campaigns use it: a landing may need minutes, a
+        tracked mission does not.
 
     Raises
     ------
@@ -187,6 +197,8 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     """
     if not duration > 0:
         raise ValueError(f"duration must be positive, got {duration}")
+    if end_after_mission is not None and not end_after_mission >= 0:
+        raise ValueError(f"end_after_mission must be >= 0 s, got {end_after_mission}")
     n = params.num_motors
     failures = _check_failures(failures, duration, n)
     if unsafe_disc is not None and not isinstance(unsafe_disc, UnsafeDisc):
@@ -235,7 +247,14 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     xc[:13] = reference.state[0]
     plant_context.SetContinuousState(xc)
     start = _time.perf_counter()
-    sim.AdvanceTo(duration)
+    if end_after_mission is not None and reference.end_time + end_after_mission < duration:
+        sim.AdvanceTo(reference.end_time + end_after_mission)
+        tracking = int(supervisor.GetOutputPort("category").Eval(
+            supervisor.GetMyContextFromRoot(context))[0]) in (Category.NONE, Category.IV)
+        if not tracking and not _touched_down(ground, context):
+            sim.AdvanceTo(duration)
+    else:
+        sim.AdvanceTo(duration)
     wall = _time.perf_counter() - start
     get = {k: v.FindLog(context) for k, v in logs.items()}
     c = get["control"].data().T
