@@ -83,7 +83,7 @@ from drake_uav.model.coefficients import COEFFICIENTS, body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["VectorEffect", "JointSearch", "vector_effect",
-           "vector_effect_library", "DIRECTIONS"]
+           "vector_effect_library", "DIRECTIONS", "force_coefficient_change"]
 
 _MOMENT_AXIS = {"Cl": 0, "Cm": 1, "Cn": 2}
 _FORCES = ("CL", "CD", "CY")
@@ -290,7 +290,7 @@ class VectorEffect:
             return out
         forces = self._forces(view)
         if coefficient in _FORCES:
-            out.update((name, _force_column(view, params, coefficient, force))
+            out.update((name, force_coefficient_change(view, params, coefficient, force))
                        for name, force in forces.items())
         else:
             per_unit = 1.0 / (view.dynamic_pressure * params.S)
@@ -301,10 +301,26 @@ class VectorEffect:
         return out
 
 
-def _force_column(view: AeroSamples, params: FixedWingParams, coefficient: str,
-                  force: np.ndarray) -> np.ndarray:
-    """The change of the force coefficient ``coefficient`` by the body-axis ``force`` (N, 3)
-    [N]."""
+def force_coefficient_change(view: AeroSamples, params: FixedWingParams, coefficient: str,
+                             force: np.ndarray) -> np.ndarray:
+    """The change of a force coefficient by a body-axis force.
+
+    Parameters
+    ----------
+    view : AeroSamples
+        The samples as ``coefficient`` sees them (``samples.aligned(coefficient)``).
+    params : FixedWingParams
+        The aircraft (its wing area).
+    coefficient : str
+        ``CL``, ``CD`` or ``CY``.
+    force : numpy.ndarray of shape (N, 3)
+        The force in body axes [N].
+
+    Returns
+    -------
+    numpy.ndarray of shape (N,)
+        The coefficient's change: the force over ``qbar S`` along its axis.
+    """
     cx, cy, cz = (force / (view.dynamic_pressure * params.S)[:, None]).T
     lift, drag = body_to_lift_drag(cx, cz, view.condition.alpha)
     return {"CL": lift, "CD": drag, "CY": cy}[coefficient]
@@ -591,7 +607,7 @@ class JointSearch:
             view = smp.aligned(k)
             size = (np.asarray(view.signals[magnitude], dtype=float)[:, None]
                     if magnitude else 1.0)
-            return {i: _force_column(view, params, k, size * ned_to_body(
+            return {i: force_coefficient_change(view, params, k, size * ned_to_body(
                 view, np.broadcast_to(np.eye(3)[i], (len(view), 3)))) for i in range(3)}
         columns, jac = columns_and_jacobians(along_axes, search.pool.variants, variance)
         return (np.column_stack([columns[i] for i in range(3)]),
