@@ -16,7 +16,11 @@ coefficient weighted by the inverse variance of its residual, its own columns el
 Frisch-Waugh-Lovell). The profile of the weighted residual sum of squares over ``tau``
 (steps of :data:`SCAN_STEP` within +-:data:`MAX_CLOCK_OFFSET`, then one sample about the
 best, a parabola through its neighbours) gives the offset; its curvature gives the
-standard error (the likelihood's, with the residuals' effective sample size). The channel
+standard error (the likelihood's, with the residuals' effective sample size), or, when
+larger, the likelihood ratio against no offset does (the standard error whose Wald
+statistic equals it: the profile is no parabola over a scan this wide). The offset is
+significant at the compatibility check's level divided by the number of trial offsets
+(Bonferroni over the scan). The channel
 is *observable* when, at the best offset, its columns remove a significant share of the
 residual: a partial F-test at :data:`OBSERVABLE_LEVEL`, Bonferroni over the scan's trial
 offsets. A channel that moves no coefficient has no offset to estimate.
@@ -80,6 +84,9 @@ class ClockOffset:
         times the number of trial offsets).
     tolerance : float
         [s] one sample period: a smaller offset is within the grid's resolution.
+    trials : int
+        Trial offsets of the coarse scan: the offset's test is at the compatibility
+        check's level over this many (Bonferroni).
     """
 
     channel: str
@@ -88,6 +95,7 @@ class ClockOffset:
     dof: int
     p_value: float
     tolerance: float
+    trials: int = 1
 
     @property
     def observable(self) -> bool:
@@ -113,7 +121,7 @@ class ClockOffset:
             self.dof, "s", 0.0, self.tolerance,
             "the logged force channel lags the force the aircraft felt by this time (a "
             "separate logger's clock)", observable=self.observable, note=note,
-            significance=SIGNIFICANCE)
+            significance=SIGNIFICANCE / self.trials)
 
 
 def force_channels(samples: AeroSamples) -> list[str]:
@@ -261,11 +269,17 @@ def estimate_clock_offset(samples: AeroSamples, params: FixedWingParams, key: st
     variance = sse_min / rows
     f_statistic = information * (reduction / q_count) / variance
     p_value = float(stats.f.sf(f_statistic, q_count, dof)) * len(coarse)
-    # The profile's curvature over a few samples about the optimum.
+    # The profile's curvature over a few samples about the optimum; far from zero, where
+    # the profile is no parabola, the standard error whose Wald statistic is the
+    # likelihood ratio against no offset (never smaller).
     curve = np.polyfit(fine - estimate, fine_sse, 2)[0]
     sigma = (math.sqrt(2.0 * variance / (2.0 * curve) / information) if curve > 0
              else math.inf)
-    return ClockOffset(key.removeprefix(LOGGED), estimate, sigma, dof, p_value, period)
+    ratio = information * (profile(0.0)[0] - sse_min) / variance
+    if ratio > 0.0:
+        sigma = max(sigma, abs(estimate) / math.sqrt(ratio))
+    return ClockOffset(key.removeprefix(LOGGED), estimate, sigma, dof, p_value, period,
+                       len(coarse))
 
 
 def correct_clock_offsets(samples: AeroSamples, params: FixedWingParams,

@@ -693,7 +693,9 @@ class JointSearch:
         (``accept_named(named, used)``), then the other passing vector effects. A force
         towards a located point, one choice among the grid's, goes first only when it removes
         :attr:`EvidenceRule.min_pse_reduction` more on each coefficient its total sums over,
-        as a data-driven product must on its one coefficient. Every effect tried joins
+        as a data-driven product must on its one coefficient; so does a force proportional to
+        a logged channel, whose rival is the channel itself on each coefficient (which needs
+        no direction). Every effect tried joins
         ``used``.
 
         Parameters
@@ -722,7 +724,8 @@ class JointSearch:
         best = max(totals.values(), default=-np.inf)
 
         def margin(j: JointEvidence) -> float:
-            return search.rule.min_pse_reduction * len(j.coefficients) if j.effect.fitted else 0.0
+            searched = j.effect.fitted or j.effect.magnitude
+            return search.rule.min_pse_reduction * len(j.coefficients) if searched else 0.0
 
         for j in (j for j in passing if j.total - margin(j) > best):
             found = self._accept(search, j, used)
