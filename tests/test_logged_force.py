@@ -113,7 +113,7 @@ def _found(p, sigma):
                        "a force proportional to the logged tension towards a fixed NED point "
                        "located by the data, at the centre of gravity", "aerodynamic",
                        ("CD", "CY"), (), {"F": (1.0, 0.01),
-                                          **{f"p_{a}": (x, sigma) for a, x in zip("ned", p)},
+                                          **{f"p_{a}": (x, sigma) for a, x in zip("ned", p, strict=True)},
                                           **{f"Fp_{a}": (0.0, 1.0) for a in "ned"}})
 
 
