@@ -109,12 +109,12 @@ def test_a_separate_logger_lags_by_its_clock_offset():
 
 
 def _found(p, sigma):
+    point = {f"p_{a}": (x, sigma) for a, x in zip("ned", p, strict=True)}
+    shift = {f"Fp_{a}": (0.0, 1.0) for a in "ned"}
     return FoundEffect("force_towards_point_logged:tension",
                        "a force proportional to the logged tension towards a fixed NED point "
                        "located by the data, at the centre of gravity", "aerodynamic",
-                       ("CD", "CY"), (), {"F": (1.0, 0.01),
-                                          **{f"p_{a}": (x, sigma) for a, x in zip("ned", p, strict=True)},
-                                          **{f"Fp_{a}": (0.0, 1.0) for a in "ned"}})
+                       ("CD", "CY"), (), {"F": (1.0, 0.01), **point, **shift})
 
 
 def test_a_far_or_unlocated_point_is_reported_as_a_fixed_direction():
