@@ -225,22 +225,22 @@ def estimate_clock_offset(samples: AeroSamples, params: FixedWingParams, key: st
     train = samples.subset(slice(0, int(round(len(samples) * (1.0 - rule.holdout_fraction)))))
     period = float(np.median(np.diff(train.time)))
     max_offset = min(max_offset, 0.1 * (train.time[-1] - train.time[0]))
-    residuals, eliminate, weights, n_eff, own = {}, {}, {}, 0.0, 0
+    residuals, eliminate, weights, own = {}, {}, {}, 0
     for k in _FORCES:
         design = baseline_design(train, params, k)
         q, _ = np.linalg.qr(design.X)
         r = design.z - q @ (q.T @ design.z)
         residuals[k], eliminate[k], weights[k] = r, q, 1.0 / float(np.mean(r**2))
-        n_eff += effective_sample_size(r)
         own += design.X.shape[1]
     bases = _direction_bases(train)
     total = sum(weights[k] * float(r @ r) for k, r in residuals.items())
 
-    def profile(offset):
-        """(weighted SSE, reduction) with the channel read ``offset`` later."""
+    def profile(offset, effective=False):
+        """(weighted SSE, reduction, effective sample size of the residuals with the
+        channel, or None) with the channel read ``offset`` later."""
         shifted = read_later(train, key, offset)
         magnitude = shifted.signals[key][:, None]
-        normal, moment = 0.0, 0.0
+        normal, moment, columns = 0.0, 0.0, {}
         for k, r in residuals.items():
             view = shifted.aligned(k)
             V = np.column_stack([force_coefficient_change(view, params, k, magnitude * b)
@@ -248,9 +248,12 @@ def estimate_clock_offset(samples: AeroSamples, params: FixedWingParams, key: st
             V -= eliminate[k] @ (eliminate[k].T @ V)
             normal = normal + weights[k] * V.T @ V
             moment = moment + weights[k] * V.T @ r
+            columns[k] = V
         phi = np.linalg.lstsq(normal, moment, rcond=None)[0]
         reduction = float(phi @ moment)
-        return total - reduction, reduction
+        n_eff = (sum(effective_sample_size(r - columns[k] @ phi) for k, r in residuals.items())
+                 if effective else None)
+        return total - reduction, reduction, n_eff
 
     coarse = np.arange(-max_offset, max_offset + 0.5 * SCAN_STEP, SCAN_STEP)
     sse = np.array([profile(t)[0] for t in coarse])
@@ -261,7 +264,7 @@ def estimate_clock_offset(samples: AeroSamples, params: FixedWingParams, key: st
     a, b, _ = np.polyfit(fine[i - 1:i + 2] - fine[i], fine_sse[i - 1:i + 2], 2)
     estimate = float(fine[i] - b / (2.0 * a)) if a > 0 else float(fine[i])
     estimate = float(np.clip(estimate, fine[i - 1], fine[i + 1]))
-    sse_min, reduction = profile(estimate)
+    sse_min, reduction, n_eff = profile(estimate, effective=True)
     rows = len(train) * len(_FORCES)
     q_count = len(bases)
     dof = max(int(n_eff) - own - q_count - 1, 1)
