@@ -170,3 +170,13 @@ def test_a_tether_with_its_tension_on_a_separate_logger_is_named(suite):
 def test_a_clean_flight_with_an_unrelated_tension_finds_nothing(seed):
     metrics = logged_force(seed, {"effect": "none"})
     assert metrics["found"] == "" and not metrics["offset_applied"], metrics
+
+
+def test_a_logged_force_channel_brings_its_forces_among_the_candidates():
+    from drake_uav.identification.pipeline import testable_vector_effects
+
+    names = {e.name for e in testable_vector_effects("vanes", ["logged:tension"])}
+    assert {"force_towards_point_logged:tension", "force_body_x_logged:tension_off_cg",
+            "force_air_velocity_logged:tension", "force_towards_point"} <= names
+    without_vanes = {e.name for e in testable_vector_effects("estimate", ["logged:tension"])}
+    assert not any("towards_point" in n for n in without_vanes)
