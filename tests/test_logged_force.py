@@ -30,7 +30,6 @@ from drake_uav.io.flight_log import FlightLog
 from drake_uav.testing.discovery_cases import tether_tension
 from drake_uav.testing.logged_force_cases import (
     EXPECTED,
-    MOVED,
     clock_offset,
     logged_force,
     separate_logger,
@@ -143,8 +142,12 @@ ACCEPTANCE_SEEDS = range(20)
 NAMED_RATE = 0.9
 """Share of tethered flights named exactly as the logged-magnitude force (18 of 20)."""
 EXPLAINED = 0.7
-"""Share of the excess held-out error explained on each coefficient the finding is kept
-on (where the error exceeded the floor before)."""
+"""Share of the excess held-out error explained on each coefficient the tether moves."""
+MOVED_MUCH = ("CD", "CY")
+"""The coefficients the tether moves: by about 8 times C_D's variation and 30 % of C_Y's.
+Its lift is under 3 % of C_L's variation, below what one flight's noise lets the held-out
+error show (the finding is kept on C_L where it helps, and its share there is reported by
+benchmarks/bench_logged_force.py, not asserted)."""
 
 
 @pytest.mark.slow
@@ -155,10 +158,8 @@ def test_a_tether_with_its_tension_on_a_separate_logger_is_named(suite):
     assert len(named) >= NAMED_RATE * len(runs), [r["found"] for r in runs]
     for r in named:
         assert r["exact"], r["found"]
-        assert r["kept_CD"] and r["kept_CY"], r
-        for k in MOVED:
-            if r[f"kept_{k}"] and np.isfinite(r[f"excess_explained_{k}"]):
-                assert r[f"excess_explained_{k}"] >= EXPLAINED, (k, r)
+        for k in MOVED_MUCH:
+            assert r[f"kept_{k}"] and r[f"excess_explained_{k}"] >= EXPLAINED, (k, r)
     for r in runs:
         assert r["offset_applied"], r
         assert abs(r["offset_estimate"] - r["offset"]) < max(4.0 * r["offset_sigma"], 0.02), r
