@@ -24,6 +24,7 @@ BUILT_IN = {"main_job": "drake_uav.campaigns.scenarios",
             "tracking_nmpc": "drake_uav.campaigns.scenarios",
             "realistic_logs": "drake_uav.testing.realistic_logs",
             "discovery": "drake_uav.testing.discovery_cases",
+            "logged_force": "drake_uav.testing.logged_force_cases",
             "motor_fault": "drake_uav.campaigns.motor_fault"}
 """Built-in scenario name -> the module that registers it (imported on first use only)."""
 

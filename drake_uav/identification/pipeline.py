@@ -38,6 +38,7 @@ from drake_uav.identification.assessment.rate_needs import (
     without_unsupported,
 )
 from drake_uav.identification.assessment.reconstruction import Reconstruction, reconstruct
+from drake_uav.identification.discovery.clock_offset import correct_clock_offsets, force_channels
 from drake_uav.identification.discovery.coefficient_design import (
     IdentifiedDerivatives,
     baseline_names,
@@ -680,9 +681,16 @@ def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions |
                            *derivative_needs(n for k in options.coefficients
                                              for n in baseline_names(params, k))])
     products = rates.limits(product_needs())
+    if force_channels(samples):
+        say("estimating the clock offsets of the logged force channels")
+        samples, offsets = correct_clock_offsets(samples, params, options.rule)
+        compatibility = (CompatibilityResult(offsets) if compatibility is None else
+                         dataclasses.replace(compatibility,
+                                             effects=compatibility.effects + offsets))
     run = identify_samples(samples, params, options, progress=say,
                            effects=testable_effects(selection.air_data, command_delay),
-                           vector_effects=testable_vector_effects(selection.air_data),
+                           vector_effects=testable_vector_effects(
+                               selection.air_data, force_channels(samples)),
                            untested={limit.term for limit in (*limits, *products)})
     notes = ((position.note(),) if moved else ()) + selection.notes \
         + _rate_notes(limits, len(products)) + run.discovery.notes
@@ -863,7 +871,8 @@ def testable_effects(air_data: str, command_delay: float | None = None) -> list[
     return [e for e in library if e.name not in ESTIMATE_CONFOUNDED]
 
 
-def testable_vector_effects(air_data: str) -> list[VectorEffect]:
+def testable_vector_effects(air_data: str, magnitudes: Sequence[str] = ()
+                            ) -> list[VectorEffect]:
     """The vector effects the data of an ``air_data`` mode can tell from its errors.
 
     Without vanes, not the force towards a point the data locate, which then takes up the
@@ -873,13 +882,17 @@ def testable_vector_effects(air_data: str) -> list[VectorEffect]:
     ----------
     air_data : str
         The resolved air-data mode.
+    magnitudes : sequence of str
+        Logged force channels (``logged:<channel>`` in N): each adds the forces
+        proportional to it (:func:`~drake_uav.identification.discovery.clock_offset.
+        force_channels`).
 
     Returns
     -------
     list of VectorEffect
         The vector effects.
     """
-    return vector_effect_library(located_point=air_data != "estimate")
+    return vector_effect_library((None, *magnitudes), located_point=air_data != "estimate")
 
 
 def select_samples(log: FlightLog, params: FixedWingParams,

@@ -45,7 +45,7 @@ from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
-           "PULL_POINT", "PullTowardsPoint", "pull_towards_point"]
+           "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "tether_tension"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -155,13 +155,14 @@ the middle of the flight's track (which runs north from the origin, 100 m up).""
 
 
 class PullTowardsPoint(LeafSystem):
-    """A force of constant ``magnitude`` [N] towards the NED ``point`` [m], at the centre
-    of gravity (a tether to an anchor), as the plant's body-axis external wrench; input
-    the plant's state (position NED, quaternion, ...)."""
+    """A force of ``magnitude`` [N] (a constant, or a function of the time [s]) towards
+    the NED ``point`` [m], at the centre of gravity (a tether to an anchor), as the plant's
+    body-axis external wrench; input the plant's state (position NED, quaternion, ...)."""
 
-    def __init__(self, magnitude: float, point=PULL_POINT):
+    def __init__(self, magnitude: float | Callable[[float], float], point=PULL_POINT):
         super().__init__()
-        self._magnitude, self._point = magnitude, np.asarray(point, dtype=float)
+        self._magnitude = magnitude if callable(magnitude) else (lambda t: magnitude)
+        self._point = np.asarray(point, dtype=float)
         self._state = self.DeclareVectorInputPort("state", 13)
         self.DeclareVectorOutputPort("wrench", 6, self._wrench)
 
@@ -169,12 +170,14 @@ class PullTowardsPoint(LeafSystem):
         x = self._state.Eval(context)
         towards = self._point - x[:3]
         body = np.asarray(quat_to_rotmat(x[3:7])).T @ (towards / np.linalg.norm(towards))
-        output.SetFromVector(np.concatenate([self._magnitude * body, np.zeros(3)]))
+        output.SetFromVector(np.concatenate([self._magnitude(context.get_time()) * body,
+                                             np.zeros(3)]))
 
 
-def pull_towards_point(magnitude: float, point=PULL_POINT):
-    """Fly options (``extend``): a pull of ``magnitude`` [N] towards the NED ``point``
-    [m] (:class:`PullTowardsPoint`) on the plant's external wrench."""
+def pull_towards_point(magnitude: float | Callable[[float], float], point=PULL_POINT):
+    """Fly options (``extend``): a pull of ``magnitude`` [N] (or a function of the time)
+    towards the NED ``point`` [m] (:class:`PullTowardsPoint`) on the plant's external
+    wrench."""
     def extend(builder, ports):
         pull = builder.AddNamedSystem("pull", PullTowardsPoint(magnitude, point))
         builder.Connect(ports["state"], pull.get_input_port(0))
@@ -198,21 +201,27 @@ TENSION_NOISE = 0.05
 """Standard deviation of the logged tension's noise at strength 1 [N] (a load cell)."""
 
 
-def _tension(t) -> np.ndarray:
+@functools.cache
+def _tension_sines() -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies [Hz] and phases [rad] of :func:`tether_tension`'s sinusoids."""
+    rng = np.random.default_rng(4242)
+    return rng.uniform(*TENSION_BAND, 8), rng.uniform(0.0, 2.0 * np.pi, 8)
+
+
+def tether_tension(t) -> np.ndarray:
     """A tether's tension at strength 1 [N]: eight sinusoids in :data:`TENSION_BAND`, of
     fixed random phases (the same on every flight, like the excitation), unit standard
     deviation about a mean of 3, so that the tether stays taut."""
-    rng = np.random.default_rng(4242)
-    frequency, phase = rng.uniform(*TENSION_BAND, 8), rng.uniform(0.0, 2.0 * np.pi, 8)
+    frequency, phase = _tension_sines()
     t = np.atleast_1d(np.asarray(t, dtype=float))
     return 3.0 + np.sin(2.0 * np.pi * frequency[:, None] * t + phase[:, None]).sum(axis=0) / 2.0
 
 
 def _tether(strength, params):
-    """Fly options: a pull of ``strength`` times :func:`_tension` [N] along -x body at the
-    centre of gravity (C_L -= F sin(alpha) / (qbar S), C_D += F cos(alpha) / (qbar S))."""
+    """Fly options: a pull of ``strength`` times :func:`tether_tension` [N] along -x body at
+    the centre of gravity (C_L -= F sin(alpha) / (qbar S), C_D += F cos(alpha) / (qbar S))."""
     def increment(condition, t):
-        force = strength * float(_tension(t)[0]) / qbar_s(condition.airspeed, params)
+        force = strength * float(tether_tension(t)[0]) / qbar_s(condition.airspeed, params)
         return (-force * np.sin(condition.alpha), force * np.cos(condition.alpha),
                 0.0, 0.0, 0.0, 0.0)
     return {"disturbance": increment}
@@ -220,13 +229,14 @@ def _tether(strength, params):
 
 def _tension_on_drag(condition, flight, params):
     """Drag change of the tether at strength 1."""
-    return _tension(flight.time) * np.cos(condition.alpha) / qbar_s(condition.airspeed, params)
+    return (tether_tension(flight.time) * np.cos(condition.alpha)
+            / qbar_s(condition.airspeed, params))
 
 
 def _tension_logged(log: FlightLog, strength: float, seed: int) -> FlightLog:
     """The log with the tether's load cell, ``tension`` [N], its noise drawn from ``seed``."""
     noise = strength * TENSION_NOISE * np.random.default_rng(seed).standard_normal(len(log))
-    return log.with_measured({"tension": strength * _tension(log.time) + noise},
+    return log.with_measured({"tension": strength * tether_tension(log.time) + noise},
                              {"tension": "N"})
 
 

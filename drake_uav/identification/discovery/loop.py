@@ -415,7 +415,9 @@ def _round(search: _Search, bases: Mapping[str, RoundBase], used: set[str],
     scored only when no named effect is kept, each family at its own family-wise level.
     Otherwise both form one pool at one level over all of them. The vector effects are
     named effects with one joint test each (:meth:`JointSearch.accept` says which goes
-    first); their evidence is listed per coefficient, after the others.
+    first); their evidence is listed per coefficient, after the others. A passing force
+    proportional to a logged channel brings the channel itself (``logged:<channel>``, at
+    the logged channels' level) into the named pool, its rival.
     """
     rule, pool = search.rule, search.pool
     pairs = [(e, k) for e in search.effects if e.name not in used for k in e.coefficients
@@ -430,6 +432,12 @@ def _round(search: _Search, bases: Mapping[str, RoundBase], used: set[str],
     if not rule.named_first:
         evidence += _score_data_driven(bases, pool, rule, products, logged, n_named)
     joint = vectors.score(search, bases, rule, n_named, used)
+    # A force proportional to a logged channel competes with the channel itself.
+    channels = {j.effect.magnitude for j in joint if j.passed and j.effect.magnitude}
+    rivals = [p for p in logged if p[0].name in channels]
+    if rivals:
+        logged = [p for p in logged if p not in rivals]
+        evidence += _score_named(rivals, bases, pool, rule, len(rivals) + len(logged))
     new = vectors.accept(search, joint, evidence, used, search.accept_best)
     if new is None and (products or logged) and rule.named_first:
         evidence += _score_data_driven(bases, pool, rule, products, logged)

@@ -83,7 +83,8 @@ from drake_uav.model.coefficients import COEFFICIENTS, body_to_lift_drag
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["VectorEffect", "JointSearch", "vector_effect",
-           "vector_effect_library", "DIRECTIONS"]
+           "vector_effect_library", "DIRECTIONS", "force_coefficient_change",
+           "far_point_as_direction", "FAR_OUTSIDE"]
 
 _MOMENT_AXIS = {"Cl": 0, "Cm": 1, "Cn": 2}
 _FORCES = ("CL", "CD", "CY")
@@ -290,7 +291,7 @@ class VectorEffect:
             return out
         forces = self._forces(view)
         if coefficient in _FORCES:
-            out.update((name, _force_column(view, params, coefficient, force))
+            out.update((name, force_coefficient_change(view, params, coefficient, force))
                        for name, force in forces.items())
         else:
             per_unit = 1.0 / (view.dynamic_pressure * params.S)
@@ -301,13 +302,89 @@ class VectorEffect:
         return out
 
 
-def _force_column(view: AeroSamples, params: FixedWingParams, coefficient: str,
-                  force: np.ndarray) -> np.ndarray:
-    """The change of the force coefficient ``coefficient`` by the body-axis ``force`` (N, 3)
-    [N]."""
+def force_coefficient_change(view: AeroSamples, params: FixedWingParams, coefficient: str,
+                             force: np.ndarray) -> np.ndarray:
+    """The change of a force coefficient by a body-axis force.
+
+    Parameters
+    ----------
+    view : AeroSamples
+        The samples as ``coefficient`` sees them (``samples.aligned(coefficient)``).
+    params : FixedWingParams
+        The aircraft (its wing area).
+    coefficient : str
+        ``CL``, ``CD`` or ``CY``.
+    force : numpy.ndarray of shape (N, 3)
+        The force in body axes [N].
+
+    Returns
+    -------
+    numpy.ndarray of shape (N,)
+        The coefficient's change: the force over ``qbar S`` along its axis.
+    """
     cx, cy, cz = (force / (view.dynamic_pressure * params.S)[:, None]).T
     lift, drag = body_to_lift_drag(cx, cz, view.condition.alpha)
     return {"CL": lift, "CD": drag, "CY": cy}[coefficient]
+
+
+FAR_OUTSIDE = 2.0
+"""A located point farther from the flight path than this many times the flight volume's
+size (the diagonal of the path's bounding box; the farthest candidate points,
+:data:`~drake_uav.identification.discovery.fitted_point.FARTHEST`, lie as far) is reported
+as a fixed direction (:func:`far_point_as_direction`)."""
+
+
+def far_point_as_direction(found: FoundEffect, path: np.ndarray) -> FoundEffect:
+    """A force towards a located point, reported as a fixed NED direction when the point is
+    far outside the flight volume or its uncertainty exceeds its distance.
+
+    Seen from a flight path, a point far beyond it (more than :data:`FAR_OUTSIDE` times the
+    flight volume's size from the path) is a direction that hardly turns, and a point whose
+    uncertainty (the norm of its coordinates' sigmas) exceeds its distance from the path is
+    not located at all: the data tell the direction, not the point. The finding is then
+    ``force_fixed_direction...`` along the direction from the path's centre towards the
+    point, ``azimuth`` (from north, towards east) and ``elevation`` (above the horizon)
+    [rad], their sigma the point's uncertainty across the line of sight over its distance;
+    the point's parameters are left out.
+
+    Parameters
+    ----------
+    found : FoundEffect
+        A finding of a force towards a located point, with ``p_n, p_e, p_d`` (and their
+        sigmas) among its parameters.
+    path : numpy.ndarray of shape (N, 3)
+        The flight path [m, NED].
+
+    Returns
+    -------
+    FoundEffect
+        ``found`` itself when the point is located, else the fixed direction.
+    """
+    if not all(f"p_{a}" in found.parameters for a in "ned"):
+        return found
+    point = np.array([found.parameters[f"p_{a}"][0] for a in "ned"])
+    sigma = float(np.linalg.norm([found.parameters[f"p_{a}"][1] for a in "ned"]))
+    distance = float(np.min(np.linalg.norm(path - point, axis=1)))
+    size = float(np.linalg.norm(np.ptp(path, axis=0)))
+    far = distance > FAR_OUTSIDE * size
+    if not far and sigma <= distance:
+        return found
+    centre = 0.5 * (path.min(axis=0) + path.max(axis=0))
+    line = point - centre
+    reach = max(float(np.linalg.norm(line)), 1e-9)
+    north, east, down = line / reach
+    spread = min(sigma / reach, np.pi)
+    parameters = {n: v for n, v in found.parameters.items()
+                  if not n.startswith(("p_", "Fp_"))}
+    parameters |= {"azimuth": (float(np.arctan2(east, north)), spread),
+                   "elevation": (float(np.arctan2(-down, np.hypot(north, east))), spread)}
+    why = (f"{distance:.0f} m from the flight path, far outside its {size:.0f} m" if far else
+           f"{distance:.0f} m from the flight path with an uncertainty of {sigma:.0f} m")
+    explanation = (found.explanation.replace(
+        "towards a fixed NED point located by the data", "along a fixed NED direction")
+        + f" (the point the data located lies {why}: a direction, not a point)")
+    return dataclasses.replace(found, name=found.name.replace("towards_point", "fixed_direction"),
+                               explanation=explanation, parameters=parameters)
 
 
 def vector_effect(direction: str, *, magnitude: str | None = None, lever_arm: bool = False,
@@ -591,7 +668,7 @@ class JointSearch:
             view = smp.aligned(k)
             size = (np.asarray(view.signals[magnitude], dtype=float)[:, None]
                     if magnitude else 1.0)
-            return {i: _force_column(view, params, k, size * ned_to_body(
+            return {i: force_coefficient_change(view, params, k, size * ned_to_body(
                 view, np.broadcast_to(np.eye(3)[i], (len(view), 3)))) for i in range(3)}
         columns, jac = columns_and_jacobians(along_axes, search.pool.variants, variance)
         return (np.column_stack([columns[i] for i in range(3)]),
@@ -616,7 +693,9 @@ class JointSearch:
         (``accept_named(named, used)``), then the other passing vector effects. A force
         towards a located point, one choice among the grid's, goes first only when it removes
         :attr:`EvidenceRule.min_pse_reduction` more on each coefficient its total sums over,
-        as a data-driven product must on its one coefficient. Every effect tried joins
+        as a data-driven product must on its one coefficient; so does a force proportional to
+        a logged channel, whose rival is the channel itself on each coefficient (which needs
+        no direction). Every effect tried joins
         ``used``.
 
         Parameters
@@ -645,7 +724,8 @@ class JointSearch:
         best = max(totals.values(), default=-np.inf)
 
         def margin(j: JointEvidence) -> float:
-            return search.rule.min_pse_reduction * len(j.coefficients) if j.effect.fitted else 0.0
+            searched = j.effect.fitted or j.effect.magnitude
+            return search.rule.min_pse_reduction * len(j.coefficients) if searched else 0.0
 
         for j in (j for j in passing if j.total - margin(j) > best):
             found = self._accept(search, j, used)
@@ -714,9 +794,17 @@ class JointSearch:
             The findings, vector effects with their joint parameters.
         """
         effects = {**{e.name: e for e in self.effects}, **self._accepted}
-        return [dataclasses.replace(f, parameters=self.parameters(search, effects[f.name],
-                                                                  f.coefficients))
-                if f.name in effects else f for f in found]
+        path = None
+        out = []
+        for f in found:
+            if f.name in effects:
+                f = dataclasses.replace(f, parameters=self.parameters(
+                    search, effects[f.name], f.coefficients))
+                if effects[f.name].fitted:
+                    path = positions(search.pool.variants.samples) if path is None else path
+                    f = far_point_as_direction(f, path)
+            out.append(f)
+        return out
 
     def parameters(self, search, effect: VectorEffect, coefficients: Sequence[str]
                    ) -> dict[str, tuple[float, float]]:
