@@ -5,7 +5,7 @@
   and a category-IV failure, against one tube query (its floor, measured in the same
   run);
 * each scenario's real-time factor: simulated time over the wall time of
-  ``fly_fault`` (plant, supervisor, fault-tolerant NMPC at 40 Hz, ground), next to the
+  ``fly_fault`` (plant, supervisor, fault-tolerant NMPC at 80 Hz, ground), next to the
   same mission flown as long without a failure (the nominal NMPC alone, the peer).
 
 Tubes come from the disk cache (a cold cache computes them first; that time is the
