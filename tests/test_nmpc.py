@@ -179,3 +179,19 @@ def test_bad_sensor_noise_names_the_field(field):
 
     with pytest.raises(ValueError, match=field):
         NoisyStateSensor(StateNoise(**{field: -1.0}))
+
+
+@pytest.mark.parametrize("period, shift", [(0.025, 1.0), (0.0125, 0.5)])
+def test_warm_start_moves_by_one_control_period(params, period, shift):
+    """Solved every ``period`` with 25 ms intervals, the previous solution is shifted by
+    ``period / interval`` nodes (linear between nodes) before the next step."""
+    reference = tracking_reference(params, SHORT, 4.0)
+    mpc = TrackingNmpc(params, None, NmpcSettings(period=period), reference=reference)
+    nodes = np.arange(mpc.N + 1, dtype=float)
+    X = np.tile(reference.state[0], (mpc.N + 1, 1))
+    X[:, 0] = 0.1 * nodes  # north position ramps by 0.1 m per node
+    U = np.tile(np.arange(6, dtype=float), (mpc.N, 1)) + nodes[:-1, None]
+    mpc._guess, mpc._x = (X, U), X[0]
+    Xg, Ug = mpc._initial_guess()
+    np.testing.assert_allclose(Xg[1:-1, 0], 0.1 * (nodes[1:-1] + shift))
+    np.testing.assert_allclose(Ug[:-1, 0], nodes[:-2] + shift)
