@@ -60,6 +60,13 @@ from typing import NamedTuple
 import numpy as np
 
 from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, assess
+from drake_uav.identification.discovery.aliases import (
+    CATALOG_ORIGIN,
+    THRUST_ORIGIN,
+    AliasedEffect,
+    Term,
+    aliases_of,
+)
 from drake_uav.identification.discovery.coefficient_design import (
     ColumnFunction,
     Design,
@@ -376,7 +383,64 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
                            checks=tuple(search.checks), skipped=skipped, adequacy=adequacy,
-                           dropped={k: p.dropped for k, p in pruned.items() if p.dropped})
+                           dropped={k: p.dropped for k, p in pruned.items() if p.dropped},
+                           aliases=_aliases(search, vectors, found, final))
+
+
+def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect],
+             final: Mapping[str, CoefficientFit]) -> tuple[AliasedEffect, ...]:
+    """Each accepted effect's aliases on each coefficient it is kept on
+    (:mod:`~drake_uav.identification.discovery.aliases`), on the training part: the
+    baseline's terms, the other effects accepted and every candidate of a known direction."""
+    origins = {e.name: e.physical_origin for e in (*search.effects, *vectors.effects)}
+    out = []
+    for f in found:
+        for k in f.coefficients:
+            fit = final[k]
+            model = dict(zip(fit.names, fit.training_design.T, strict=True))
+            column = sum(model.pop(n) * fit.result.estimate[i]
+                         for i, n in enumerate(fit.names) if n.startswith(f"{f.name}:"))
+            aliased = aliases_of(f.name, k, origins.get(f.name, f.name), column, model,
+                                 _model_terms(k, model, found, origins)
+                                 + _candidate_terms(search, vectors, k, found))
+            if aliased is not None:
+                out.append(aliased)
+    return tuple(out)
+
+
+def _model_terms(k: str, model: Mapping[str, np.ndarray], found: Sequence[FoundEffect],
+                 origins: Mapping[str, str]) -> list[Term]:
+    """The terms of coefficient ``k``'s fitted ``model`` (its constant aside): each catalog
+    derivative, the identified thrust's terms as one, each other accepted effect."""
+    groups = {n: ([n], CATALOG_ORIGIN, True) for n in model
+              if n != f"{k}_0" and ":" not in n}
+    thrust = [n for n in model if n.startswith(THRUST_COLUMN)]
+    if thrust:
+        groups["the identified thrust"] = (thrust, THRUST_ORIGIN, True)
+    for g in found:
+        names = [n for n in model if n.startswith(f"{g.name}:")]
+        if names:
+            groups[g.name] = (names, origins.get(g.name, g.name), False)
+    return [Term(name, origin, np.column_stack([model[n] for n in names]), tuple(names),
+                 baseline) for name, (names, origin, baseline) in groups.items()]
+
+
+def _candidate_terms(search: _Search, vectors: JointSearch, k: str,
+                     found: Sequence[FoundEffect]) -> list[Term]:
+    """The named and vector effects on coefficient ``k`` not accepted (a force towards a
+    point the data locate aside: its direction is only known where it was accepted)."""
+    accepted = {f.name for f in found}
+    terms = []
+    for effect in (e for e in search.effects if k in e.coefficients and e.name not in accepted):
+        columns = search.pool.named(effect, k, search.designs[k].noise.variance).columns
+        terms.append(Term(effect.name, effect.physical_origin,
+                          np.column_stack(list(columns.values()))))
+    for effect in (e for e in vectors.effects if not e.fitted and e.name not in accepted):
+        columns = vectors.training_columns(search, effect, k)
+        if columns:
+            terms.append(Term(effect.name, effect.physical_origin,
+                              np.column_stack(list(columns.values()))))
+    return terms
 
 
 def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, Design],
