@@ -5,10 +5,9 @@ A term's *physical origin* is what would cause it, read from the candidates' met
 :attr:`~drake_uav.identification.discovery.evidence.Candidate.origin` (for the fixed-wing
 job, :attr:`~drake_uav.identification.discovery.effects.Effect.origin`; every vector
 effect is ``"an external force"``), and for the baseline's terms :data:`CATALOG_ORIGIN`
-(an aircraft derivative) or :data:`THRUST_ORIGIN` (the terms of a thrust identified from
-the flight). Terms of one origin are variants of one explanation (a force at the centre of
-gravity or below it); terms of different origins are different explanations, and when
-their columns move together on a flight, the flight cannot say which one it saw.
+(an aircraft derivative). Terms of one origin are variants of one explanation (a force at
+the centre of gravity or below it); terms of different origins are different explanations,
+and when their columns move together on a flight, the flight cannot say which one it saw.
 
 :func:`aliases_of` is plant-agnostic: it works on columns and origins. An accepted effect's
 *column* is its fitted contribution to the coefficient (its columns times their estimates);
@@ -18,6 +17,13 @@ their least-squares fit on an intercept and the coefficient's other columns), an
 one column each, the absolute partial correlation coefficient). The rest of the model is
 common to both explanations, so what it can represent tells neither apart; what is left is
 what the flight has to tell them by. Above :data:`ALIAS_CORRELATION` the term is an alias.
+
+The terms compared are those the model could hold instead of the effect: the candidates not
+accepted, and the baseline's terms the model left out (the catalog terms the flight does not
+support, :mod:`~drake_uav.identification.discovery.parsimony`). A term the model holds
+beside the effect is not an alternative to it (the effect was accepted with it in the
+model); its correlation with the effect is among the derivative warnings (regressors the
+flight moved together).
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["ALIAS_CORRELATION", "CATALOG_ORIGIN", "THRUST_ORIGIN", "Alias", "AliasedEffect",
+__all__ = ["ALIAS_CORRELATION", "CATALOG_ORIGIN", "Alias", "AliasedEffect",
            "Term", "aliases_of", "partial_correlation"]
 
 ALIAS_CORRELATION = 0.95
@@ -38,8 +44,6 @@ other's presence."""
 
 CATALOG_ORIGIN = "the aircraft's catalog model"
 """Origin of a baseline derivative (``CD_alpha``, ...)."""
-THRUST_ORIGIN = "the identified thrust"
-"""Origin of the baseline's terms of a thrust identified from the flight."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,18 +58,14 @@ class Term:
         Its physical origin.
     columns : numpy.ndarray of shape (N, q)
         Its columns on the flight.
-    model_names : tuple of str
-        When the term is in the coefficient's fitted model (a baseline term or an effect
-        accepted earlier), the names of its columns there: the rest of the model is then
-        taken without them. Empty: a candidate not in the model.
     baseline : bool
-        The term is one of the baseline's (its alternative is a change of its value).
+        The term is one of the baseline's that the model left out (its alternative is the
+        term with a value of its own).
     """
 
     name: str
     origin: str
     columns: np.ndarray
-    model_names: tuple[str, ...] = ()
     baseline: bool = False
 
 
@@ -82,7 +82,8 @@ class Alias:
     correlation : float
         |correlation| of the two beyond the rest of the model [-].
     baseline : bool
-        The term is one of the baseline's (its alternative is a change of that term's value).
+        The term is one of the baseline's that the model left out (its alternative is the
+        model with that term).
     """
 
     name: str
@@ -92,8 +93,9 @@ class Alias:
 
     @property
     def label(self) -> str:
-        """How a summary line names it: the effect's name, or ``a change of <term>``."""
-        return f"a change of {self.name}" if self.baseline else self.name
+        """How a summary line names it: the effect's name, or ``the catalog's <term>`` for a
+        baseline term the model left out."""
+        return f"the catalog's {self.name}" if self.baseline else self.name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -202,7 +204,7 @@ def aliases_of(effect: str, coefficient: str, origin: str, column: np.ndarray,
     model : Mapping[str, numpy.ndarray]
         The coefficient's other fitted columns, by name (N,) each.
     terms : list of Term
-        The terms it is compared with; those of its own origin are not.
+        The terms outside the model it is compared with; those of its own origin are not.
     threshold : float
         Smallest |correlation| of an alias (:data:`ALIAS_CORRELATION`).
 
@@ -211,20 +213,12 @@ def aliases_of(effect: str, coefficient: str, origin: str, column: np.ndarray,
     AliasedEffect or None
         None when it has no alias.
 
-    Raises
-    ------
-    ValueError
-        When a term in the model names columns the model does not hold.
     """
+    rest = (np.column_stack(list(model.values())) if model
+            else np.zeros((len(column), 0)))
     found = []
     for term in (t for t in terms if t.origin != origin):
-        missing = [n for n in term.model_names if n not in model]
-        if missing:
-            raise ValueError(f"aliases_of: the columns {', '.join(missing)} of term "
-                             f"{term.name!r} are not in the model of {coefficient}")
-        rest = [v for n, v in model.items() if n not in term.model_names]
-        rest_matrix = np.column_stack(rest) if rest else np.zeros((len(column), 0))
-        correlation = partial_correlation(column, term.columns, rest_matrix)
+        correlation = partial_correlation(column, term.columns, rest)
         if correlation > threshold:
             found.append(Alias(term.name, term.origin, correlation, term.baseline))
     if not found:

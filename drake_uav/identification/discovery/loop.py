@@ -62,7 +62,6 @@ import numpy as np
 from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, assess
 from drake_uav.identification.discovery.aliases import (
     CATALOG_ORIGIN,
-    THRUST_ORIGIN,
     AliasedEffect,
     Term,
     aliases_of,
@@ -384,14 +383,17 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
                            checks=tuple(search.checks), skipped=skipped, adequacy=adequacy,
                            dropped={k: p.dropped for k, p in pruned.items() if p.dropped},
-                           aliases=_aliases(search, vectors, found, final))
+                           aliases=_aliases(search, vectors, found, final,
+                                            {k: d for k, (d, _) in initial.items()}, pruned))
 
 
 def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect],
-             final: Mapping[str, CoefficientFit]) -> tuple[AliasedEffect, ...]:
+             final: Mapping[str, CoefficientFit], catalog: Mapping[str, Design],
+             pruned: Mapping[str, Pruning]) -> tuple[AliasedEffect, ...]:
     """Each accepted effect's aliases on each coefficient it is kept on
-    (:mod:`~drake_uav.identification.discovery.aliases`), on the training part: the
-    baseline's terms, the other effects accepted and every candidate of a known direction."""
+    (:mod:`~drake_uav.identification.discovery.aliases`), on the training part, among the
+    terms the final model does not hold: the candidates not accepted and the catalog terms
+    dropped (their columns from the ``catalog``'s whole structure)."""
     origins = {e.name: e.physical_origin for e in (*search.effects, *vectors.effects)}
     out = []
     for f in found:
@@ -400,29 +402,14 @@ def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect]
             model = dict(zip(fit.names, fit.training_design.T, strict=True))
             column = sum(model.pop(n) * fit.result.estimate[i]
                          for i, n in enumerate(fit.names) if n.startswith(f"{f.name}:"))
+            dropped = [Term(t.term, CATALOG_ORIGIN,
+                            catalog[k].X[:, [catalog[k].names.index(t.term)]], baseline=True)
+                       for t in pruned[k].dropped]
             aliased = aliases_of(f.name, k, origins.get(f.name, f.name), column, model,
-                                 _model_terms(k, model, found, origins)
-                                 + _candidate_terms(search, vectors, k, found))
+                                 dropped + _candidate_terms(search, vectors, k, found))
             if aliased is not None:
                 out.append(aliased)
     return tuple(out)
-
-
-def _model_terms(k: str, model: Mapping[str, np.ndarray], found: Sequence[FoundEffect],
-                 origins: Mapping[str, str]) -> list[Term]:
-    """The terms of coefficient ``k``'s fitted ``model`` (its constant aside): each catalog
-    derivative, the identified thrust's terms as one, each other accepted effect."""
-    groups = {n: ([n], CATALOG_ORIGIN, True) for n in model
-              if n != f"{k}_0" and ":" not in n}
-    thrust = [n for n in model if n.startswith(THRUST_COLUMN)]
-    if thrust:
-        groups["the identified thrust"] = (thrust, THRUST_ORIGIN, True)
-    for g in found:
-        names = [n for n in model if n.startswith(f"{g.name}:")]
-        if names:
-            groups[g.name] = (names, origins.get(g.name, g.name), False)
-    return [Term(name, origin, np.column_stack([model[n] for n in names]), tuple(names),
-                 baseline) for name, (names, origin, baseline) in groups.items()]
 
 
 def _candidate_terms(search: _Search, vectors: JointSearch, k: str,

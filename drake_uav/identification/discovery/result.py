@@ -475,12 +475,20 @@ class DiscoveryResult:
 
     def _finding(self, found: FoundEffect) -> str:
         """``name (coefficients)``, or with aliases ``X or Y (coefficients, |corr| c: this
-        flight cannot tell them apart)``."""
+        flight cannot tell them apart)``, the aliases of one origin named by the most
+        correlated with how many other forms of that origin follow it."""
         aliases = self.aliases_of(found.name)
         where = ", ".join(found.coefficients)
         if not aliases:
             return f"{found.name} ({where})"
-        names = [found.name, *(a.label for a in aliases)]
+        groups: dict[str, list[Alias]] = {}
+        for alias in aliases:
+            groups.setdefault(alias.origin, []).append(alias)
+        names = [found.name] + [
+            group[0].label + (f" (or {len(group) - 1} other form"
+                              f"{'s' if len(group) > 2 else ''} of {origin})"
+                              if len(group) > 1 else "")
+            for origin, group in groups.items()]
         return (f"{', '.join(names[:-1])} or {names[-1]} ({where}, |corr| "
                 f"{aliases[0].correlation:.2f}: this flight cannot tell them apart)")
 
