@@ -45,7 +45,13 @@ class FamilyMember:
     pse_reduction: float | None = None
 
     def describe(self) -> str:
-        """``name`` with why it is a member (its correlation, its held-out gain)."""
+        """The member for the report.
+
+        Returns
+        -------
+        str
+            ``name`` with why it is a member (its correlation, its held-out gain).
+        """
         why = ([f"|corr| {self.correlation:.3f}"] if self.correlation is not None else []) + (
             [f"held-out gain {self.pse_reduction:.2%}"] if self.pse_reduction is not None
             else [])

@@ -170,11 +170,14 @@ def partial_correlation(column: np.ndarray, other: np.ndarray, rest: np.ndarray)
 
     Examples
     --------
+    Over ``t`` in [0, 1], beyond a straight line, ``t^2`` moves with ``t^3`` and less with
+    ``t^4``:
+
     >>> t = np.linspace(0.0, 1.0, 200)
-    >>> round(partial_correlation(t**2, t[:, None] ** 3, np.zeros((200, 0))), 3)
+    >>> round(partial_correlation(t**2, t[:, None] ** 3, t[:, None]), 3)
     0.986
-    >>> round(partial_correlation(t**2, t[:, None] ** 3, t[:, None]), 3)   # beyond t
-    0.962
+    >>> round(partial_correlation(t**2, t[:, None] ** 4, t[:, None]), 3)
+    0.958
     """
     basis = _basis(rest)
     x = _beyond(np.asarray(column, dtype=float)[:, None], basis)[:, 0]
