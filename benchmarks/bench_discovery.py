@@ -153,6 +153,8 @@ def _report_setting(suite: str, turbulence: str, effect_rows: list[dict],
                  else "; held-out error at its noise floor before the update"))
         figure(f"discovery_exact_{suite}_{turbulence}_{round(size * 100)}",
                float(np.mean(exact)), "1", "higher")
+        figure(f"discovery_family_{suite}_{turbulence}_{round(size * 100)}",
+               float(np.mean([bool(r.get("family")) for r in rows])), "1", "higher")
 
 
 def main() -> None:
