@@ -16,9 +16,11 @@ Data file layout: ``{"flights": {FLIGHT: {"excitation", "duration_s", "cells": {
 ``flights_per_effect``, ``exact``, ``partial``, ``tied``, ``misses``, ``findings``,
 ``false_findings``, ``detections_explained`` (detections whose excess error was above
 the floor), ``explained_70`` (of those, the ones explaining at least 70 %),
-``explained_median``, ``target`` (the exact rate the cell is held to, or null) and
-``effects`` (effect -> ``expected``, ``exact``, ``partial``, ``misnamed``, ``missed``,
-``tied``). A figure that was not recorded is null and rendered as "-".
+``explained_median``, ``target`` (the exact rate the cell is held to, or null),
+``family`` (flights found exactly or as a member of the family a finding names),
+``family_target`` (the family rate the cell is held to, or null) and ``effects`` (effect ->
+``expected``, ``exact``, ``partial``, ``misnamed``, ``missed``, ``tied``, ``family``). A
+figure that was not recorded is null and rendered as "-".
 """
 
 from __future__ import annotations
@@ -76,17 +78,22 @@ How to read the tables:
 
 * *exact*: the injected effect and nothing else; *partial*: it with other findings;
   *misnamed*: other findings without it; *missed*: nothing found.
+* *family*: exact, or every finding names the injected effect among the members of its
+  family: the report names the family (a drag-axis family, for instance) and lists the
+  alternatives the flight cannot tell apart from the finding, its aliases (terms of another
+  physical origin whose columns move with its own) and its near ties (docs/main_job.md,
+  "Families"). It is the rate at which the job points at the right family of effects and
+  nothing else; *exact* is the rate at which it names the right member alone.
 * *found or near tie*: exact, partial, or not found but named by the report as a
   near-tied alternative of the finding that took its place (the flight cannot tell them
-  apart; docs/main_job.md, "Near ties"). It is the rate at which the job points at the
-  right family of effects; *exact* is the rate at which it names the right member alone.
+  apart; docs/main_job.md, "Near ties").
 * *findings not injected*: findings other than the injected effect, of all findings.
 * *excess explained*: where the effect was found, the share of the held-out error above
   the noise floor that the update removed (1 = down to the floor).
 * Rates carry their 95 % Wilson interval. Targets: clean flights with a finding at most
   5 %; exact at least 70 % with the default sensors at 30 %, at least 90 % with
-  research-grade ones at 20 %; at least 70 % of the excess explained in 70 % of the
-  detections.
+  research-grade ones at 20 %; family at least 95 % with research-grade sensors at 20 %;
+  at least 70 % of the excess explained in 70 % of the detections.
 """
 
 
@@ -100,7 +107,7 @@ def _findings(row: dict) -> list[str]:
 
 def cell_summary(effect_rows: list[dict], clean_rows: list[dict], *, suite: str,
                  turbulence: str, size: float, target: float | None,
-                 expected: dict[str, str]) -> dict | None:
+                 expected: dict[str, str], family_target: float | None = None) -> dict | None:
     """The figures of one cell (suite, turbulence, size) of the campaign's result rows.
 
     Parameters
@@ -116,6 +123,8 @@ def cell_summary(effect_rows: list[dict], clean_rows: list[dict], *, suite: str,
         The exact-detection rate the cell is held to.
     expected : dict
         Effect name -> the finding that names it.
+    family_target : float or None
+        The family rate the cell is held to.
 
     Returns
     -------
@@ -139,7 +148,8 @@ def cell_summary(effect_rows: list[dict], clean_rows: list[dict], *, suite: str,
             "partial": sum(bool(r["partial"]) for r in mine),
             "misnamed": sum(bool(r["missed"]) and bool(_findings(r)) for r in mine),
             "missed": sum(not _findings(r) for r in mine),
-            "tied": sum(bool(r.get("tied")) for r in mine)}
+            "tied": sum(bool(r.get("tied")) for r in mine),
+            "family": sum(bool(r.get("family")) for r in mine)}
     return {
         "suite": suite, "turbulence": turbulence, "size": size,
         "clean": {"flights": len(clean),
@@ -158,6 +168,8 @@ def cell_summary(effect_rows: list[dict], clean_rows: list[dict], *, suite: str,
         "explained_70": sum(e >= 0.7 for e in explained),
         "explained_median": float(statistics.median(explained)) if explained else None,
         "target": target,
+        "family": sum(bool(r.get("family")) for r in rows),
+        "family_target": family_target,
         "effects": effects}
 
 
@@ -178,9 +190,9 @@ def _cell_name(cell: dict) -> str:
 
 def _summary_table(cells: list[dict]) -> list[str]:
     lines = ["| sensors, turbulence, size | clean flights with a finding | exact | target "
-             "| partial | found or near tie | findings not injected "
+             "| family | family target | partial | found or near tie | findings not injected "
              "| misses named as a near tie | detections explaining >= 70 % of the excess |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for cell in cells:
         found = (None if cell.get("partial") is None or cell.get("tied") is None
                  else cell["exact"] + cell["partial"] + cell["tied"])
@@ -188,12 +200,14 @@ def _summary_table(cells: list[dict]) -> list[str]:
                      f"{cell['explained_70']}/{cell['detections_explained']}"
                      + ("" if cell.get("explained_median") is None
                         else f" (median {cell['explained_median']:.2f})"))
-        target = cell.get("target")
+        target, family_target = cell.get("target"), cell.get("family_target")
         lines.append(
             f"| {_cell_name(cell)} "
             f"| {_rate(cell['clean']['with_finding'], cell['clean']['flights'])} "
             f"| {_rate(cell['exact'], cell['runs'])} "
             f"| {'-' if target is None else f'>= {target:.0%}'} "
+            f"| {_rate(cell.get('family'), cell['runs'])} "
+            f"| {'-' if family_target is None else f'>= {family_target:.0%}'} "
             f"| {'-' if cell.get('partial') is None else cell['partial']} "
             f"| {_rate(found, cell['runs'])} "
             f"| {_of(cell.get('false_findings'), cell.get('findings'))} "
@@ -221,6 +235,26 @@ def _effect_table(cells: list[dict]) -> list[str]:
                           + (f" ({e['tied']})" if e.get("tied") else ""))
         lines.append(f"| {name} | {INJECTED_DESCRIPTIONS.get(name, '-')} | `{expected}` | "
                      + " | ".join(counts) + " |")
+    return lines + [""] + _family_table(cells, names)
+
+
+def _family_table(cells: list[dict], names: list[str]) -> list[str]:
+    """Exact and family counts per effect and cell, side by side ([] when no cell has
+    them)."""
+    cells = [c for c in cells if c.get("family") is not None]
+    if not cells:
+        return []
+    lines = ["Exact / family flights per effect and cell (family: found exactly or as a member "
+             "of the family a finding names):", "",
+             "| effect | " + " | ".join(_cell_name(c) for c in cells) + " |",
+             "|---|" + "---|" * len(cells)]
+    for name in names:
+        counts = []
+        for cell in cells:
+            e = cell["effects"].get(name)
+            counts.append("-" if e is None or e.get("family") is None else
+                          f"{e['exact']} / {e['family']}")
+        lines.append(f"| {name} | " + " | ".join(counts) + " |")
     return lines
 
 
@@ -280,7 +314,8 @@ def render(data: dict) -> str:
 
 def update(markdown: Path, effect_rows: list[dict], clean_rows: list[dict], *,
            excitation: str, duration_s: float, command: str,
-           targets: dict[tuple[str, float], float], expected: dict[str, str]) -> None:
+           targets: dict[tuple[str, float], float], expected: dict[str, str],
+           family_targets: dict[tuple[str, float], float] | None = None) -> None:
     """Merges a run's cells into the page's data file and writes the page again.
 
     Parameters
@@ -299,6 +334,8 @@ def update(markdown: Path, effect_rows: list[dict], clean_rows: list[dict], *,
         (suite, size) -> the exact-detection rate the cell is held to.
     expected : dict
         Effect name -> the finding that names it.
+    family_targets : dict, optional
+        (suite, size) -> the family rate the cell is held to.
     """
     store = markdown.with_suffix(".json")
     data = json.loads(store.read_text()) if store.exists() else {"flights": {}}
@@ -309,7 +346,8 @@ def update(markdown: Path, effect_rows: list[dict], clean_rows: list[dict], *,
     for key in dict.fromkeys((r["suite"], r["turbulence"], r["size"]) for r in effect_rows):
         suite, turbulence, size = key
         cell = cell_summary(effect_rows, clean_rows, suite=suite, turbulence=turbulence,
-                            size=size, target=targets.get((suite, size)), expected=expected)
+                            size=size, target=targets.get((suite, size)), expected=expected,
+                            family_target=(family_targets or {}).get((suite, size)))
         flight["cells"][f"{suite} {turbulence} {size:g}"] = cell | {
             "command": command, "measured": today}
     store.write_text(json.dumps(data, indent=1) + "\n")

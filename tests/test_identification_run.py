@@ -13,7 +13,7 @@ from drake_uav.reporting.report import json_ready
 RUN_KEYS = {"source", "aircraft", "data", "message", "findings", "samples", "holdout_start_s",
             "effects", "equation_error_rms_holdout", "reconstruction_mae_holdout",
             "reconstruction_divergences", "measured_coefficient_sigma_monte_carlo",
-            "parameters", "dropped_terms", "warnings", "near_ties", "rounds",
+            "parameters", "dropped_terms", "warnings", "near_ties", "families", "rounds",
             "not_identifiable_at_logged_rates"}
 EFFECT_KEYS = {"name", "kind", "explanation", "coefficients", "evidence", "parameters"}
 

@@ -22,14 +22,16 @@ def _row(effect, found, **extra):
     return {"suite": "default", "turbulence": "light", "size": 0.3, "effect": effect,
             "found": found, "exact": names == [expected],
             "partial": expected in names and len(names) > 1, "missed": expected not in names,
-            "false_findings": sum(n != expected for n in names), **extra}
+            "false_findings": sum(n != expected for n in names),
+            "family": names == [expected], **extra}
 
 
 def _rows():
     effect_rows = [
         _row("stall_onset", "stall_onset", excess_explained=0.95),
         _row("stall_onset", "stall_onset,rate_coupling", excess_explained=0.5),
-        _row("tow_force", "thrust_propwash", tied=True, excess_explained=float("nan")),
+        _row("tow_force", "thrust_propwash", tied=True, family=True,
+             excess_explained=float("nan")),
         _row("tow_force", ""),
     ]
     clean_rows = [{"suite": "default", "turbulence": "light", "found": "", "any_finding": False},
@@ -50,9 +52,10 @@ def test_a_cell_counts_every_class_of_outcome():
     assert (cell["findings"], cell["false_findings"]) == (4, 2)
     assert (cell["detections_explained"], cell["explained_70"]) == (2, 1)
     assert cell["explained_median"] == 0.725
+    assert (cell["family"], cell["family_target"]) == (2, None)
     assert cell["effects"]["tow_force"] == {"expected": "constant_body_force", "exact": 0,
                                             "partial": 0, "misnamed": 1, "missed": 1,
-                                            "tied": 1}
+                                            "tied": 1, "family": 1}
     assert validation_report.cell_summary(*_rows(), suite="research", turbulence="light",
                                           size=0.3, target=None, expected=EXPECTED) is None
 
@@ -76,6 +79,8 @@ def test_a_run_replaces_its_cells_and_keeps_the_others(tmp_path):
     assert "| default, light, 30% | 1/2 = 50% (9%-91%) | 1/4 = 25% (5%-70%) |" in text
     assert "| tow_force | k N along +x body at the centre of gravity | `constant_body_force` " \
            "| 0/0/1/1 (1) | 0/0/1/1 (1) |" in text
+    assert "| tow_force | 0 / 1 | 0 / 1 |" in text   # exact and family side by side
+    assert "| 1/4 = 25% (5%-70%) | - | 2/4 = 50% (15%-85%) | - |" in text
     assert text == validation_report.render(json.loads(page.with_suffix(".json").read_text()))
 
 

@@ -26,6 +26,7 @@ from drake_uav.estimation.imu_position import (
     accelerometers_at_cg,
     logged_imu_position,
 )
+from drake_uav.identification.assessment.families import EffectFamily, families
 from drake_uav.identification.assessment.identifiability import derivative_warnings
 from drake_uav.identification.assessment.logged_rates import LoggedRates, RateLimit, logged_rates
 from drake_uav.identification.assessment.near_ties import NearTie, accepted_evidence, near_ties
@@ -349,6 +350,12 @@ class IdentificationRun:
         (:func:`~drake_uav.identification.assessment.near_ties.near_ties`)."""
         return tuple(near_ties(self.discovery))
 
+    @functools.cached_property
+    def families(self) -> tuple[EffectFamily, ...]:
+        """Each accepted effect this flight cannot tell apart from others, with its aliases
+        and near ties (:func:`~drake_uav.identification.assessment.families.families`)."""
+        return tuple(families(self.discovery))
+
     @property
     def notes(self) -> tuple[str, ...]:
         """What the job did with the log that the user should know (one line each)."""
@@ -392,6 +399,7 @@ class IdentificationRun:
             ``dropped_terms`` (per coefficient, the figures that dropped each,
             :class:`~drake_uav.identification.discovery.parsimony.DroppedTerm`),
             ``warnings`` (:attr:`derivative_warnings`), ``near_ties`` (:attr:`near_ties`),
+            ``families`` (:attr:`families`),
             ``rounds`` (every candidate's evidence, ``accepted`` or not),
             ``not_identifiable_at_logged_rates`` (:attr:`rate_limits`) and, when the
             data-compatibility check ran, ``compatibility``. Each entry of ``effects`` has
@@ -439,6 +447,7 @@ class IdentificationRun:
                               for k, terms in d.dropped.items()},
             "warnings": [dataclasses.asdict(w) for w in self.derivative_warnings],
             "near_ties": [t.summary() for t in self.near_ties],
+            "families": [f.summary() for f in self.families],
             "rounds": [[{**dataclasses.asdict(e), "accepted": e in accepted} for e in r]
                        for r in d.rounds],
         }

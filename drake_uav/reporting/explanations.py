@@ -95,6 +95,12 @@ GLOSSARY: Mapping[str, str] = {
     "near tie": f"another candidate within {NEAR_TIE_MARGIN:.0%} of the accepted one's "
                 "held-out gain on the same coefficient: the flight cannot tell the two "
                 "apart",
+    "alias": "a term of another physical origin (a baseline term or another candidate) "
+             "whose column moves with an accepted effect's on this flight (|corr| above "
+             "0.95 beyond the rest of the model): the flight cannot say which of the two it "
+             "saw",
+    "family": "an accepted effect with its aliases and near ties, named by the axes it acts "
+              "on (a drag-axis family): the finding is one of its members",
     "catalog value": "the derivative as the aircraft's parameter set gives it, the model "
                      "the flight is compared with",
     "VIF": "variance inflation factor: how much the correlation of a regressor with the "

@@ -151,6 +151,11 @@ def _add_effects(report: Report, run: IdentificationRun) -> None:
              "p-value": min(e.p_value for e in f.evidence), "explanation": f.explanation}
             for f in run.discovery.found],
             formats={"held-out PSE reduction": ".1%", "p-value": ".2g"})
+    if run.families:
+        report.add_text("**Families** (each finding with the alternatives this flight cannot "
+                        "tell apart from it: terms of another origin whose columns move with "
+                        "its own, and near ties):\n\n"
+                        + "\n".join(f"- {f.sentence()}" for f in run.families))
     ties = run.near_ties
     if ties:
         report.add_text(

@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from drake_uav.campaigns.registry import register_scenario
 from drake_uav.diagrams import fly
+from drake_uav.identification.assessment.families import families
 from drake_uav.identification.assessment.near_ties import near_ties
 from drake_uav.identification.assessment.noise_floor import held_out_noise_floor
 from drake_uav.identification.discovery.fitted_point import unit_vectors_towards
@@ -45,7 +46,8 @@ from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
-           "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "tether_tension"]
+           "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "tether_tension",
+           "found_as_family"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -390,8 +392,9 @@ def discovery(seed: int, params: dict) -> dict:
     ``floor`` and ``excess_explained`` (NaN when the error was at the floor); ``tied``:
     the effect was not found but the report names it as a near-tied alternative of a
     finding (:func:`~drake_uav.identification.assessment.near_ties.near_ties`: the flight
-    cannot tell them apart); for a force towards a point, ``point_error`` and ``point_sigma``
-    (:func:`_point_error`).
+    cannot tell them apart); ``family``: found exactly or as a member of the family a
+    finding names (:func:`found_as_family`); for a force towards a point, ``point_error``
+    and ``point_sigma`` (:func:`_point_error`).
     """
     key = params.get("effect", "none")
     if key != "none" and key not in INJECTED:
@@ -435,6 +438,7 @@ def discovery(seed: int, params: dict) -> dict:
     metrics |= {"exact": found == [expected], "partial": expected in found and len(found) > 1,
                 "missed": expected not in found,
                 "tied": expected not in found and expected in _tied_alternatives(run),
+                "family": found_as_family(run, expected),
                 "size_realised": _realised_size(injection, truth, catalog, strength)}
     if injection.sensors is None:
         floor = held_out_noise_floor(run.samples, run.discovery, catalog)[injection.coefficient]
@@ -444,6 +448,35 @@ def discovery(seed: int, params: dict) -> dict:
     if injection.point is not None:
         metrics |= _point_error(run, injection)
     return metrics
+
+
+def found_as_family(run, expected: str) -> bool:
+    """Whether the report points at ``expected`` exactly or as a member of a family.
+
+    True when the findings are exactly ``expected``, or when every finding is ``expected``
+    or names it among the members of its family (its aliases and near ties,
+    :func:`~drake_uav.identification.assessment.families.families`): the report then names
+    the family the effect belongs to and lists it, and names nothing outside it.
+
+    Parameters
+    ----------
+    run : IdentificationRun
+        The main job's result.
+    expected : str
+        The finding that names the injected effect.
+
+    Returns
+    -------
+    bool
+        Found exactly or as a family.
+    """
+    found = list(run.findings)
+    if found == [expected]:
+        return True
+    members = ({} if run.discovery is None else
+               {f.effect: f.member_names for f in families(run.discovery)})
+    return bool(found) and all(name == expected or expected in members.get(name, ())
+                               for name in found)
 
 
 def _tied_alternatives(run) -> set[str]:

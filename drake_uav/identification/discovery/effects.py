@@ -55,9 +55,15 @@ __all__ = [
     "LONGITUDINAL",
     "LATERAL",
     "FORCES",
+    "EXTERNAL_FORCE",
 ]
 
 FORCES = ("CL", "CD", "CY")
+
+EXTERNAL_FORCE = "an external force"
+"""Physical origin of every force effect (:attr:`Effect.origin`): a force along a body axis,
+fixed in the NED frame, at or away from the centre of gravity are variants of one
+explanation."""
 
 ColumnFunction = Callable[[AeroSamples, FixedWingParams], Mapping[str, np.ndarray]]
 
@@ -86,6 +92,9 @@ class Effect:
         Blocked cross-validation folds the effect cannot improve by construction, which the
         evidence rule does not ask it to: 1 for a linear drift, whose middle fold a constant
         fitted on the folds either side already predicts.
+    origin : str
+        Its physical origin (:attr:`~drake_uav.identification.discovery.evidence.Candidate.
+        origin`): effects of one origin are variants of one explanation; empty: its name.
 
     Examples
     --------
@@ -103,6 +112,7 @@ class Effect:
     signals: tuple[str, ...] = ()
     condition: Callable[[AeroSamples], bool] | None = None
     blind_folds: int = 0
+    origin: str = ""
 
     def candidate(self, params: FixedWingParams) -> Candidate:
         """The effect as a plant-agnostic candidate of the evidence rule.
@@ -121,7 +131,12 @@ class Effect:
         """
         return Candidate(self.name, self.explanation, self.coefficients,
                          lambda samples, k: self.columns(samples.aligned(k), params, k),
-                         blind_folds=self.blind_folds, kind=self.kind)
+                         blind_folds=self.blind_folds, kind=self.kind, origin=self.origin)
+
+    @property
+    def physical_origin(self) -> str:
+        """:attr:`origin`, or the effect's name when none is given."""
+        return self.origin or self.name
 
     def available(self, samples: AeroSamples) -> bool:
         """Whether the samples carry every signal the effect needs (and meet its condition).
@@ -346,47 +361,50 @@ def effect_library(command_delay: float | None = None) -> list[Effect]:
     return [
         Effect("stall_onset", "lift and drag bend away from linear at high angle of attack "
                "(flow separation): higher powers of alpha", LONGITUDINAL,
-               _same_for_all(_stall)),
+               _same_for_all(_stall), origin="flow separation"),
         Effect("unsteady_alphadot", "unsteady aerodynamics: downwash lag at the tail makes "
                "lift and pitching moment depend on the rate of change of alpha",
-               LONGITUDINAL, _same_for_all(_alphadot)),
+               LONGITUDINAL, _same_for_all(_alphadot), origin="unsteady aerodynamics"),
         Effect("thrust_propwash", "propeller slipstream over wing and tail: forces and moments "
                "grow with the thrust coefficient (C_D_Tc of Vaiopoulos 2017, eq. 6.2)",
-               ("CL", "CD", "Cm", "Cn"), _same_for_all(_propwash)),
+               ("CL", "CD", "Cm", "Cn"), _same_for_all(_propwash),
+               origin="the propeller slipstream"),
         Effect("control_nonlinearity", "control-surface effectiveness is not linear: squared "
                "deflections and deflection-alpha products", ("CL", "CD", "Cm", "Cl", "Cn", "CY"),
-               _same_for_all(_control_nonlinearity)),
+               _same_for_all(_control_nonlinearity), origin="the control surfaces"),
         Effect("control_cross_coupling", "a surface acts on the other axis (e.g. elevator "
                "rolling moment, aileron drag)", ("CL", "CD", "Cm", "Cl", "Cn", "CY"),
-               _cross_coupling),
+               _cross_coupling, origin="the control surfaces"),
         Effect("rate_coupling", "aerodynamic or gyroscopic coupling of body rates "
                "(products of normalised rates)", ("Cl", "Cm", "Cn"),
-               _same_for_all(_rate_coupling)),
+               _same_for_all(_rate_coupling), origin="rate coupling"),
         Effect("constant_body_force", "a constant body-axis force the model lacks (tow, "
                "payload drag), or equivalently in equation error an accelerometer bias",
-               FORCES, _body_force),
+               FORCES, _body_force, origin=EXTERNAL_FORCE),
         Effect("ned_force", "a force fixed in the NED frame (weight or mass error, tether "
                "along a fixed direction)", FORCES, _ned_force,
-               signals=("roll", "pitch", "yaw")),
+               signals=("roll", "pitch", "yaw"), origin=EXTERNAL_FORCE),
         Effect("accelerometer_lever_arm", "accelerometer away from the centre of gravity: it "
                "also reads angular and centripetal acceleration", FORCES, _lever_arm,
-               kind="sensor"),
+               kind="sensor", origin="the accelerometer's position"),
         Effect("steady_wind_in_air_data", "a steady wind left in the air data: airspeed and "
                "sideslip errors that follow the heading", ("CL", "CD", "CY", "Cl", "Cn", "Cm"),
-               _wind_left, kind="sensor", signals=("yaw",), condition=_heading_varies),
+               _wind_left, kind="sensor", signals=("yaw",), condition=_heading_varies,
+               origin="the air data"),
         Effect("actuator_time_delay", "the surfaces lag the logged commands (servo delay): "
                + ("the command rate enters with the delay as coefficient"
                   if command_delay is None else
                   f"the commands act {command_delay * 1e3:.0f} ms after they are logged, as "
                   "the data-compatibility check measured"),
-               ("CL", "CD", "Cm", "CY", "Cl", "Cn"), _actuator_delay(command_delay)),
+               ("CL", "CD", "Cm", "CY", "Cl", "Cn"), _actuator_delay(command_delay),
+               origin="the actuators"),
         Effect("ground_effect", "the ground reduces downwash near the runway: more lift, "
                "less induced drag below about one span", ("CL", "CD", "Cm"), _ground_effect,
-               signals=("height",)),
+               signals=("height",), origin="the ground"),
         Effect("coefficient_drift", "a coefficient that drifts slowly over the flight "
                "(icing, fuel burn, a loosening surface): its constant and its alpha (beta) "
                "derivative change linearly with the log time", LONGITUDINAL + LATERAL,
-               _drift, blind_folds=1),
+               _drift, blind_folds=1, origin="a slow change of the aircraft"),
     ]
 
 
@@ -484,10 +502,11 @@ def logged_effects(samples: AeroSamples) -> list[Effect]:
         what = f"the logged channel {channel} [{unit}]"
         out.append(Effect(key, f"{what} moves the coefficient: it enters as {term}",
                           LONGITUDINAL + LATERAL, _logged_columns(key, None, 0.0),
-                          signals=(key,)))
+                          signals=(key,), origin=what))
         for main, coefficients in (("alpha", LONGITUDINAL), ("beta", LATERAL)):
             mean = float(np.mean(getattr(samples.condition, main)))
             out.append(Effect(f"{key}*{main}", f"{what} changes the coefficient's {main} "
                               f"derivative: it enters as {term} x ({main} - {mean:.4g} rad)",
-                              coefficients, _logged_columns(key, main, mean), signals=(key,)))
+                              coefficients, _logged_columns(key, main, mean), signals=(key,),
+                              origin=what))
     return out

@@ -89,6 +89,12 @@ class Candidate:
         it (Bonferroni) and the BIC counts :data:`POINT_SEARCH_PARAMETERS` more parameters.
     kind : str
         ``"aerodynamic"`` (changes the dynamics) or ``"sensor"`` (corrupts the data).
+    origin : str
+        Its physical origin: what would cause it (``"the propeller slipstream"``, ``"an
+        external force"``); candidates of one origin are variants of one explanation, and
+        a term of another origin whose columns move with an accepted effect's is reported
+        as its alias (:mod:`~drake_uav.identification.discovery.aliases`). Empty: the
+        candidate's name (an origin of its own).
 
     Examples
     --------
@@ -109,6 +115,12 @@ class Candidate:
     blind_folds: int = 0
     searched: int = 0
     kind: str = "aerodynamic"
+    origin: str = ""
+
+    @property
+    def physical_origin(self) -> str:
+        """:attr:`origin`, or the candidate's name when none is given."""
+        return self.origin or self.name
 
 
 @dataclasses.dataclass(frozen=True)

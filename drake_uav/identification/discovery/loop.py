@@ -60,6 +60,12 @@ from typing import NamedTuple
 import numpy as np
 
 from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, assess
+from drake_uav.identification.discovery.aliases import (
+    CATALOG_ORIGIN,
+    AliasedEffect,
+    Term,
+    aliases_of,
+)
 from drake_uav.identification.discovery.coefficient_design import (
     ColumnFunction,
     Design,
@@ -380,7 +386,52 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
                            checks=tuple(search.checks), skipped=skipped, adequacy=adequacy,
-                           dropped={k: p.dropped for k, p in pruned.items() if p.dropped})
+                           dropped={k: p.dropped for k, p in pruned.items() if p.dropped},
+                           aliases=_aliases(search, vectors, found, final,
+                                            {k: d for k, (d, _) in initial.items()}, pruned))
+
+
+def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect],
+             final: Mapping[str, CoefficientFit], catalog: Mapping[str, Design],
+             pruned: Mapping[str, Pruning]) -> tuple[AliasedEffect, ...]:
+    """Each accepted effect's aliases on each coefficient it is kept on
+    (:mod:`~drake_uav.identification.discovery.aliases`), on the training part, among the
+    terms the final model does not hold: the candidates not accepted and the catalog terms
+    dropped (their columns from the ``catalog``'s whole structure)."""
+    origins = {e.name: e.physical_origin for e in (*search.effects, *vectors.effects)}
+    out = []
+    for f in found:
+        for k in f.coefficients:
+            fit = final[k]
+            model = dict(zip(fit.names, fit.training_design.T, strict=True))
+            column = sum(model.pop(n) * fit.result.estimate[i]
+                         for i, n in enumerate(fit.names) if n.startswith(f"{f.name}:"))
+            dropped = [Term(t.term, CATALOG_ORIGIN,
+                            catalog[k].X[:, [catalog[k].names.index(t.term)]], baseline=True)
+                       for t in pruned[k].dropped]
+            aliased = aliases_of(f.name, k, origins.get(f.name, f.name), column, model,
+                                 dropped + _candidate_terms(search, vectors, k, found))
+            if aliased is not None:
+                out.append(aliased)
+    return tuple(out)
+
+
+def _candidate_terms(search: _Search, vectors: JointSearch, k: str,
+                     found: Sequence[FoundEffect]) -> list[Term]:
+    """The named and vector effects on coefficient ``k`` not accepted (a force towards a
+    point the data locate aside: its direction is only known where it was accepted)."""
+    accepted = {f.name for f in found}
+    terms = []
+    for effect in (e for e in search.effects if k in e.coefficients and e.name not in accepted):
+        columns = search.pool.named(effect, k, search.designs[k].noise.variance).columns
+        terms.append(Term(effect.name, effect.physical_origin,
+                          np.column_stack(list(columns.values()))))
+    for effect in (e for e in vectors.effects if not e.fitted and e.name not in accepted):
+        columns = vectors.training_columns(search, effect, k)
+        if columns:
+            terms.append(Term(effect.name, effect.physical_origin,
+                              np.column_stack(list(columns.values()))))
+    return terms
 
 
 def _adequacy(fit: CoefficientFit, train: tuple[AeroSamples, Design],

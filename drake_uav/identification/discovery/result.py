@@ -15,6 +15,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from drake_uav.identification.discovery.adequacy import Adequacy, AdequacyRule, coefficient_symbol
+from drake_uav.identification.discovery.aliases import Alias, AliasedEffect
 from drake_uav.identification.discovery.parsimony import DroppedTerm
 from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
 from drake_uav.identification.statistics.regression import RegressionResult
@@ -387,6 +388,10 @@ class DiscoveryResult:
         Fitted coefficient -> the catalog's terms its baseline dropped, which the flight
         does not support (:mod:`~drake_uav.identification.discovery.parsimony`); each is 0
         in the identified model.
+    aliases : tuple of AliasedEffect
+        Each accepted effect, on each coefficient it is kept on, whose column this flight
+        cannot tell apart from a term of another physical origin, with those terms
+        (:mod:`~drake_uav.identification.discovery.aliases`).
 
     Examples
     --------
@@ -413,6 +418,7 @@ class DiscoveryResult:
     skipped: Mapping[str, str] = dataclasses.field(default_factory=dict)
     adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
     dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
+    aliases: tuple[AliasedEffect, ...] = ()
 
     @property
     def incomplete(self) -> dict[str, Adequacy]:
@@ -434,16 +440,57 @@ class DiscoveryResult:
     def message(self) -> str:
         """One line: the effects found, or that none was; and where the model is still
         incomplete ("the model is incomplete for C_D: held-out error 2.1x the noise
-        floor, ...")."""
+        floor, ..."). An effect with aliases (:attr:`aliases`) is named with them: "ned_force
+        or thrust_propwash (CD, |corr| 0.98: this flight cannot tell them apart)"."""
         incomplete = "; ".join(f"{coefficient_symbol(k)}: {a.explanation}"
                                for k, a in self.incomplete.items())
         if not self.found:
             return f"the model is incomplete for {incomplete}" if incomplete else \
                 NO_EFFECT_MESSAGE
-        found = "missing effect(s) found: " + ", ".join(
-            f"{f.name} ({', '.join(f.coefficients)})" for f in self.found)
+        found = "missing effect(s) found: " + ", ".join(self._finding(f) for f in self.found)
         return f"{found}; the model is still incomplete for {incomplete}" if incomplete \
             else found
+
+    def aliases_of(self, effect: str) -> tuple[Alias, ...]:
+        """The aliases of an accepted effect over every coefficient it is kept on, the most
+        correlated first (:attr:`aliases`).
+
+        Parameters
+        ----------
+        effect : str
+            The effect's name.
+
+        Returns
+        -------
+        tuple of Alias
+            One per term (its largest correlation over the coefficients); empty when the
+            flight tells the effect apart from every term of another origin.
+        """
+        best: dict[str, Alias] = {}
+        for aliased in (a for a in self.aliases if a.effect == effect):
+            for alias in aliased.aliases:
+                if alias.name not in best or alias.correlation > best[alias.name].correlation:
+                    best[alias.name] = alias
+        return tuple(sorted(best.values(), key=lambda a: -a.correlation))
+
+    def _finding(self, found: FoundEffect) -> str:
+        """``name (coefficients)``, or with aliases ``X or Y (coefficients, |corr| c: this
+        flight cannot tell them apart)``, the aliases of one origin named by the most
+        correlated with how many other forms of that origin follow it."""
+        aliases = self.aliases_of(found.name)
+        where = ", ".join(found.coefficients)
+        if not aliases:
+            return f"{found.name} ({where})"
+        groups: dict[str, list[Alias]] = {}
+        for alias in aliases:
+            groups.setdefault(alias.origin, []).append(alias)
+        names = [found.name] + [
+            group[0].label + (f" (or {len(group) - 1} other form"
+                              f"{'s' if len(group) > 2 else ''} of {origin})"
+                              if len(group) > 1 else "")
+            for origin, group in groups.items()]
+        return (f"{', '.join(names[:-1])} or {names[-1]} ({where}, |corr| "
+                f"{aliases[0].correlation:.2f}: this flight cannot tell them apart)")
 
     def rms_change(self) -> dict[str, tuple[float, float]]:
         """Held-out equation-error RMS before and after, per coefficient.

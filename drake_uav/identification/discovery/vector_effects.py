@@ -49,6 +49,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from drake_uav.identification.discovery.coefficient_design import columns_and_jacobians
+from drake_uav.identification.discovery.effects import EXTERNAL_FORCE
 from drake_uav.identification.discovery.evidence import (
     Candidate,
     CandidateColumns,
@@ -220,7 +221,14 @@ class VectorEffect:
         """
         return Candidate(self.name, self.explanation, COEFFICIENTS,
                          lambda samples, k: self.columns(samples, params, k),
-                         parameters=self.parameters, joint=True, searched=self.searched)
+                         parameters=self.parameters, joint=True, searched=self.searched,
+                         origin=self.physical_origin)
+
+    @property
+    def physical_origin(self) -> str:
+        """Its physical origin: :data:`~drake_uav.identification.discovery.effects.
+        EXTERNAL_FORCE`, as every force effect's."""
+        return EXTERNAL_FORCE
 
     @property
     def fitted(self) -> bool:
@@ -555,6 +563,26 @@ class JointSearch:
                 return out
             self._train[key] = out
         return self._train[key]
+
+    def training_columns(self, search, effect: VectorEffect, k: str) -> dict[str, np.ndarray]:
+        """The columns of ``effect`` on coefficient ``k`` over the training part, those of
+        the parameters that do not enter ``k`` left out.
+
+        Parameters
+        ----------
+        search : object
+            The discovery's search state.
+        effect : VectorEffect
+            An effect whose direction is known (not a point still to locate).
+        k : str
+            The coefficient.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Parameter name -> (N,) column.
+        """
+        return dict(self._columns(search, effect, k)[0])
 
     def candidates(self, used: set[str]) -> list[VectorEffect]:
         """The effects not tried yet.
