@@ -65,6 +65,7 @@ from drake_uav.identification.samples.flight_phases import (
 from drake_uav.identification.samples.isolation import monte_carlo_sigmas
 from drake_uav.identification.samples.regressor_noise import smoothing_gains
 from drake_uav.identification.samples.segments import concatenate_samples
+from drake_uav.io.esc import with_motor_speed
 from drake_uav.io.flight_log import FlightLog, FlightLogError
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS
@@ -884,6 +885,9 @@ def select_samples(log: FlightLog, params: FixedWingParams,
     phases, sensor_noise_std, rate_hz = (options.phases, options.sensor_noise_std,
                                          options.rate_hz)
     check_fixed_wing(log, source)
+    shaft_note = None
+    if options.propulsion == "data":
+        log, shaft_note = with_motor_speed(log)
     mode = choose_air_data(log, air_data, source)
     try:
         spans = usable_spans(log, phases, segment)
@@ -910,7 +914,8 @@ def select_samples(log: FlightLog, params: FixedWingParams,
     parts, gps_notes = _common_signals(parts, spans)
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description)
-                             + extra_notes + gps_notes, tuple(warnings))
+                             + extra_notes + gps_notes + ((shaft_note,) if shaft_note else ()),
+                             tuple(warnings))
     return concatenate_samples(parts), selection
 
 

@@ -45,7 +45,8 @@ from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
-           "PULL_POINT", "PullTowardsPoint", "pull_towards_point"]
+           "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "RPM_AIRCRAFT", "RPM_NOISE",
+           "shaft_speed_logged"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -248,6 +249,32 @@ def _skew_term(condition, flight, params):
     return -params.derivative("CL_alpha") * differentiate(flight.time, condition.alpha)
 
 
+RPM_AIRCRAFT = "aerosonde_mavsim"
+"""The aircraft of the campaign's RPM variant: the Aerosonde with an electric motor and a
+fixed-pitch propeller (:class:`~drake_uav.vehicles.fixed_wing.MotorPropeller`), whose shaft
+speed an ESC reports."""
+RPM_NOISE = 3.0
+"""Standard deviation of the logged shaft speed's noise [rad/s] (about 30 rev/min: an
+ESC's electrical-period count at a few thousand rev/min)."""
+
+
+def _per_sample(function, *arrays) -> np.ndarray:
+    """``function`` of floats over arrays, one sample at a time (the propulsion models are
+    scalar-generic on pydrake's math, which takes no arrays)."""
+    return np.vectorize(lambda *values: float(function(*values)), otypes=[float])(*arrays)
+
+
+def shaft_speed_logged(log: FlightLog, params: FixedWingParams, seed: int) -> FlightLog:
+    """The log with ``motor_speed`` [rad/s], the propeller's speed along the flight's truth
+    (true airspeed, throttle as the motor saw it) with :data:`RPM_NOISE` drawn from
+    ``seed``: what an ESC's telemetry or an RPM sensor writes."""
+    speed = _per_sample(lambda v, d: params.propulsion.propeller_speed(v, d, params.rho),
+                        log["airspeed"], log["throttle"])
+    rng = np.random.default_rng([seed, 0x52504D])
+    return log.with_measured({"motor_speed": speed + RPM_NOISE * rng.standard_normal(len(log))},
+                             {"motor_speed": "rad/s"})
+
+
 FLIGHT_DURATION = 120.0
 """Length of a campaign flight [s] unless the scenario's ``duration`` says otherwise."""
 MIN_DURATION = 30.0
@@ -313,7 +340,8 @@ and standard deviation 1 N, logged by a load cell as the extra channel ``tension
 def aero_condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
     """The aerodynamic condition along a flight's truth channels (the plant's surfaces)."""
     airspeed = flight["airspeed"]
-    thrust = params.propulsion.thrust_torque(airspeed, flight["throttle"], params.rho)[0]
+    thrust = _per_sample(lambda v, d: params.propulsion.thrust_torque(v, d, params.rho)[0],
+                         airspeed, flight["throttle"])
     return AeroCondition(airspeed, flight["alpha"], flight["beta"], flight["p"], flight["q"],
                          flight["r"], flight["elevator"], flight["aileron"], flight["rudder"],
                          thrust_coefficient=thrust / qbar_s(airspeed, params))
@@ -338,10 +366,11 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
 
 
 @functools.cache
-def _calibration(turbulence: str, duration: float, excitation: str) -> dict[str, float]:
+def _calibration(turbulence: str, duration: float, excitation: str,
+                 aircraft: str = "aerosonde") -> dict[str, float]:
     """Median unit-strength ratio of every injection over the calibration flights of
-    ``duration`` [s] and ``excitation``."""
-    params = load_fixed_wing("aerosonde")
+    ``duration`` [s] and ``excitation`` with the catalog ``aircraft``."""
+    params = load_fixed_wing(aircraft)
     flights = [fly(params, turbulence=turbulence, seed=s, duration=duration,
                    excitation=excitation) for s in CALIBRATION_SEEDS]
     return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
@@ -349,8 +378,8 @@ def _calibration(turbulence: str, duration: float, excitation: str) -> dict[str,
 
 
 def _strength(injection: Injection, key: str, size: float, turbulence: str,
-              duration: float, excitation: str) -> float:
-    strength = size * _calibration(turbulence, duration, excitation)[key]
+              duration: float, excitation: str, aircraft: str = "aerosonde") -> float:
+    strength = size * _calibration(turbulence, duration, excitation, aircraft)[key]
     if injection.strength_step:
         strength = max(round(strength / injection.strength_step), 1) * injection.strength_step
     return strength
@@ -372,7 +401,9 @@ def discovery(seed: int, params: dict) -> dict:
     :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
     calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
     :attr:`~drake_uav.identification.discovery.result.EvidenceRule.min_folds`: how many of the
-    five folds an effect must improve; for studies of the rule).
+    five folds an effect must improve; for studies of the rule), ``rpm`` (False; True flies
+    :data:`RPM_AIRCRAFT` and logs its propeller's shaft speed, :func:`shaft_speed_logged`,
+    so that the job identifies the thrust from C_T(J) independently of the drag).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
@@ -399,16 +430,20 @@ def discovery(seed: int, params: dict) -> dict:
     if not duration >= MIN_DURATION:
         raise ValueError(f"discovery: duration {duration:g} s is too short for the main job's "
                          f"folds and held-out tail; fly at least {MIN_DURATION:g} s")
-    catalog = load_fixed_wing("aerosonde")
+    rpm = bool(params.get("rpm", False))
+    aircraft = RPM_AIRCRAFT if rpm else "aerosonde"
+    catalog = load_fixed_wing(aircraft)
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
                "duration": duration, "excitation": excitation,
                "sensors": SUITES[suite](catalog.rho)}
     injection = INJECTED.get(key)
     strength = 0.0
     if injection is not None:
-        strength = _strength(injection, key, size, turbulence, duration, excitation)
+        strength = _strength(injection, key, size, turbulence, duration, excitation, aircraft)
         options.update(injection.fly_options(strength, catalog, duration))
     log = fly(**options)
+    if rpm:
+        log = shaft_speed_logged(log, catalog, seed)
     truth = log
     if injection is not None and injection.sensors is not None:
         log = injection.sensors(log, strength)

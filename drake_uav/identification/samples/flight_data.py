@@ -647,6 +647,12 @@ def gridded_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
     noise = _at_rate(raw_noise_variance(log, _specs_for(declared, flow_channels), params.rho,
                                         averaged=factor), log, rate_hz)
     extra_noise = _extra_noise(log, extras, declared, rate_hz, factor)
+    if "motor_speed" in log:  # the propeller's shaft speed, for the thrust from C_T(J)
+        shaft = {"motor_speed": "motor_speed"}
+        noise |= _at_rate({"motor_speed": (float(declared["motor_speed"]) ** 2
+                                           if "motor_speed" in (declared or {}) else
+                                           native_noise_variance(log, "motor_speed", factor))},
+                          log, rate_hz, shaft)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
