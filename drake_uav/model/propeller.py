@@ -29,6 +29,7 @@ import math
 __all__ = [
     "revolutions",
     "advance_ratio",
+    "coefficient_polynomial",
     "propeller_thrust",
     "propeller_torque",
     "thrust_regressors",
@@ -48,6 +49,13 @@ def advance_ratio(airspeed, shaft_speed, diameter: float):
     """Advance ratio ``J = Va / (n D)`` [-] of airspeed [m/s], shaft speed [rad/s] and
     propeller diameter [m] (undefined at zero shaft speed)."""
     return airspeed / (revolutions(shaft_speed) * diameter)
+
+
+def coefficient_polynomial(advance_ratio, coefficients):
+    """``C(J) = c0 + c1 J + c2 J^2`` [-]: C_T or C_Q at the advance ratio ``J`` of
+    ``coefficients`` ``(c0, c1, c2)``."""
+    c0, c1, c2 = coefficients
+    return c0 + (c1 + c2 * advance_ratio) * advance_ratio
 
 
 def _polynomial_force(rho: float, speed_diameter, airspeed, diameter: float, power: int,

@@ -507,7 +507,8 @@ class GriddedLog:
     signals : dict of str to numpy.ndarray
         Attitude [rad], height [m] and the GPS triples, by :attr:`AeroSamples.signals` name.
     noise_variance : dict of str to float
-        Raw white-noise variance of the isolation's sources and the extra channels.
+        Raw white-noise variance of the isolation's sources, the extra channels and, where
+        logged, ``motor_speed`` (the propeller's shaft speed, for the thrust fit).
     extras : Mapping[str, str]
         The extra channels carried into the samples (channel -> unit).
     """
@@ -700,7 +701,9 @@ def isolated_samples(grid: GriddedLog, params: FixedWingParams,
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), grid.controls, signals=grid.signals,
-            raw_noise_variance=grid.noise_variance, moment_controls=grid.moment_controls,
+            raw_noise_variance={k: v for k, v in grid.noise_variance.items()
+                                if k != "motor_speed"},  # the thrust fit's alone
+            moment_controls=grid.moment_controls,
             logged={c: (uniform[c], unit) for c, unit in grid.extras.items()},
             **(thrust or {}))
     except ValueError as err:
