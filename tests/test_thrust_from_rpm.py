@@ -132,23 +132,29 @@ def test_a_declared_table_needs_a_logged_shaft_speed():
         IdentifyOptions(propeller=table, propulsion="catalog")
 
 
+def _held(flight: FlightLog, rate_hz: float, sigma: float) -> FlightLog:
+    """``flight`` with its shaft speed logged at ``rate_hz`` with ``sigma`` [rad/s] more
+    noise, held on the 100 Hz log as a reader puts it, the stream's rate in the metadata."""
+    step = int(round(100.0 / rate_hz))
+    held = np.repeat(np.arange(len(flight) // step + 1), step)[:len(flight)]
+    noise = np.random.default_rng(11).normal(0.0, sigma, held[-1] + 1)
+    speed = flight["motor_speed"][::step][held] + noise[held]
+    return FlightLog(flight.time, {**{n: flight[n] for n in flight.names}, "motor_speed": speed},
+                     units=flight.units,
+                     metadata={"streams": {"RPM": {"channels": ["motor_speed"],
+                                                   "rate_hz": rate_hz}}})
+
+
 def test_the_shaft_speeds_noise_is_read_from_the_data_at_its_native_rate():
-    """A shaft speed logged at 10 Hz (held on the 100 Hz log, as a reader puts it): its
-    white noise is read from its own samples, and given to the thrust fit as white noise
-    on the 50 Hz grid of the same density below 5 Hz (50 / 10 times its variance)."""
+    """A shaft speed logged at 25 Hz: its white noise is read from its own samples
+    (RPM_NOISE and 5 rad/s), and given to the thrust fit as white noise on the 50 Hz grid
+    of the same density below 12.5 Hz (50 / 25 times its variance); read on the grid, where
+    the interpolation hides it, it would be far less. At 10 Hz the flight's own motion
+    fills the band: the floor is not read there, and the thrust fit reads it on the grid."""
     flight = measured_only(_flight())
-    sigma, held = 5.0, np.repeat(np.arange(len(flight) // 10 + 1), 10)[:len(flight)]
-    rng = np.random.default_rng(11)
-    noisy = (flight["motor_speed"] + rng.normal(0.0, sigma, held[-1] + 1)[held])
-    log = FlightLog(flight.time, {**{n: flight[n] for n in flight.names},
-                                  "motor_speed": noisy},
-                    units=flight.units,
-                    metadata={"streams": {"RPM": {"channels": ["motor_speed"],
-                                                  "rate_hz": 10.0}}})
-    variance = gridded_log(log, PARAMS).noise_variance["motor_speed"]
-    # RPM_NOISE on every sample is below the 10 Hz floor's resolution here.
-    expected = (sigma**2 + RPM_NOISE**2 / 10.0) * 50.0 / 10.0
-    assert variance == pytest.approx(expected, rel=0.25)
+    variance = gridded_log(_held(flight, 25.0, 5.0), PARAMS).noise_variance["motor_speed"]
+    assert variance == pytest.approx((RPM_NOISE**2 + 5.0**2) * 50.0 / 25.0, rel=0.15)
+    assert "motor_speed" not in gridded_log(_held(flight, 10.0, 5.0), PARAMS).noise_variance
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")

@@ -243,6 +243,23 @@ def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
     return _at_rate(noise, log, rate_hz, sources)
 
 
+def _shaft_speed_noise(log: FlightLog, declared: Mapping[str, float] | None, rate_hz: float,
+                       averaged: int) -> dict[str, float]:
+    """``{"motor_speed": variance}``: the propeller shaft speed's noise for the thrust fit
+    (:func:`~drake_uav.identification.propulsion.identify_thrust`), declared or read at
+    the rate it was logged, as white noise on the ``rate_hz`` grid. Empty without a shaft
+    speed, or when its floor cannot be read at that rate (an ESC's few hertz, whose band
+    the flight's own motion fills): the thrust fit then reads it on the grid."""
+    if "motor_speed" not in log:
+        return {}
+    declared = declared or {}
+    variance = (float(declared["motor_speed"]) ** 2 if "motor_speed" in declared
+                else native_noise_variance(log, "motor_speed", averaged))
+    if not variance > 0.0:
+        return {}
+    return _at_rate({"motor_speed": variance}, log, rate_hz, {"motor_speed": "motor_speed"})
+
+
 def native_noise_variance(log: FlightLog, channel: str, averaged: int = 1) -> float:
     """White-noise variance of ``channel`` at the rate it was logged.
 
@@ -648,12 +665,7 @@ def gridded_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
     noise = _at_rate(raw_noise_variance(log, _specs_for(declared, flow_channels), params.rho,
                                         averaged=factor), log, rate_hz)
     extra_noise = _extra_noise(log, extras, declared, rate_hz, factor)
-    if "motor_speed" in log:  # the propeller's shaft speed, for the thrust from C_T(J)
-        shaft = {"motor_speed": "motor_speed"}
-        noise |= _at_rate({"motor_speed": (float(declared["motor_speed"]) ** 2
-                                           if "motor_speed" in (declared or {}) else
-                                           native_noise_variance(log, "motor_speed", factor))},
-                          log, rate_hz, shaft)
+    noise |= _shaft_speed_noise(log, declared, rate_hz, factor)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
