@@ -176,3 +176,21 @@ def test_the_job_takes_the_thrust_from_an_arduplane_logs_esc_telemetry(tmp_path)
                       for v, d in zip(flight["airspeed"], flight["throttle"], strict=True)])
     assert np.mean(run.samples.thrust) == pytest.approx(np.mean(truth), abs=0.3)
     assert np.std(run.samples.thrust) == pytest.approx(np.std(truth), rel=0.1)
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    (["--propeller", "missing.csv"], "missing.csv: no such file (the --propeller argument)"),
+    (["--propeller", "PROP", "--propulsion", "catalog"],
+     "--propeller: the table gives the thrust from the logged RPM; it cannot be used with "
+     "--propulsion catalog"),
+])
+def test_the_cli_refuses_a_propeller_table_it_cannot_use(tmp_path, capsys, arguments,
+                                                         message):
+    from drake_uav.cli import main
+
+    prop = _csv(tmp_path / "prop.csv")
+    arguments = [str(prop) if a == "PROP" else str(tmp_path / a) if a.endswith(".csv") else a
+                 for a in arguments]
+    assert main(["identify", "--out", str(tmp_path / "out"), *arguments]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("error: ") and error.endswith(message.split("missing.csv")[-1])
