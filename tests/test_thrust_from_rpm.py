@@ -7,6 +7,7 @@ its shaft speed logged with noise (drake_uav.testing.discovery_cases.shaft_speed
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import warnings
@@ -24,7 +25,7 @@ from drake_uav.io.realistic_ardupilot import write_ardupilot_log
 from drake_uav.io.realistic_logs import LogProfile
 from drake_uav.model.propeller import coefficient_polynomial
 from drake_uav.testing.discovery_cases import RPM_NOISE, measured_only, shaft_speed_logged
-from drake_uav.vehicles.fixed_wing import aerosonde_mavsim
+from drake_uav.vehicles.fixed_wing import Propulsion, aerosonde_mavsim
 
 PARAMS = aerosonde_mavsim()
 PROP = PARAMS.propulsion
@@ -194,3 +195,28 @@ def test_the_cli_refuses_a_propeller_table_it_cannot_use(tmp_path, capsys, argum
     assert main(["identify", "--out", str(tmp_path / "out"), *arguments]) == 2
     error = capsys.readouterr().err.strip()
     assert error.startswith("error: ") and error.endswith(message.split("missing.csv")[-1])
+
+
+def test_the_motor_current_gives_the_propellers_torque_coefficients():
+    """The motor current of the flown motor, ``(V_max dT - KV Omega) / R``, balances the
+    propeller's torque: C_Q(J) exactly from the true shaft speed and current, within three
+    standard deviations from the logged speed and a current with 0.5 A of noise; a motor
+    constant 10 % off scales them by 1.1."""
+    from drake_uav.identification.propeller_torque import identify_torque_coefficients
+
+    flight = _flight()
+    speed = np.array([PROP.propeller_speed(v, d, PARAMS.rho)
+                      for v, d in zip(flight["airspeed"], flight["throttle"], strict=True)])
+    current = (PROP.V_max * flight["throttle"] - PROP.KV * speed) / PROP.R_motor
+    exact = identify_torque_coefficients(PARAMS, flight["airspeed"], speed, current)
+    np.testing.assert_allclose(exact.coefficients, TORQUE, rtol=1e-9)
+    noisy = current + np.random.default_rng(2).normal(0.0, 0.5, len(current))
+    fit = identify_torque_coefficients(PARAMS, flight["airspeed"], flight["motor_speed"], noisy)
+    assert np.all(np.abs(fit.coefficients - TORQUE) < 3.0 * fit.sigma)
+    assert fit.rms == pytest.approx(PROP.KQ * 0.5, rel=0.3)
+    stronger = dataclasses.replace(PARAMS, propulsion=dataclasses.replace(PROP, KQ=1.1 * PROP.KQ))
+    scaled = identify_torque_coefficients(stronger, flight["airspeed"], speed, current)
+    np.testing.assert_allclose(scaled.coefficients, 1.1 * np.array(TORQUE), rtol=1e-9)
+    with pytest.raises(ValueError, match=r"\(Propulsion\) has no diameter, KQ, i0"):
+        identify_torque_coefficients(dataclasses.replace(PARAMS, propulsion=Propulsion()),
+                                     flight["airspeed"], speed, current)

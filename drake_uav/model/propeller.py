@@ -33,6 +33,7 @@ __all__ = [
     "propeller_thrust",
     "propeller_torque",
     "thrust_regressors",
+    "torque_regressors",
     "thrust_regressor_airspeed_slopes",
     "throttle_thrust_regressors",
     "throttle_thrust_airspeed_slopes",
@@ -89,6 +90,13 @@ def thrust_regressors(rho: float, speed_diameter, airspeed, diameter: float) -> 
     scale = rho * diameter**2
     return (scale * speed_diameter * speed_diameter, scale * speed_diameter * airspeed,
             scale * airspeed * airspeed)
+
+
+def torque_regressors(rho: float, speed_diameter, airspeed, diameter: float) -> tuple:
+    """The three columns [N m] multiplying ``(C_Q0, C_Q1, C_Q2)`` in
+    :func:`propeller_torque`: ``rho D^3 ((nD)^2, (nD) Va, Va^2)``."""
+    return tuple(diameter * column
+                 for column in thrust_regressors(rho, speed_diameter, airspeed, diameter))
 
 
 def thrust_regressor_airspeed_slopes(rho: float, speed_diameter, airspeed,
