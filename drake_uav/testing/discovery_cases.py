@@ -36,8 +36,10 @@ from drake_uav.identification.discovery.fitted_point import unit_vectors_towards
 from drake_uav.identification.discovery.result import EvidenceRule
 from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.io.propeller_table import PropellerTable
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
+from drake_uav.model.propeller import coefficient_polynomial
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
@@ -46,7 +48,7 @@ from drake_uav.vehicles.sensors import SensorSuiteParams
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
            "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "RPM_AIRCRAFT", "RPM_NOISE",
-           "shaft_speed_logged"]
+           "RPM_MODES", "propeller_table", "shaft_speed_logged"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -264,6 +266,22 @@ def _per_sample(function, *arrays) -> np.ndarray:
     return np.vectorize(lambda *values: float(function(*values)), otypes=[float])(*arrays)
 
 
+RPM_MODES = ("fitted", "table")
+"""How the RPM variant's job takes the thrust: C_T(J) fitted with the drag, or the flown
+propeller's declared table (:func:`propeller_table`)."""
+
+
+def propeller_table(params: FixedWingParams) -> PropellerTable:
+    """The declared table of the aircraft's propeller (a maker's data): C_T and C_Q of its
+    :class:`~drake_uav.vehicles.fixed_wing.MotorPropeller` at J = 0, 0.1, ..., 1."""
+    prop = params.propulsion
+    j = np.linspace(0.0, 1.0, 11)
+    return PropellerTable(prop.diameter, j,
+                          coefficient_polynomial(j, (prop.C_T0, prop.C_T1, prop.C_T2)),
+                          coefficient_polynomial(j, (prop.C_Q0, prop.C_Q1, prop.C_Q2)),
+                          f"{params.name} propeller")
+
+
 def shaft_speed_logged(log: FlightLog, params: FixedWingParams, seed: int) -> FlightLog:
     """The log with ``motor_speed`` [rad/s], the propeller's speed along the flight's truth
     (true airspeed, throttle as the motor saw it) with :data:`RPM_NOISE` drawn from
@@ -401,9 +419,11 @@ def discovery(seed: int, params: dict) -> dict:
     :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
     calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
     :attr:`~drake_uav.identification.discovery.result.EvidenceRule.min_folds`: how many of the
-    five folds an effect must improve; for studies of the rule), ``rpm`` (False; True flies
-    :data:`RPM_AIRCRAFT` and logs its propeller's shaft speed, :func:`shaft_speed_logged`,
-    so that the job identifies the thrust from C_T(J) independently of the drag).
+    five folds an effect must improve; for studies of the rule), ``rpm`` (False; "fitted"
+    or True flies :data:`RPM_AIRCRAFT` and logs its propeller's shaft speed,
+    :func:`shaft_speed_logged`, and the job fits C_T(J) with the drag; "table" gives the
+    job the propeller's declared table, :func:`propeller_table`, which fixes the thrust
+    independently of the drag).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
@@ -430,7 +450,10 @@ def discovery(seed: int, params: dict) -> dict:
     if not duration >= MIN_DURATION:
         raise ValueError(f"discovery: duration {duration:g} s is too short for the main job's "
                          f"folds and held-out tail; fly at least {MIN_DURATION:g} s")
-    rpm = bool(params.get("rpm", False))
+    rpm = params.get("rpm", False)
+    rpm = "fitted" if rpm is True else rpm
+    if rpm and rpm not in RPM_MODES:
+        raise ValueError(f"discovery: rpm {rpm!r} unknown (known: {', '.join(RPM_MODES)})")
     aircraft = RPM_AIRCRAFT if rpm else "aerosonde"
     catalog = load_fixed_wing(aircraft)
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
@@ -450,7 +473,8 @@ def discovery(seed: int, params: dict) -> dict:
     if injection is not None and injection.logged is not None:
         log = injection.logged(log, strength, seed)
     rule = EvidenceRule(min_folds=int(params.get("min_folds", EvidenceRule.min_folds)))
-    run = identify(measured_only(log), catalog, seed=seed, rule=rule)
+    table = {"propeller": propeller_table(catalog)} if rpm == "table" else {}
+    run = identify(measured_only(log), catalog, seed=seed, rule=rule, **table)
     found = list(run.findings)
     expected = injection.expected if injection else None
     metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),
