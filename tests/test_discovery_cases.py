@@ -173,7 +173,7 @@ def test_the_rpm_variant_flies_the_propeller_aircraft_and_logs_its_shaft_speed(m
         return real_fly(**{**options, "duration": 20.0})
 
     def identify(log, *args, **kwargs):
-        read.append(log)
+        read.append((log, kwargs.get("propeller")))
         raise Stop
 
     real_fly = discovery_cases.fly
@@ -188,8 +188,18 @@ def test_the_rpm_variant_flies_the_propeller_aircraft_and_logs_its_shaft_speed(m
     truth = real_fly(**{**flown[0], "duration": 20.0})
     true_speed = np.array([params.propulsion.propeller_speed(v, d, params.rho)
                            for v, d in zip(truth["airspeed"], truth["throttle"], strict=True)])
-    error = read[0]["motor_speed"] - true_speed
-    assert read[0].unit("motor_speed") == "rad/s" and "airspeed" not in read[0]
+    log, propeller = read[0]
+    assert propeller is None  # fitted with the drag
+    error = log["motor_speed"] - true_speed
+    assert log.unit("motor_speed") == "rad/s" and "airspeed" not in log
     assert abs(np.mean(error)) < 0.2 and np.std(error) == pytest.approx(
         discovery_cases.RPM_NOISE, rel=0.05)
     assert 300.0 < np.mean(true_speed) < 800.0  # a 20 in propeller at cruise, 3-8 krev/min
+    with pytest.raises(Stop):  # the declared table of the flown propeller
+        discovery(4, {"effect": "none", "rpm": "table"})
+    table = read[-1][1]
+    assert table.diameter == params.propulsion.diameter
+    np.testing.assert_allclose(table.thrust_coefficients, (
+        params.propulsion.C_T0, params.propulsion.C_T1, params.propulsion.C_T2), rtol=1e-9)
+    with pytest.raises(ValueError, match="rpm 'measured' unknown"):
+        discovery(4, {"rpm": "measured"})
