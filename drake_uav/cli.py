@@ -208,6 +208,9 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
         if args.propulsion != "data":
             raise ValueError("--propeller: the table gives the thrust from the logged RPM; "
                              "it cannot be used with --propulsion catalog")
+        from drake_uav.io.propeller_table import read_propeller_table
+
+        read_propeller_table(args.propeller)  # a bad table stops before the analysis
     if args.max_gap is not None and not args.max_gap > 0:
         raise ValueError(f"--max-gap: must be positive, got {args.max_gap:g}")
     if args.max_gap is not None and kind == "parquet":
