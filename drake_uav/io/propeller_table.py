@@ -63,7 +63,7 @@ class PropellerTable:
     >>> table = PropellerTable(0.5, np.array([0.0, 0.3, 0.6]),
     ...                        np.array([0.10, 0.08, 0.04]), None, "example")
     >>> np.round(table.thrust_coefficients, 6).tolist()
-    [0.1, -0.033333, -0.055556]
+    [0.1, -0.033333, -0.111111]
     """
 
     diameter: float
