@@ -260,12 +260,6 @@ RPM_NOISE = 3.0
 ESC's electrical-period count at a few thousand rev/min)."""
 
 
-def _per_sample(function, *arrays) -> np.ndarray:
-    """``function`` of floats over arrays, one sample at a time (the propulsion models are
-    scalar-generic on pydrake's math, which takes no arrays)."""
-    return np.vectorize(lambda *values: float(function(*values)), otypes=[float])(*arrays)
-
-
 RPM_MODES = ("fitted", "table")
 """How the RPM variant's job takes the thrust: C_T(J) fitted with the drag, or the flown
 propeller's declared table (:func:`propeller_table`)."""
@@ -286,8 +280,7 @@ def shaft_speed_logged(log: FlightLog, params: FixedWingParams, seed: int) -> Fl
     """The log with ``motor_speed`` [rad/s], the propeller's speed along the flight's truth
     (true airspeed, throttle as the motor saw it) with :data:`RPM_NOISE` drawn from
     ``seed``: what an ESC's telemetry or an RPM sensor writes."""
-    speed = _per_sample(lambda v, d: params.propulsion.propeller_speed(v, d, params.rho),
-                        log["airspeed"], log["throttle"])
+    speed = params.propulsion.propeller_speed(log["airspeed"], log["throttle"], params.rho)
     rng = np.random.default_rng([seed, 0x52504D])
     return log.with_measured({"motor_speed": speed + RPM_NOISE * rng.standard_normal(len(log))},
                              {"motor_speed": "rad/s"})
@@ -358,8 +351,7 @@ and standard deviation 1 N, logged by a load cell as the extra channel ``tension
 def aero_condition(flight: FlightLog, params: FixedWingParams) -> AeroCondition:
     """The aerodynamic condition along a flight's truth channels (the plant's surfaces)."""
     airspeed = flight["airspeed"]
-    thrust = _per_sample(lambda v, d: params.propulsion.thrust_torque(v, d, params.rho)[0],
-                         airspeed, flight["throttle"])
+    thrust = params.propulsion.thrust_torque(airspeed, flight["throttle"], params.rho)[0]
     return AeroCondition(airspeed, flight["alpha"], flight["beta"], flight["p"], flight["q"],
                          flight["r"], flight["elevator"], flight["aileron"], flight["rudder"],
                          thrust_coefficient=thrust / qbar_s(airspeed, params))
