@@ -14,8 +14,9 @@ flights the false-discovery rate (flights with any finding).
     python benchmarks/bench_discovery.py [--seeds 0:20] [--clean-seeds 0:40]
         [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
         [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
-        [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle] [--quick]
-        [--markdown docs/validation.md]
+        [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle]
+        [--rpm [fitted|table]]
+        [--quick] [--markdown docs/validation.md]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
 ``--quick`` flies one clean and one stall-onset flight of 60 s (default sensors, light
@@ -27,7 +28,11 @@ costs in false discoveries and gains in detections. ``--duration`` flies longer 
 shorter flights (120 s by default; the sizes are calibrated on flights of the same
 length), to study what a longer flight buys; ``--excitation multisine_throttle`` moves
 the throttle too (a fourth multisine), to study what a flight that moves the thrust on
-its own buys. Each option needs its own ``--out`` folder.
+its own buys. ``--rpm`` flies the Aerosonde with an electric motor and a fixed-pitch
+propeller and logs its shaft speed (an ESC's telemetry), so that the job identifies the
+thrust from C_T(J) (``--rpm table``: from the propeller's declared table, which fixes it
+independently of the drag; fitted with the drag, a drag that follows the thrust is a
+thrust scale). Each option needs its own ``--out`` folder.
 
 ``--markdown docs/validation.md`` writes the cells run into that page and its data file
 (``benchmarks/validation_report.py``), keeping the cells other runs measured.
@@ -60,6 +65,7 @@ from drake_uav.testing.discovery_cases import (
     EXCITATIONS,
     FLIGHT_DURATION,
     INJECTED,
+    RPM_MODES,
     SUITES,
 )
 
@@ -175,13 +181,18 @@ def main() -> None:
                         help=f"flight length [s] (default {FLIGHT_DURATION:g})")
     parser.add_argument("--excitation", default=None, choices=EXCITATIONS,
                         help="the flight's excitation (default multisine)")
+    parser.add_argument("--rpm", nargs="?", const="fitted", default=None, choices=RPM_MODES,
+                        help="flights whose logs hold the propeller's shaft speed; the job "
+                             "fits C_T(J) with the drag (fitted) or takes the propeller's "
+                             "declared table (table)")
     parser.add_argument("--quick", action="store_true",
                         help="one clean and one stall-onset 60 s flight, in this process")
     parser.add_argument("--markdown", default=None,
                         help="write the cells run into this page (docs/validation.md)")
     args = parser.parse_args()
-    if args.markdown and args.min_folds is not None:
-        parser.error("--markdown: the validation page holds the job's own rule, not --min-folds")
+    if args.markdown and (args.min_folds is not None or args.rpm):
+        parser.error("--markdown: the validation page holds the job's own rule and flights, "
+                     "not --min-folds or --rpm")
     if args.quick:
         args.seeds, args.clean_seeds, args.sizes, args.effects = "0:1", "0:1", "0.3", "stall_onset"
         args.suites, args.turbulence, args.workers = "default", "light", 0
@@ -206,6 +217,8 @@ def _campaigns(args: argparse.Namespace) -> None:
         options["duration"] = args.duration
     if args.excitation is not None:
         options["excitation"] = args.excitation
+    if args.rpm:
+        options["rpm"] = args.rpm
     effect_rows = []
     with _cluster(args.workers) as scheduler:
         clean = _run("clean", Campaign("discovery", seeds=parse_seeds(args.clean_seeds),

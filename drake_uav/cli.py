@@ -124,6 +124,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     # their objects (about 140,000) again at each full collection and at exit.
     gc.freeze()
     params = load_fixed_wing(args.aircraft)
+    propeller = None
+    if args.propeller:
+        from drake_uav.io.propeller_table import read_propeller_table
+
+        propeller = read_propeller_table(args.propeller)
     spec = None
     if args.sensor_spec:
         from drake_uav.vehicles.loading import load_sensor_spec
@@ -149,7 +154,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                               sensor_noise_std=spec, segment=segment,
                               propulsion=args.propulsion,
                               coefficients=_parse_coefficients(args.coefficients),
-                              imu_position=_parse_imu_position(args.imu_position))
+                              imu_position=_parse_imu_position(args.imu_position),
+                              propeller=propeller)
     run = identify(log, params, options, progress=progress)
     progress("writing the report")
     out = write_report(run, args.out)
@@ -197,6 +203,14 @@ def _check_identify_arguments(args: argparse.Namespace, log: Path) -> None:
     _check_aircraft(args.aircraft)
     if args.sensor_spec:
         _check_toml(Path(args.sensor_spec), "--sensor-spec")
+    if args.propeller:
+        _check_readable(Path(args.propeller), "--propeller")
+        if args.propulsion != "data":
+            raise ValueError("--propeller: the table gives the thrust from the logged RPM; "
+                             "it cannot be used with --propulsion catalog")
+        from drake_uav.io.propeller_table import read_propeller_table
+
+        read_propeller_table(args.propeller)  # a bad table stops before the analysis
     if args.max_gap is not None and not args.max_gap > 0:
         raise ValueError(f"--max-gap: must be positive, got {args.max_gap:g}")
     if args.max_gap is not None and kind == "parquet":
@@ -494,6 +508,10 @@ def _identify_parser(sub) -> None:
                        help="thrust identified with the drag from the data (from the RPM when "
                             "logged; the catalog model when the throttle hardly varies, with a "
                             "warning), or the aircraft's propulsion model")
+    ident.add_argument("--propeller", metavar="FILE",
+                       help="declared propeller table (.csv or .toml: diameter [m], J, C_T, "
+                            "optionally C_Q or C_P; docs/main_job.md): the thrust from the "
+                            "logged RPM and C_T(J), nothing of it fitted")
     ident.add_argument("--max-gap", type=real(above=0.0, unit="s"), metavar="SECONDS",
                        help="longest gap inside a stream before the log is cut into segments "
                             "(default 0.5 s)")

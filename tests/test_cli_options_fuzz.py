@@ -74,6 +74,8 @@ COMMANDS = {
         ("--max-gap", _values("0.5"), _number_outside("0", "-1")),
         ("--segment", _values("auto", "10:20"), _values("10-20", "20:10", "nan:5", "x", "1:inf")),
         ("--sensor-spec", st.nothing(), _values("{absent_toml}", "{bad_toml}", "{empty_log}")),
+        ("--propeller", st.nothing(), _values("{absent_toml}", "{bad_toml}", "{empty_log}",
+                                              "{log}")),
         ("--imu-position", _values("0.1,0,0"), _values("1,2", "a,b,c", "nan,0,0", "")),
         ("--coefficients", _values("CL,CD", "Cm"), _values("CX", "", "cl", "CL,,CZ")),
     ]),

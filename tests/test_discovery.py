@@ -147,3 +147,22 @@ def test_a_measured_servo_delay_shifts_the_commands_instead_of_differentiating_t
     first_order = delay * column(effect_library(), "throttle_rate")
     assert np.std(shifted - drag) < 0.05 * np.std(drag)
     assert np.std(first_order - drag) > 0.2 * np.std(drag)
+
+
+def test_a_thrust_from_the_shaft_speed_has_no_servo_delay_column():
+    """The shaft speed already follows the throttle as the motor did: a command delay puts
+    no error on a thrust computed from it, so the delay has its surface columns only."""
+    import dataclasses
+
+    from drake_uav.identification.discovery.effects import effect_library
+
+    params, samples, _ = synthetic_samples(seed=3, duration=20.0, noise=False)
+    measured = dataclasses.replace(samples, thrust_from_shaft_speed=True)
+    for delay in (None, 0.06):
+        effect = next(e for e in effect_library(command_delay=delay)
+                      if e.name == "actuator_time_delay")
+        for coefficient in ("CL", "CD"):
+            modelled = effect.columns(samples, params, coefficient)
+            assert set(effect.columns(measured, params, coefficient)) == {
+                name for name in modelled if not name.startswith("throttle_")}
+            assert any(name.startswith("throttle_") for name in modelled)

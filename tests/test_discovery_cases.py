@@ -15,6 +15,7 @@ here.
 import dataclasses
 import types
 
+import numpy as np
 import pytest
 
 import drake_uav.testing.discovery_cases as discovery_cases
@@ -108,8 +109,8 @@ def test_a_study_of_the_flight_flies_and_calibrates_that_flight(monkeypatch):
     class Stop(Exception):
         pass
 
-    def calibration(turbulence, duration, excitation):
-        calibrated.append((duration, excitation))
+    def calibration(turbulence, duration, excitation, aircraft):
+        calibrated.append((duration, excitation, aircraft))
         return dict.fromkeys(INJECTED, 2.0)
 
     def fly(**options):
@@ -121,7 +122,7 @@ def test_a_study_of_the_flight_flies_and_calibrates_that_flight(monkeypatch):
     with pytest.raises(Stop):
         discovery(0, {"effect": "drag_drift", "size": 0.5, "duration": 60.0,
                       "excitation": "multisine_throttle"})
-    assert calibrated == [(60.0, "multisine_throttle")]
+    assert calibrated == [(60.0, "multisine_throttle", "aerosonde")]
     assert (flown[-1]["duration"], flown[-1]["excitation"]) == (60.0, "multisine_throttle")
     drift = flown[-1]["disturbance"]
     drag = COEFFICIENTS.index("CD")
@@ -191,3 +192,52 @@ def test_a_drag_axis_effect_at_the_airspeed_hold_is_found_as_its_family(case):
     flags = [discovery(seed, {"effect": case, "size": 0.2, "suite": "research"})["family"]
              for seed in range(20, 25)]
     assert sum(flags) >= 4, flags
+
+def test_the_rpm_variant_flies_the_propeller_aircraft_and_logs_its_shaft_speed(monkeypatch):
+    """``rpm`` (bench_discovery.py --rpm): the sizes are calibrated on the aircraft with a
+    propeller, the flight is flown with it, and the log the job reads holds
+    ``motor_speed``: the propeller's speed along the truth plus noise of RPM_NOISE."""
+    calibrated, flown, read = [], [], []
+
+    class Stop(Exception):
+        pass
+
+    def calibration(turbulence, duration, excitation, aircraft):
+        calibrated.append(aircraft)
+        return dict.fromkeys(INJECTED, 2.0)
+
+    def fly(**options):
+        flown.append(options)
+        return real_fly(**{**options, "duration": 20.0})
+
+    def identify(log, *args, **kwargs):
+        read.append((log, kwargs.get("propeller")))
+        raise Stop
+
+    real_fly = discovery_cases.fly
+    monkeypatch.setattr(discovery_cases, "_calibration", calibration)
+    monkeypatch.setattr(discovery_cases, "fly", fly)
+    monkeypatch.setattr(discovery_cases, "identify", identify)
+    with pytest.raises(Stop):
+        discovery(4, {"effect": "tow_force", "rpm": True})
+    assert calibrated == [discovery_cases.RPM_AIRCRAFT]
+    assert flown[0]["aircraft"].name == discovery_cases.RPM_AIRCRAFT
+    params = flown[0]["aircraft"]
+    truth = real_fly(**{**flown[0], "duration": 20.0})
+    true_speed = np.array([params.propulsion.propeller_speed(v, d, params.rho)
+                           for v, d in zip(truth["airspeed"], truth["throttle"], strict=True)])
+    log, propeller = read[0]
+    assert propeller is None  # fitted with the drag
+    error = log["motor_speed"] - true_speed
+    assert log.unit("motor_speed") == "rad/s" and "airspeed" not in log
+    assert abs(np.mean(error)) < 0.2 and np.std(error) == pytest.approx(
+        discovery_cases.RPM_NOISE, rel=0.05)
+    assert 300.0 < np.mean(true_speed) < 800.0  # a 20 in propeller at cruise, 3-8 krev/min
+    with pytest.raises(Stop):  # the declared table of the flown propeller
+        discovery(4, {"effect": "none", "rpm": "table"})
+    table = read[-1][1]
+    assert table.diameter == params.propulsion.diameter
+    np.testing.assert_allclose(table.thrust_coefficients, (
+        params.propulsion.C_T0, params.propulsion.C_T1, params.propulsion.C_T2), rtol=1e-9)
+    with pytest.raises(ValueError, match="rpm 'measured' unknown"):
+        discovery(4, {"rpm": "measured"})

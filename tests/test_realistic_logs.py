@@ -16,9 +16,11 @@ from pyulog import ULog
 
 from drake_uav.diagrams import fly
 from drake_uav.io import FlightLog, read_log
+from drake_uav.io.esc import with_motor_speed
 from drake_uav.io.realistic_ardupilot import FIRMWARE, write_ardupilot_log
 from drake_uav.io.realistic_logs import LogProfile, extend_flight
 from drake_uav.io.realistic_px4 import VER_SW_RELEASE, write_px4_log
+from drake_uav.io.streams import logged_rate
 
 LIMIT = math.radians(25.0)  # the Aerosonde's surface limits: the full servo throw
 REAL = Path(__file__).parent / "data"  # real logs (ArduPlane 4.2.3, PX4 1.15)
@@ -265,6 +267,32 @@ def test_motor_speed_is_logged_as_rpm(flight, tmp_path):
     assert [x.RPM for x in rpm][-5:] == pytest.approx([3600.0] * 5)
     ulog = ULog(str(write_px4_log(log, tmp_path / "f.ulg", seed=0).path))
     assert ulog.get_dataset("rpm").data["indicated_frequency_rpm"][-5:] == pytest.approx(3600.0)
+
+
+@pytest.mark.parametrize("writer", [write_ardupilot_log, write_px4_log])
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_motor_speed_as_esc_telemetry_reads_back_as_the_propellers_shaft_speed(
+        writer, flight, tmp_path):
+    """profile.shaft_speed "esc": the ESC message (ArduPilot ESC, PX4 esc_status) at 10 Hz,
+    read as esc_rpm_0 at its native rate, and taken as motor_speed by the job."""
+    measured = {k: flight[k] for k in flight.measured_names}
+    speed = 400.0 + 30.0 * np.sin(flight.time)  # rad/s, 3800-4100 rev/min
+    measured["motor_speed"] = speed
+    log = FlightLog(flight.time, measured, units={**flight.units, "motor_speed": "rad/s"},
+                    metadata=flight.metadata)
+    path = tmp_path / ("f.bin" if writer is write_ardupilot_log else "f.ulg")
+    written = writer(log, path, seed=0, profile=LogProfile(shaft_speed="esc"))
+    read = read_log(written.path)
+    assert "motor_speed" not in read and logged_rate(read, "esc_rpm_0") == pytest.approx(10.0)
+    job, note = with_motor_speed(read)
+    assert note == "propeller shaft speed from the ESC telemetry (esc_rpm_0)"
+    assert "esc_rpm_0" not in job and logged_rate(job, "motor_speed") == pytest.approx(10.0)
+    inside = (job.time > written.phases.flight_s + 1.0) & (job.time < job.time[-1] - 1.0)
+    expected = np.interp(job.time[inside] - written.phases.flight_s, flight.time - flight.time[0],
+                         speed)
+    # Held or interpolated 10 Hz samples of a 1 rad/s sine: within 30 * 0.1 rad/s; PX4's
+    # esc_rpm is a whole number of rev/min.
+    assert np.max(np.abs(job["motor_speed"][inside] - expected)) < 3.2
 
 
 def test_profile_sets_rates_and_truncation_and_is_checked(flight, tmp_path):

@@ -55,7 +55,7 @@ from drake_uav.identification.discovery.result import (
     FoundEffect,
 )
 from drake_uav.identification.discovery.vector_effects import VectorEffect, vector_effect_library
-from drake_uav.identification.propulsion import thrust_from_gridded_log
+from drake_uav.identification.propulsion import declared_thrust, thrust_from_gridded_log
 from drake_uav.identification.samples.aero_samples import AeroSamples
 from drake_uav.identification.samples.air_data_source import (
     AIR_DATA_MODES,
@@ -75,7 +75,9 @@ from drake_uav.identification.samples.flight_phases import (
 from drake_uav.identification.samples.isolation import monte_carlo_sigmas
 from drake_uav.identification.samples.regressor_noise import smoothing_gains
 from drake_uav.identification.samples.segments import concatenate_samples
+from drake_uav.io.esc import with_motor_speed
 from drake_uav.io.flight_log import FlightLog, FlightLogError
+from drake_uav.io.propeller_table import PropellerTable
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS
 from drake_uav.model.isolation import force_coefficients
@@ -127,7 +129,9 @@ class IdentifyOptions:
         noise of the channels left out is read from the data.
     propulsion : str
         ``data``: the thrust identified with C_X where the flight allows it (else the
-        catalog model, with a warning); ``catalog``: the aircraft's propulsion model.
+        catalog model, with a warning), from the propeller law C_T(J) when the shaft speed
+        is logged (``motor_speed``, or the one ESC's ``esc_rpm_0``); ``catalog``: the
+        aircraft's propulsion model.
     phases : PhaseSettings
         Thresholds of the airborne detection (airspeed [m/s], height [m], duration [s]).
     coefficients : tuple of str
@@ -136,6 +140,11 @@ class IdentifyOptions:
     imu_position : (float, float, float) or None
         (x, y, z) [m, body axes FRD] of the IMU from the centre of gravity (None: the one
         the log's autopilot parameters record, else the centre of gravity).
+    propeller : PropellerTable or None
+        A declared propeller table (:func:`~drake_uav.io.propeller_table.read_propeller_table`):
+        the thrust is ``rho n^2 D^4 C_T(J)`` from the logged shaft speed and the table,
+        nothing of it fitted (needs ``propulsion="data"`` and a logged ``motor_speed`` or
+        one ESC's ``esc_rpm_0``). None: identified from the data.
 
     Raises
     ------
@@ -165,6 +174,7 @@ class IdentifyOptions:
     phases: PhaseSettings = DEFAULT_PHASES
     coefficients: tuple[str, ...] = COEFFICIENTS
     imu_position: tuple[float, float, float] | None = None
+    propeller: PropellerTable | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0.0):
@@ -177,6 +187,10 @@ class IdentifyOptions:
                              f"{', '.join(AIR_DATA_MODES)})")
         if self.propulsion not in ("catalog", "data"):
             raise ValueError(f"propulsion: 'catalog' or 'data', got {self.propulsion!r}")
+        if self.propeller is not None and self.propulsion != "data":
+            raise ValueError("propeller: a declared propeller table gives the thrust from the "
+                             "logged shaft speed; it needs propulsion='data', not "
+                             f"{self.propulsion!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
             raise ValueError(f"seed: an integer, got {self.seed!r}")
         check_coefficients(self.coefficients)
@@ -943,6 +957,9 @@ def select_samples(log: FlightLog, params: FixedWingParams,
     phases, sensor_noise_std, rate_hz = (options.phases, options.sensor_noise_std,
                                          options.rate_hz)
     check_fixed_wing(log, source)
+    shaft_note = None
+    if options.propulsion == "data":
+        log, shaft_note = with_motor_speed(log)
     mode = choose_air_data(log, air_data, source)
     try:
         spans = usable_spans(log, phases, segment)
@@ -960,8 +977,11 @@ def select_samples(log: FlightLog, params: FixedWingParams,
             grid = gridded_log(angles.log, params, rate_hz=rate_hz,
                                flow_channels=angles.channels,
                                sensor_noise_std=sensor_noise_std, extras=extras)
-            thrust = (thrust_from_gridded_log(grid, params, throttle_delay)
-                      if options.propulsion == "data" else None)
+            thrust = None
+            if options.propeller is not None:
+                thrust = declared_thrust(grid, params, options.propeller)
+            elif options.propulsion == "data":
+                thrust = thrust_from_gridded_log(grid, params, throttle_delay)
             part = isolated_samples(grid, params, thrust)
         except FlightLogError as err:
             raise FlightLogError(f"{source}: span {start:.1f}-{end:.1f} s: {err}") from None
@@ -969,7 +989,10 @@ def select_samples(log: FlightLog, params: FixedWingParams,
     parts, gps_notes = _common_signals(parts, spans)
     selection = LogSelection(tuple(spans), mode, angles.description,
                              _selection_notes(log, spans, mode, angles.description)
-                             + extra_notes + gps_notes, tuple(warnings))
+                             + extra_notes + gps_notes + ((shaft_note,) if shaft_note else ())
+                             + ((f"thrust from the {options.propeller.describe()}",)
+                                if options.propeller is not None else ()),
+                             tuple(warnings))
     return concatenate_samples(parts), selection
 
 

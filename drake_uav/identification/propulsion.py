@@ -78,11 +78,13 @@ from drake_uav.identification.statistics.errors_in_variables import (
 )
 from drake_uav.identification.statistics.regression import InsufficientExcitationWarning, bcls
 from drake_uav.io.flight_log import FlightLogError
+from drake_uav.io.propeller_table import PropellerTable
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import AeroCondition, body_to_lift_drag, signal_values
 from drake_uav.model.isolation import differentiate
 from drake_uav.model.propeller import (
     THROTTLE_TERMS,
+    propeller_thrust,
     revolutions,
     throttle_thrust_airspeed_slopes,
     throttle_thrust_regressors,
@@ -92,7 +94,8 @@ from drake_uav.model.propeller import (
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["ThrustModel", "ThrustPrediction", "ThrustDiagnostics", "HeldOutError",
-           "identify_thrust", "thrust_from_gridded_log", "thrust_correction_columns",
+           "identify_thrust", "thrust_from_gridded_log", "declared_thrust",
+           "thrust_correction_columns",
            "thrust_drag_columns", "DRAG_TERMS",
            "PROPELLER_TERMS", "THRUST_COLUMN", "THROTTLE_TERM_UNITS"]
 
@@ -726,6 +729,48 @@ def identify_thrust(params: FixedWingParams, time, specific_force, rates, air_da
     return dataclasses.replace(model, diagnostics=diagnostics)
 
 
+def declared_thrust(grid: GriddedLog, params: FixedWingParams,
+                    propeller: PropellerTable) -> dict[str, object]:
+    """The thrust of a flight from a declared propeller table and the logged shaft speed:
+    ``T = rho n^2 D^4 C_T(J)`` with the table's quadratic C_T(J), nothing fitted.
+
+    Parameters
+    ----------
+    grid : GriddedLog
+        The flight on its grid; it must hold ``motor_speed`` [rad/s].
+    params : FixedWingParams
+        The aircraft (its air density).
+    propeller : PropellerTable
+        The declared table (:func:`~drake_uav.io.propeller_table.read_propeller_table`).
+
+    Returns
+    -------
+    dict
+        ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] (at the logged shaft speed) and
+        no ``thrust_correction_terms``, ``thrust_from_shaft_speed`` True: the keyword
+        arguments of
+        :func:`~drake_uav.identification.samples.isolation.isolate_coefficients`.
+
+    Raises
+    ------
+    FlightLogError
+        When the log holds no shaft speed.
+    """
+    uniform = grid.log
+    if "motor_speed" not in uniform:
+        raise FlightLogError(f"{propeller.source}: a declared propeller table needs the "
+                             "propeller's shaft speed in the log (motor_speed: an RPM sensor, "
+                             "or the one ESC's esc_rpm_0); none is logged")
+    diameter, coefficients = propeller.diameter, propeller.thrust_coefficients
+    n_d = _speed_diameter(uniform["motor_speed"], diameter)
+    airspeed = uniform["pitot_airspeed"]
+    slopes = thrust_regressor_airspeed_slopes(params.rho, n_d, airspeed, diameter)
+    return {"thrust": propeller_thrust(params.rho, n_d, airspeed, diameter, coefficients),
+            "thrust_airspeed_slope": sum(c * x for c, x in zip(coefficients, slopes,
+                                                               strict=True)),
+            "thrust_correction_terms": (), "thrust_from_shaft_speed": True}
+
+
 def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
                             throttle_delay: float | None = None) -> dict[str, object]:
     """The thrust of a flight identified with C_X (:func:`identify_thrust`), as the
@@ -755,7 +800,7 @@ def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
     -------
     dict
         ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] and
-        ``thrust_correction_terms``, the keyword arguments of
+        ``thrust_correction_terms`` and ``thrust_from_shaft_speed``, the keyword arguments of
         :func:`~drake_uav.identification.samples.isolation.isolate_coefficients`; empty
         when the catalog model predicts best or the data cannot tell.
 
@@ -781,4 +826,5 @@ def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
         return {}
     value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
     return {"thrust": value, "thrust_airspeed_slope": slope,
-            "thrust_correction_terms": model.terms if model.source == "throttle" else ()}
+            "thrust_correction_terms": model.terms if model.source == "throttle" else (),
+            "thrust_from_shaft_speed": model.source == "motor_speed"}

@@ -26,6 +26,13 @@ log's ``metadata["streams"]`` (:func:`~drake_uav.io.streams.logged_rate`). The s
 optional extra channels: sparse or gappy, they are left out with a warning; they never
 shorten the log. A sample that is not finite is invalid. The shaft speed is in rad/s, the
 SI unit of an angular rate (rev/min x pi / 30), like ``motor_speed``.
+
+**The propeller's shaft speed.** A log without an RPM sensor (ArduPilot ``RPM``, PX4
+``rpm``: the channel ``motor_speed``) but with one ESC reporting its motor's speed (a
+single-propeller aircraft) gets ``motor_speed`` from ``esc_rpm_0`` (:func:`with_motor_speed`),
+so that the thrust is identified from the propeller law C_T(J). With several ESCs
+reporting, which one drives the propeller the model describes is the user's to say
+(export that ESC as ``motor_speed``); the log is left as it is, with a note.
 """
 
 from __future__ import annotations
@@ -36,9 +43,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from drake_uav.io.flight_log import FlightLog
 from drake_uav.io.streams import Stream
 
-__all__ = ["ESC_QUANTITIES", "esc_channel", "esc_channels", "esc_stream"]
+__all__ = ["ESC_QUANTITIES", "esc_channel", "esc_channels", "esc_stream", "with_motor_speed"]
 
 ESC_QUANTITIES: dict[str, tuple[str, str]] = {
     "rpm": ("rad/s", "motor shaft speed"),
@@ -106,3 +114,42 @@ def esc_stream(name: str, index: int, time: np.ndarray, raw: Mapping[str, np.nda
         ok &= np.asarray(valid, bool)
     return Stream(name, np.asarray(time, float), values, units, fields=sources, valid=ok,
                   optional=True, trims=False)
+
+
+def with_motor_speed(log: FlightLog) -> tuple[FlightLog, str | None]:
+    """``log`` with its ESC's shaft speed as ``motor_speed`` where no RPM sensor is logged.
+
+    Parameters
+    ----------
+    log : FlightLog
+        A flight log.
+
+    Returns
+    -------
+    log : FlightLog
+        ``log`` itself when it holds ``motor_speed`` or no single ESC's speed; else a copy
+        whose ``esc_rpm_<i>`` is renamed ``motor_speed`` (its stream's native rate kept in
+        ``metadata["streams"]``).
+    note : str or None
+        What was done or why not, for the report; None when the log holds no ESC speed or
+        already holds ``motor_speed``.
+    """
+    if "motor_speed" in log:
+        return log, None
+    speeds = [q["rpm"] for q in esc_channels(log.measured_names).values() if "rpm" in q]
+    if not speeds:
+        return log, None
+    if len(speeds) > 1:
+        return log, (f"{len(speeds)} ESCs report a shaft speed ({', '.join(speeds)}): the "
+                     "thrust is not identified from any of them; export the propeller's "
+                     "as motor_speed")
+    source = speeds[0]
+    measured = {("motor_speed" if n == source else n): log[n] for n in log.measured_names}
+    units = {("motor_speed" if n == source else n): log.unit(n) for n in log.names}
+    streams = {name: {**info, "channels": ["motor_speed" if c == source else c
+                                           for c in info.get("channels", ())]}
+               for name, info in (log.metadata.get("streams") or {}).items()}
+    metadata = {**log.metadata, **({"streams": streams} if streams else {})}
+    renamed = FlightLog(log.time, measured, {n: log[n] for n in log.truth_names}, units,
+                        metadata)
+    return renamed, f"propeller shaft speed from the ESC telemetry ({source})"

@@ -21,7 +21,10 @@ RCOU       100 Hz    PWM of every output through the SERVOn parameters; 0 before
 AETR       100 Hz    demands: Ail, Elev, Rudd -4500..4500 (roll right, pitch up, yaw right),
                      Thr 0..100
 XKF2       1 Hz      wind estimate VWN, VWE (sparse on purpose: an optional stream)
-RPM        10 Hz     only when the flight has ``motor_speed``
+RPM        10 Hz     only when the flight has ``motor_speed`` (``profile.shaft_speed``
+                     "rpm")
+ESC        10 Hz     instead of RPM with ``profile.shaft_speed`` "esc": Instance 0, RPM,
+                     Volt and Curr 0 (an ESC without those sensors), Temp 40 deg C
 =========  ========  ================================================================
 
 Servos: SERVO1 aileron (4), SERVO2 elevator (19, REVERSED = 1), SERVO3 throttle (70),
@@ -107,13 +110,20 @@ def _parameters(flight: ExtendedFlight) -> dict[str, float]:
            "TRIM_ARSPD_CM": float(round(100 * np.median(
                np.abs(flight.channels["pitot_airspeed"][flight.time >= flight.phases.flight_s])))),
            "THR_MAX": 100.0, "THR_MIN": 0.0, "INS_GYRO_FILTER": 20.0,
-           "RPM1_TYPE": 2.0 if "motor_speed" in flight.channels else 0.0}
+           "RPM1_TYPE": 2.0 if _shaft_speed_message(flight) == "RPM" else 0.0}
     for n, servo in enumerate(SERVOS, start=1):
         out.update(servo.parameters(n))
     return out
 
 
-def _define(w: DataFlashWriter, has_rpm: bool) -> None:
+def _shaft_speed_message(flight: ExtendedFlight) -> str | None:
+    """``RPM``, ``ESC`` or None: the message of the flight's ``motor_speed``."""
+    if "motor_speed" not in flight.channels:
+        return None
+    return "RPM" if flight.profile.shaft_speed == "rpm" else "ESC"
+
+
+def _define(w: DataFlashWriter, shaft_speed: str | None) -> None:
     """The FMT messages (ArduPlane 4.x layouts)."""
     w.define("PARM", "QNff", "TimeUS,Name,Value,Default")
     w.define("MSG", "QZ", "TimeUS,Message")
@@ -134,8 +144,11 @@ def _define(w: DataFlashWriter, has_rpm: bool) -> None:
     w.define("AETR", "Qffffff", "TimeUS,Ail,Elev,Thr,Rudd,Flap,SS")
     w.define("XKF2", "QBccccchhhhhhfff",
              "TimeUS,C,AX,AY,AZ,VWN,VWE,MN,ME,MD,MX,MY,MZ,IDX,IDY,IS")
-    if has_rpm:
+    if shaft_speed == "RPM":
         w.define("RPM", "QBf", "TimeUS,I,RPM")
+    elif shaft_speed == "ESC":
+        w.define("ESC", "QBffffcfcf", "TimeUS,Instance,RPM,RawRPM,Volt,Curr,Temp,CTot,MotTemp,"
+                 "Err")
 
 
 def _events(w: DataFlashWriter, flight: ExtendedFlight) -> None:
@@ -196,7 +209,7 @@ def _gps(w: DataFlashWriter, flight: ExtendedFlight) -> None:
 
 
 def _air_data(w: DataFlashWriter, flight: ExtendedFlight) -> None:
-    """ARSP, BARO, the 1 Hz XKF2 wind estimate and RPM."""
+    """ARSP, BARO, the 1 Hz XKF2 wind estimate and RPM or ESC."""
     ch, p = flight.channels, flight.profile
     i = flight.indices(p.airspeed_rate_hz)
     w.add("ARSP", TimeUS=flight.time_us(i), I=0, Airspeed=np.abs(ch["pitot_airspeed"][i]),
@@ -210,10 +223,15 @@ def _air_data(w: DataFlashWriter, flight: ExtendedFlight) -> None:
     i = flight.indices(p.optional_rate_hz)
     north, east = flight.wind_estimate()
     w.add("XKF2", TimeUS=flight.time_us(i), C=0, VWN=north[i], VWE=east[i])
-    if "motor_speed" in ch:
-        i = flight.indices(10.0)
-        w.add("RPM", TimeUS=flight.time_us(i), I=0,
-              RPM=ch["motor_speed"][i] * 60.0 / (2.0 * np.pi))
+    message = _shaft_speed_message(flight)
+    if message is not None:
+        i = flight.indices(p.shaft_speed_rate_hz)
+        rpm = ch["motor_speed"][i] * 60.0 / (2.0 * np.pi)
+        if message == "RPM":
+            w.add("RPM", TimeUS=flight.time_us(i), I=0, RPM=rpm)
+        else:
+            w.add("ESC", TimeUS=flight.time_us(i), Instance=0, RPM=rpm, RawRPM=rpm, Volt=0.0,
+                  Curr=0.0, Temp=40, CTot=0.0, MotTemp=0, Err=0.0)
 
 
 def _outputs(w: DataFlashWriter, flight: ExtendedFlight) -> None:
@@ -250,7 +268,7 @@ def write_ardupilot_log(log: FlightLog, path: str | Path, *, seed: int,
     """
     flight = extend_flight(log, aircraft, profile, seed=seed)
     w = DataFlashWriter()
-    _define(w, "motor_speed" in flight.channels)
+    _define(w, _shaft_speed_message(flight))
     for part in (_events, _inertial, _gps, _air_data, _outputs):
         part(w, flight)
     return save_log(w, flight, path, _BLOCK)

@@ -94,6 +94,12 @@ class LogProfile:
     """PX4 vehicle_local_position and actuator_outputs."""
     optional_rate_hz: float = 1.0
     """Sparse optional messages: ArduPilot XKF2 wind, PX4 differential_pressure and wind."""
+    shaft_speed: str = "rpm"
+    """Where a flight's ``motor_speed`` goes: ``"rpm"`` an RPM sensor (ArduPilot ``RPM``,
+    PX4 ``rpm``), ``"esc"`` the ESC's telemetry (ArduPilot ``ESC`` instance 0, PX4
+    ``esc_status``), which the readers give as ``esc_rpm_0``."""
+    shaft_speed_rate_hz: float = 10.0
+    """Rate of the RPM sensor or ESC telemetry messages [Hz]."""
     truncate: bool = True
     """End the file inside a half-written last message (a power loss while logging)."""
 
@@ -104,9 +110,11 @@ class LogProfile:
                              f"{self.gps_fix_s}, {self.arm_s}, {self.ground_s}")
         for name in ("roll_s", "climb_s", "imu_rate_hz", "command_rate_hz", "gps_rate_hz",
                      "airspeed_rate_hz", "baro_rate_hz", "position_rate_hz",
-                     "optional_rate_hz", "boot_s"):
+                     "optional_rate_hz", "boot_s", "shaft_speed_rate_hz"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"profile.{name}: must be positive, got {getattr(self, name)}")
+        if self.shaft_speed not in ("rpm", "esc"):
+            raise ValueError(f"profile.shaft_speed: 'rpm' or 'esc', got {self.shaft_speed!r}")
         if not 0.0 < self.rotate_fraction <= 1.0:
             raise ValueError(f"profile.rotate_fraction: must be in (0, 1], got "
                              f"{self.rotate_fraction}")

@@ -23,7 +23,10 @@ actuator_outputs        10 Hz     PWM [us] through PWM_MAIN_*; 0 on every output
                                   arming
 vehicle_status          1 Hz      nav_state MANUAL (0) on the ground, AUTO_TAKEOFF (17),
                                   STAB (15) in the flight; arming_state; vehicle_type 2
-rpm                     10 Hz     only when the flight has ``motor_speed``
+rpm                     10 Hz     only when the flight has ``motor_speed`` (``profile.shaft_speed``
+                                  "rpm")
+esc_status              10 Hz     instead of rpm with ``profile.shaft_speed`` "esc": esc_count 1,
+                                  esc[0].esc_rpm, voltage and current 0, temperature 40 deg C
 ======================  ========  =======================================================
 
 Parameters: MAV_TYPE 1 (fixed wing), CA_AIRFRAME 1, CA_SV_CS_COUNT 4 with CA_SV_CS0..3_TYPE
@@ -58,6 +61,9 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 __all__ = ["write_px4_log", "VER_SW_RELEASE", "SERVO_TYPES", "PWM_REVERSED_OUTPUT"]
 
 VER_SW_RELEASE = 0x010E03FF
+_ESC_REPORT = ("uint64_t timestamp;int32_t esc_rpm;float esc_voltage;float esc_current;"
+               "float esc_temperature;uint16_t failures;int8_t esc_errorcount;uint8_t esc_address")
+"""The nested ``esc_report`` of ``esc_status`` (PX4 1.14)."""
 """PX4 v1.14.3, release build (major, minor, patch, type 0xFF)."""
 SERVO_TYPES = (1, 2, 3, 4)
 """CA_SV_CS0..3_TYPE: left aileron, right aileron, elevator, rudder."""
@@ -102,6 +108,9 @@ _TOPICS = {
     "bool in_transition_to_fw;bool failsafe;uint8_t system_type;uint8_t system_id;"
     "uint8_t component_id",
     "rpm": "uint64_t timestamp;float indicated_frequency_rpm;float estimated_accurancy_rpm",
+    "esc_status": "uint64_t timestamp;uint16_t counter;uint8_t esc_count;"
+    "uint8_t esc_connectiontype;uint8_t esc_online_flags;uint8_t esc_armed_flags;"
+    "esc_report[8] esc",
 }
 
 
@@ -199,7 +208,8 @@ def _position(w: ULogWriter, ids: dict, flight: ExtendedFlight) -> None:
 
 
 def _air_data(w: ULogWriter, ids: dict, flight: ExtendedFlight) -> None:
-    """airspeed, the 1 Hz differential_pressure and wind, vehicle_air_data and rpm."""
+    """airspeed, the 1 Hz differential_pressure and wind, vehicle_air_data and rpm or
+    esc_status."""
     ch, p = flight.channels, flight.profile
     i = flight.indices(p.airspeed_rate_hz)
     w.data("airspeed", ids["airspeed"], timestamp=flight.time_us(i) + np.uint64(200),
@@ -221,11 +231,28 @@ def _air_data(w: ULogWriter, ids: dict, flight: ExtendedFlight) -> None:
            baro_alt_meter=ORIGIN[2] + alt, baro_temp_celcius=25.0,
            baro_pressure_pa=95_500.0 - flight.params.rho * flight.params.gravity * alt,
            rho=flight.params.rho)
-    if "motor_speed" in ch:
-        i = flight.indices(10.0)
-        w.data("rpm", ids["rpm"], timestamp=flight.time_us(i),
-               indicated_frequency_rpm=ch["motor_speed"][i] * 60.0 / (2.0 * np.pi),
-               estimated_accurancy_rpm=10.0)
+    topic = _shaft_speed_topic(flight)
+    if topic is not None:
+        i = flight.indices(p.shaft_speed_rate_hz)
+        rpm = ch["motor_speed"][i] * 60.0 / (2.0 * np.pi)
+        if topic == "rpm":
+            w.data("rpm", ids["rpm"], timestamp=flight.time_us(i),
+                   indicated_frequency_rpm=rpm, estimated_accurancy_rpm=10.0)
+        else:
+            report = np.zeros((i.size, 8))
+            report[:, 0] = np.round(rpm)
+            nested = {"esc.timestamp": flight.time_us(i)[:, None], "esc.esc_rpm": report,
+                      "esc.esc_temperature": 40.0}
+            w.data("esc_status", ids["esc_status"], timestamp=flight.time_us(i),
+                   counter=np.arange(i.size) % 65536, esc_count=1, esc_connectiontype=6,
+                   esc_online_flags=1, esc_armed_flags=1, **nested)
+
+
+def _shaft_speed_topic(flight: ExtendedFlight) -> str | None:
+    """``rpm``, ``esc_status`` or None: the topic of the flight's ``motor_speed``."""
+    if "motor_speed" not in flight.channels:
+        return None
+    return "rpm" if flight.profile.shaft_speed == "rpm" else "esc_status"
 
 
 def _actuators(w: ULogWriter, ids: dict, flight: ExtendedFlight) -> None:
@@ -266,8 +293,9 @@ def write_px4_log(log: FlightLog, path: str | Path, *, seed: int,
         w.info(key, value)
     _parameters(w)
     ids = {}
+    w.structure("esc_report", _ESC_REPORT)
     for topic, fields in _TOPICS.items():
-        if topic != "rpm" or "motor_speed" in flight.channels:
+        if topic not in ("rpm", "esc_status") or topic == _shaft_speed_topic(flight):
             w.format(topic, fields)
             ids[topic] = w.subscribe(topic)
     for part in (_status, _inertial, _position, _air_data, _actuators):

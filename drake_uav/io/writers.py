@@ -146,11 +146,22 @@ class ULogWriter(_TimeOrderedWriter):
         self._start_us = start_us
         self._definitions: list[bytes] = []
         self._topics: dict[str, np.dtype] = {}
+        self._structures: dict[str, np.dtype] = {}
         self._subscriptions: list[bytes] = []
         self._next_id = 0
 
     def format(self, name: str, fields: str) -> None:
-        """Declares topic ``name`` with fields ``"uint64_t timestamp;float[3] x;..."``."""
+        """Declares topic ``name`` with fields ``"uint64_t timestamp;float[3] x;..."``; a
+        field's type may be a structure declared before (:meth:`structure`)."""
+        self._topics[name] = np.dtype([("msg_id", "<u2"), *self._fields(fields)])
+        self._definitions.append(_ulog_message("F", f"{name}:{fields}".encode()))
+
+    def structure(self, name: str, fields: str) -> None:
+        """Declares the nested type ``name`` (``esc_report``), fields as :meth:`format`."""
+        self._structures[name] = np.dtype(self._fields(fields))
+        self._definitions.append(_ulog_message("F", f"{name}:{fields}".encode()))
+
+    def _fields(self, fields: str) -> list[tuple]:
         parts = []
         for item in filter(None, fields.split(";")):
             type_str, field = item.split()
@@ -158,9 +169,9 @@ class ULogWriter(_TimeOrderedWriter):
             if "[" in type_str:
                 type_str, size = type_str[:-1].split("[")
                 size = int(size)
-            parts.append((field, _ULOG_TYPES[type_str], (size,) if size else ()))
-        self._topics[name] = np.dtype([("msg_id", "<u2"), *parts])
-        self._definitions.append(_ulog_message("F", f"{name}:{fields}".encode()))
+            kind = self._structures.get(type_str) or _ULOG_TYPES[type_str]
+            parts.append((field, kind, (size,) if size else ()))
+        return parts
 
     def info(self, key: str, value: str | int, type_name: str = "uint32_t") -> None:
         """Adds an info message: a string (``char[len] key``) or an integer of
@@ -196,13 +207,18 @@ class ULogWriter(_TimeOrderedWriter):
         return msg_id
 
     def data(self, name: str, msg_id: int, **columns) -> None:
-        """Adds ``D`` messages of topic ``name``; ``timestamp`` [us] is required."""
+        """Adds ``D`` messages of topic ``name``; ``timestamp`` [us] is required. A field of
+        a nested structure is named ``field.member`` (``esc.esc_rpm``: (N, 8) values)."""
         dtype = self._topics[name]
         n = len(columns["timestamp"])
         rows = np.zeros(n, dtype)
         rows["msg_id"] = msg_id
         for key, value in columns.items():
-            rows[key] = value
+            outer, _, member = key.partition(".")
+            if member:
+                rows[outer][member] = value
+            else:
+                rows[key] = value
         header = np.zeros(n, [("size", "<u2"), ("type", "u1")])
         header["size"], header["type"] = dtype.itemsize, ord("D")
         packed = np.concatenate([header.view(np.uint8).reshape(n, 3),

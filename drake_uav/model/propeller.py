@@ -29,9 +29,11 @@ import math
 __all__ = [
     "revolutions",
     "advance_ratio",
+    "coefficient_polynomial",
     "propeller_thrust",
     "propeller_torque",
     "thrust_regressors",
+    "torque_regressors",
     "thrust_regressor_airspeed_slopes",
     "throttle_thrust_regressors",
     "throttle_thrust_airspeed_slopes",
@@ -48,6 +50,13 @@ def advance_ratio(airspeed, shaft_speed, diameter: float):
     """Advance ratio ``J = Va / (n D)`` [-] of airspeed [m/s], shaft speed [rad/s] and
     propeller diameter [m] (undefined at zero shaft speed)."""
     return airspeed / (revolutions(shaft_speed) * diameter)
+
+
+def coefficient_polynomial(advance_ratio, coefficients):
+    """``C(J) = c0 + c1 J + c2 J^2`` [-]: C_T or C_Q at the advance ratio ``J`` of
+    ``coefficients`` ``(c0, c1, c2)``."""
+    c0, c1, c2 = coefficients
+    return c0 + (c1 + c2 * advance_ratio) * advance_ratio
 
 
 def _polynomial_force(rho: float, speed_diameter, airspeed, diameter: float, power: int,
@@ -81,6 +90,13 @@ def thrust_regressors(rho: float, speed_diameter, airspeed, diameter: float) -> 
     scale = rho * diameter**2
     return (scale * speed_diameter * speed_diameter, scale * speed_diameter * airspeed,
             scale * airspeed * airspeed)
+
+
+def torque_regressors(rho: float, speed_diameter, airspeed, diameter: float) -> tuple:
+    """The three columns [N m] multiplying ``(C_Q0, C_Q1, C_Q2)`` in
+    :func:`propeller_torque`: ``rho D^3 ((nD)^2, (nD) Va, Va^2)``."""
+    return tuple(diameter * column
+                 for column in thrust_regressors(rho, speed_diameter, airspeed, diameter))
 
 
 def thrust_regressor_airspeed_slopes(rho: float, speed_diameter, airspeed,

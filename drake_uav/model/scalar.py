@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import max as _drake_max
 from pydrake.math import min as _drake_min
+from pydrake.math import sqrt as _drake_sqrt
 
-__all__ = ["smax", "smin", "clamp", "as_list"]
+__all__ = ["smax", "smin", "clamp", "ssqrt", "as_list"]
 
 
 def smax(a, b):
@@ -30,6 +31,15 @@ def smin(a, b):
 def clamp(value, low: float, high: float):
     """``value`` limited to ``[low, high]``."""
     return smin(smax(value, low), high)
+
+
+def ssqrt(value):
+    """Square root for any Drake scalar type and, elementwise, for float arrays (a model
+    evaluated on a whole flight's samples)."""
+    if isinstance(value, float | np.floating) or (isinstance(value, np.ndarray)
+                                                  and value.dtype.kind == "f"):
+        return np.sqrt(value)
+    return _drake_sqrt(value)
 
 
 def as_list(values) -> list:

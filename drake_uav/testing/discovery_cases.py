@@ -37,8 +37,10 @@ from drake_uav.identification.discovery.fitted_point import unit_vectors_towards
 from drake_uav.identification.discovery.result import EvidenceRule
 from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
+from drake_uav.io.propeller_table import PropellerTable
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition, body_to_lift_drag
 from drake_uav.model.isolation import differentiate
+from drake_uav.model.propeller import coefficient_polynomial
 from drake_uav.model.rotations import euler_to_rotmat, quat_to_rotmat
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
@@ -47,7 +49,8 @@ from drake_uav.vehicles.sensors import SensorSuiteParams
 __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strength_ratio",
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
            "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "tether_tension",
-           "found_as_family"]
+           "found_as_family", "RPM_AIRCRAFT", "RPM_NOISE", "RPM_MODES", "propeller_table",
+           "shaft_speed_logged"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
 """Seeds of the clean flights the strengths are calibrated on (none of a campaign's)."""
@@ -260,6 +263,41 @@ def _skew_term(condition, flight, params):
     return -params.derivative("CL_alpha") * differentiate(flight.time, condition.alpha)
 
 
+RPM_AIRCRAFT = "aerosonde_mavsim"
+"""The aircraft of the campaign's RPM variant: the Aerosonde with an electric motor and a
+fixed-pitch propeller (:class:`~drake_uav.vehicles.fixed_wing.MotorPropeller`), whose shaft
+speed an ESC reports."""
+RPM_NOISE = 3.0
+"""Standard deviation of the logged shaft speed's noise [rad/s] (about 30 rev/min: an
+ESC's electrical-period count at a few thousand rev/min)."""
+
+
+RPM_MODES = ("fitted", "table")
+"""How the RPM variant's job takes the thrust: C_T(J) fitted with the drag, or the flown
+propeller's declared table (:func:`propeller_table`)."""
+
+
+def propeller_table(params: FixedWingParams) -> PropellerTable:
+    """The declared table of the aircraft's propeller (a maker's data): C_T and C_Q of its
+    :class:`~drake_uav.vehicles.fixed_wing.MotorPropeller` at J = 0, 0.1, ..., 1."""
+    prop = params.propulsion
+    j = np.linspace(0.0, 1.0, 11)
+    return PropellerTable(prop.diameter, j,
+                          coefficient_polynomial(j, (prop.C_T0, prop.C_T1, prop.C_T2)),
+                          coefficient_polynomial(j, (prop.C_Q0, prop.C_Q1, prop.C_Q2)),
+                          f"{params.name} propeller")
+
+
+def shaft_speed_logged(log: FlightLog, params: FixedWingParams, seed: int) -> FlightLog:
+    """The log with ``motor_speed`` [rad/s], the propeller's speed along the flight's truth
+    (true airspeed, throttle as the motor saw it) with :data:`RPM_NOISE` drawn from
+    ``seed``: what an ESC's telemetry or an RPM sensor writes."""
+    speed = params.propulsion.propeller_speed(log["airspeed"], log["throttle"], params.rho)
+    rng = np.random.default_rng([seed, 0x52504D])
+    return log.with_measured({"motor_speed": speed + RPM_NOISE * rng.standard_normal(len(log))},
+                             {"motor_speed": "rad/s"})
+
+
 FLIGHT_DURATION = 120.0
 """Length of a campaign flight [s] unless the scenario's ``duration`` says otherwise."""
 MIN_DURATION = 30.0
@@ -350,10 +388,11 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
 
 
 @functools.cache
-def _calibration(turbulence: str, duration: float, excitation: str) -> dict[str, float]:
+def _calibration(turbulence: str, duration: float, excitation: str,
+                 aircraft: str = "aerosonde") -> dict[str, float]:
     """Median unit-strength ratio of every injection over the calibration flights of
-    ``duration`` [s] and ``excitation``."""
-    params = load_fixed_wing("aerosonde")
+    ``duration`` [s] and ``excitation`` with the catalog ``aircraft``."""
+    params = load_fixed_wing(aircraft)
     flights = [fly(params, turbulence=turbulence, seed=s, duration=duration,
                    excitation=excitation) for s in CALIBRATION_SEEDS]
     return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
@@ -361,8 +400,8 @@ def _calibration(turbulence: str, duration: float, excitation: str) -> dict[str,
 
 
 def _strength(injection: Injection, key: str, size: float, turbulence: str,
-              duration: float, excitation: str) -> float:
-    strength = size * _calibration(turbulence, duration, excitation)[key]
+              duration: float, excitation: str, aircraft: str = "aerosonde") -> float:
+    strength = size * _calibration(turbulence, duration, excitation, aircraft)[key]
     if injection.strength_step:
         strength = max(round(strength / injection.strength_step), 1) * injection.strength_step
     return strength
@@ -384,7 +423,11 @@ def discovery(seed: int, params: dict) -> dict:
     :func:`~drake_uav.diagrams.identification_flight.default_excitation`), the sizes being
     calibrated on flights of the same length and excitation, ``min_folds`` (the evidence rule's,
     :attr:`~drake_uav.identification.discovery.result.EvidenceRule.min_folds`: how many of the
-    five folds an effect must improve; for studies of the rule).
+    five folds an effect must improve; for studies of the rule), ``rpm`` (False; "fitted"
+    or True flies :data:`RPM_AIRCRAFT` and logs its propeller's shaft speed,
+    :func:`shaft_speed_logged`, and the job fits C_T(J) with the drag; "table" gives the
+    job the propeller's declared table, :func:`propeller_table`, which fixes the thrust
+    independently of the drag).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
@@ -412,23 +455,31 @@ def discovery(seed: int, params: dict) -> dict:
     if not duration >= MIN_DURATION:
         raise ValueError(f"discovery: duration {duration:g} s is too short for the main job's "
                          f"folds and held-out tail; fly at least {MIN_DURATION:g} s")
-    catalog = load_fixed_wing("aerosonde")
+    rpm = params.get("rpm", False)
+    rpm = "fitted" if rpm is True else rpm
+    if rpm and rpm not in RPM_MODES:
+        raise ValueError(f"discovery: rpm {rpm!r} unknown (known: {', '.join(RPM_MODES)})")
+    aircraft = RPM_AIRCRAFT if rpm else "aerosonde"
+    catalog = load_fixed_wing(aircraft)
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
                "duration": duration, "excitation": excitation,
                "sensors": SUITES[suite](catalog.rho)}
     injection = INJECTED.get(key)
     strength = 0.0
     if injection is not None:
-        strength = _strength(injection, key, size, turbulence, duration, excitation)
+        strength = _strength(injection, key, size, turbulence, duration, excitation, aircraft)
         options.update(injection.fly_options(strength, catalog, duration))
     log = fly(**options)
+    if rpm:
+        log = shaft_speed_logged(log, catalog, seed)
     truth = log
     if injection is not None and injection.sensors is not None:
         log = injection.sensors(log, strength)
     if injection is not None and injection.logged is not None:
         log = injection.logged(log, strength, seed)
     rule = EvidenceRule(min_folds=int(params.get("min_folds", EvidenceRule.min_folds)))
-    run = identify(measured_only(log), catalog, seed=seed, rule=rule)
+    table = {"propeller": propeller_table(catalog)} if rpm == "table" else {}
+    run = identify(measured_only(log), catalog, seed=seed, rule=rule, **table)
     found = list(run.findings)
     expected = injection.expected if injection else None
     metrics = {"found": ",".join(found), "false_findings": sum(n != expected for n in found),

@@ -16,10 +16,10 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 import numpy as np
-from pydrake.math import sqrt
 
 from drake_uav.model.coefficients import validate_derivative_names
 from drake_uav.model.propeller import propeller_thrust, propeller_torque
+from drake_uav.model.scalar import ssqrt
 
 __all__ = [
     "ControlLimits",
@@ -167,7 +167,7 @@ class MotorPropeller:
         c = (rho * D**3 * self.C_Q2 * airspeed * airspeed
              - self.KQ * self.V_max * throttle / self.R_motor + self.KQ * self.i0)
         # (-b + sqrt(b^2 - 4ac)) / (2a) written without cancellation (b > 0), valid for a = 0.
-        return -2.0 * c / (b + sqrt(b * b - 4.0 * a * c))
+        return -2.0 * c / (b + ssqrt(b * b - 4.0 * a * c))
 
     def thrust_torque(self, airspeed, throttle, rho: float) -> tuple:
         """Thrust [N] and reaction torque on the airframe [N m] at ``airspeed`` [m/s],

@@ -295,7 +295,9 @@ def _actuator_delay(delay: float | None):
     d(delta)/dt``, minus the command rates, the delay [s] times the derivative as
     parameter. The first order misses much of a delay of a command that moves within the
     delay (the safety pilot's throttle in turbulence): what it leaves on C_D, several times
-    the noise floor of the default sensors, was taken up by drag terms beside it."""
+    the noise floor of the default sensors, was taken up by drag terms beside it. A thrust
+    from the logged shaft speed already follows the throttle as the motor did: no throttle
+    column then (it would be the thrust's own noise, which the measured C_D carries too)."""
     def shift(samples, values):
         if delay is None:
             return -differentiate(samples.time, values)
@@ -309,7 +311,7 @@ def _actuator_delay(delay: float | None):
             if coefficient in affected:
                 out[f"{surface}_{suffix}"] = shift(samples,
                                                     getattr(samples.condition, surface))
-        if coefficient in ("CL", "CD"):
+        if coefficient in ("CL", "CD") and not samples.thrust_from_shaft_speed:
             per_force = 1.0 / (samples.dynamic_pressure * samples.reference_area)
             error = _thrust_error(samples, delay) * per_force
             lift, drag = body_to_lift_drag(error, 0.0 * error, samples.condition.alpha)

@@ -177,6 +177,10 @@ class AeroSamples:
         (:data:`~drake_uav.model.propeller.THROTTLE_TERMS`), which the discovery fits again
         with C_D (:func:`~drake_uav.identification.propulsion.thrust_correction_columns`);
         empty for the catalog's thrust or a measured one.
+    thrust_from_shaft_speed : bool
+        Whether the thrust comes from the logged shaft speed through the propeller law
+        (:mod:`drake_uav.model.propeller`): it then already follows the throttle as the
+        motor did, so a command delay puts no error on it.
     reference_area : float
         Wing area S [m^2] the coefficients refer to.
     moments : MomentInputs or None
@@ -213,6 +217,7 @@ class AeroSamples:
     noise_variance: Mapping[str, float] = dataclasses.field(default_factory=dict)
     thrust_airspeed_slope: np.ndarray | None = None
     thrust_correction_terms: tuple[str, ...] = ()
+    thrust_from_shaft_speed: bool = False
     reference_area: float = 1.0
     moments: MomentInputs | None = None
     signal_units: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -356,6 +361,7 @@ class AeroSamples:
             thrust_airspeed_slope=(None if self.thrust_airspeed_slope is None
                                    else pick(self.thrust_airspeed_slope)),
             thrust_correction_terms=self.thrust_correction_terms,
+            thrust_from_shaft_speed=self.thrust_from_shaft_speed,
             reference_area=self.reference_area,
             moments=None if self.moments is None else self.moments.subset(index),
             signal_units=dict(self.signal_units),

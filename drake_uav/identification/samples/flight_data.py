@@ -243,6 +243,23 @@ def _extra_noise(log: FlightLog, extras, declared: Mapping[str, float] | None,
     return _at_rate(noise, log, rate_hz, sources)
 
 
+def _shaft_speed_noise(log: FlightLog, declared: Mapping[str, float] | None, rate_hz: float,
+                       averaged: int) -> dict[str, float]:
+    """``{"motor_speed": variance}``: the propeller shaft speed's noise for the thrust fit
+    (:func:`~drake_uav.identification.propulsion.identify_thrust`), declared or read at
+    the rate it was logged, as white noise on the ``rate_hz`` grid. Empty without a shaft
+    speed, or when its floor cannot be read at that rate (an ESC's few hertz, whose band
+    the flight's own motion fills): the thrust fit then reads it on the grid."""
+    if "motor_speed" not in log:
+        return {}
+    declared = declared or {}
+    variance = (float(declared["motor_speed"]) ** 2 if "motor_speed" in declared
+                else native_noise_variance(log, "motor_speed", averaged))
+    if not variance > 0.0:
+        return {}
+    return _at_rate({"motor_speed": variance}, log, rate_hz, {"motor_speed": "motor_speed"})
+
+
 def native_noise_variance(log: FlightLog, channel: str, averaged: int = 1) -> float:
     """White-noise variance of ``channel`` at the rate it was logged.
 
@@ -507,7 +524,8 @@ class GriddedLog:
     signals : dict of str to numpy.ndarray
         Attitude [rad], height [m] and the GPS triples, by :attr:`AeroSamples.signals` name.
     noise_variance : dict of str to float
-        Raw white-noise variance of the isolation's sources and the extra channels.
+        Raw white-noise variance of the isolation's sources, the extra channels and, where
+        logged, ``motor_speed`` (the propeller's shaft speed, for the thrust fit).
     extras : Mapping[str, str]
         The extra channels carried into the samples (channel -> unit).
     """
@@ -647,6 +665,7 @@ def gridded_log(log: FlightLog, params: FixedWingParams, rate_hz: float = 50.0,
     noise = _at_rate(raw_noise_variance(log, _specs_for(declared, flow_channels), params.rho,
                                         averaged=factor), log, rate_hz)
     extra_noise = _extra_noise(log, extras, declared, rate_hz, factor)
+    noise |= _shaft_speed_noise(log, declared, rate_hz, factor)
     airborne = np.flatnonzero(log["pitot_airspeed"] >= min_airspeed)
     if airborne.size < 2:
         raise FlightLogError(
@@ -694,7 +713,9 @@ def isolated_samples(grid: GriddedLog, params: FixedWingParams,
         return isolate_coefficients(
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), grid.controls, signals=grid.signals,
-            raw_noise_variance=grid.noise_variance, moment_controls=grid.moment_controls,
+            raw_noise_variance={k: v for k, v in grid.noise_variance.items()
+                                if k != "motor_speed"},  # the thrust fit's alone
+            moment_controls=grid.moment_controls,
             logged={c: (uniform[c], unit) for c, unit in grid.extras.items()},
             **(thrust or {}))
     except ValueError as err:

@@ -179,6 +179,7 @@ def isolate_coefficients(
     thrust_airspeed_slope: np.ndarray | None = None,
     logged: Mapping[str, tuple[np.ndarray, str]] | None = None,
     thrust_correction_terms: tuple[str, ...] = (),
+    thrust_from_shaft_speed: bool = False,
 ) -> AeroSamples:
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
@@ -233,6 +234,9 @@ def isolate_coefficients(
     thrust_correction_terms : tuple of str
         The throttle terms an identified thrust model was fitted with
         (:attr:`AeroSamples.thrust_correction_terms`).
+    thrust_from_shaft_speed : bool
+        Whether ``thrust`` comes from the logged shaft speed
+        (:attr:`AeroSamples.thrust_from_shaft_speed`).
 
     Returns
     -------
@@ -286,7 +290,8 @@ def isolate_coefficients(
         specific_force=forces.specific_force,
         signals={**extra, **{k: filters.sample(v) for k, v in channels.items()}},
         noise_variance=noise_variance, thrust_airspeed_slope=view.thrust_slope,
-        thrust_correction_terms=tuple(thrust_correction_terms), reference_area=params.S,
+        thrust_correction_terms=tuple(thrust_correction_terms),
+        thrust_from_shaft_speed=bool(thrust_from_shaft_speed), reference_area=params.S,
         signal_units={logged_key(k): unit for k, (_, unit) in (logged or {}).items()},
     )
     view = moments.view

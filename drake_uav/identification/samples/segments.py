@@ -122,6 +122,7 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
         thrust_airspeed_slope=slope,
         thrust_correction_terms=tuple(t for t in THROTTLE_TERMS if any(
             t in p.thrust_correction_terms for p in parts)),
+        thrust_from_shaft_speed=all(p.thrust_from_shaft_speed for p in parts),
         reference_area=first.reference_area,
         moments=moments,
         signal_units=dict(first.signal_units),
