@@ -43,7 +43,13 @@ class TorqueFit:
     rms: float
 
     def describe(self) -> str:
-        """One line for the report."""
+        """One line for the report.
+
+        Returns
+        -------
+        str
+            The coefficients with their standard errors and the torque residual RMS.
+        """
         return ("propeller torque from the motor current: C_Q(J) = "
                 + " ".join(f"{c:+.4g} ({s:.2g}){t}" for c, s, t in
                            zip(self.coefficients, self.sigma, ("", " J", " J^2"), strict=True))
