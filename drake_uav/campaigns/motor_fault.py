@@ -82,7 +82,8 @@ def motor_fault(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``target`` ("IV": "I" draws a failure set without closure on
     the category-I mission; "II", "III", "IV" a set with closure on the missions of
-    scenarios IIa (with its disc), IIIa and IVa), ``coarse_tube`` (False), ``duration``
+    scenarios IIa (with its disc and its upset, moved to end at the drawn fault time), IIIa
+    and IVa), ``coarse_tube`` (False), ``duration``
     [s] (default: the scenario's, and at least :data:`LANDING_TIME` after the fault; the
     fault time is drawn in [1 s, the shorter of the mission and the duration less 1 s]).
 
@@ -104,6 +105,9 @@ def motor_fault(seed: int, params: dict) -> dict:
     # room for a landing from anywhere on the mission (a touchdown ends the flight)
     duration = float(duration or max(base.duration, fault_time + LANDING_TIME))
     sc = dataclasses.replace(base, failed_motors=failed, fault_time=fault_time)
+    if base.upset is not None:  # the upset ends at the failure, as in the scenario
+        start, length, torque = base.upset
+        sc = dataclasses.replace(sc, upset=(fault_time - length, length, torque))
     run = fly_scenario(sc, tube_for=_tubes(bool(params.get("coarse_tube", False))),
                        duration=duration, end_after_mission=TRACKING_END)
     rank = outcome(run)
