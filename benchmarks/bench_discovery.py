@@ -60,7 +60,7 @@ from figures import figure
 from validation_report import update as write_validation_page
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
-from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
+from drake_uav.campaigns.runner import local_cluster
 from drake_uav.testing.discovery_cases import (
     EXCITATIONS,
     FLIGHT_DURATION,
@@ -93,21 +93,6 @@ def _run(name: str, campaign: Campaign, out: Path, scheduler: str | None) -> lis
     run_campaign(campaign, path, workers=0, scheduler=scheduler, progress=True)
     return _rows(path)
 
-
-@contextlib.contextmanager
-def _cluster(workers: int):
-    """The address of one Dask cluster for every campaign (its workers keep their imports
-    and calibration), or None to run in this process."""
-    if workers == 0:
-        yield None
-        return
-    import dask
-    from dask.distributed import LocalCluster
-
-    with dask.config.set(LOCAL_CLUSTER_CONFIG), LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-            scheduler_kwargs={"dashboard": False}) as cluster:
-        yield cluster.scheduler_address
 
 
 def _report_setting(suite: str, turbulence: str, effect_rows: list[dict],
@@ -220,7 +205,7 @@ def _campaigns(args: argparse.Namespace) -> None:
     if args.rpm:
         options["rpm"] = args.rpm
     effect_rows = []
-    with _cluster(args.workers) as scheduler:
+    with local_cluster(args.workers) as scheduler:
         clean = _run("clean", Campaign("discovery", seeds=parse_seeds(args.clean_seeds),
                                        grid=grid, fixed={"effect": "none", **options}), out,
                      scheduler)

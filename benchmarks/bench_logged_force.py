@@ -42,7 +42,7 @@ import numpy as np
 from figures import figure
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
-from drake_uav.campaigns.runner import LOCAL_CLUSTER_CONFIG
+from drake_uav.campaigns.runner import local_cluster
 from drake_uav.testing.logged_force_cases import EXPECTED, MOVED
 
 TARGET_NAMED = 0.9
@@ -63,21 +63,6 @@ def _run(name: str, campaign: Campaign, out: Path, scheduler: str | None) -> lis
     return [{k.removeprefix("metric.").removeprefix("param."): v for k, v in row.items()}
             for row in read_results(path).to_pylist()]
 
-
-@contextlib.contextmanager
-def _cluster(workers: int):
-    """The address of one Dask cluster for both campaigns, or None to run in this
-    process."""
-    if workers == 0:
-        yield None
-        return
-    import dask
-    from dask.distributed import LocalCluster
-
-    with dask.config.set(LOCAL_CLUSTER_CONFIG), LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-            scheduler_kwargs={"dashboard": False}) as cluster:
-        yield cluster.scheduler_address
 
 
 def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict]) -> None:
@@ -143,7 +128,7 @@ def main() -> None:
         out.mkdir(parents=True, exist_ok=True)
         grid = {"suite": args.suites.split(","), "turbulence": args.turbulence.split(",")}
         start = time.perf_counter()
-        with _cluster(args.workers) as scheduler:
+        with local_cluster(args.workers) as scheduler:
             clean = _run("clean", Campaign("logged_force", seeds=parse_seeds(args.clean_seeds),
                                            grid=grid, fixed={"effect": "none"}), out, scheduler)
             tether = _run(f"tether_{round(args.size * 100)}", Campaign(

@@ -22,6 +22,7 @@ the merged file is sorted by (point, seed). Only ``wall_time_s`` differs.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
@@ -40,7 +41,7 @@ from drake_uav.campaigns.registry import check_scenario
 from drake_uav.campaigns.registry import scenario as resolve_scenario
 from drake_uav.campaigns.results import METRIC, PARAM, ResultsStore
 
-__all__ = ["CampaignRun", "run_campaign", "execute_run"]
+__all__ = ["CampaignRun", "run_campaign", "execute_run", "local_cluster"]
 
 _METRIC_KINDS = (bool, int, float, str, type(None))
 
@@ -137,19 +138,49 @@ array is mapped and unmapped again); and a worker is sent its next run only when
 free, so no run waits behind another while a worker idles at the end."""
 
 
-def _client(workers: int | None, scheduler: str | None):
+def _local_cluster(workers: int):
+    """A Dask LocalCluster of ``workers`` one-thread processes with
+    :data:`LOCAL_CLUSTER_CONFIG` and no dashboard."""
     import dask
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import LocalCluster
 
-    if scheduler is not None:
-        return Client(scheduler), None
-    n = os.cpu_count() or 1 if workers is None else workers
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
         # Dask's own log lines below ERROR (a run cancelled by Ctrl-C, a worker stopped
         # on shutdown) are not the user's business: the command prints one line.
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, scheduler_kwargs={"dashboard": False},
-                               silence_logs=logging.ERROR)
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=None, scheduler_kwargs={"dashboard": False},
+                            silence_logs=logging.ERROR)
+
+
+@contextlib.contextmanager
+def local_cluster(workers: int):
+    """The scheduler address of a local Dask cluster of ``workers`` processes (as
+    :func:`run_campaign` starts), closed on exit; ``None`` when ``workers`` is 0 (run in
+    this process). Benchmarks that run several campaigns share one cluster this way.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes (one thread each); 0 for none.
+
+    Yields
+    ------
+    str or None
+        The scheduler's address, for ``run_campaign(..., scheduler=)``.
+    """
+    if workers == 0:
+        yield None
+        return
+    with _local_cluster(workers) as cluster:
+        yield cluster.scheduler_address
+
+
+def _client(workers: int | None, scheduler: str | None):
+    from dask.distributed import Client
+
+    if scheduler is not None:
+        return Client(scheduler), None
+    cluster = _local_cluster(os.cpu_count() or 1 if workers is None else workers)
     return Client(cluster), cluster
 
 
