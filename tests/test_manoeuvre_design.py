@@ -19,6 +19,7 @@ from drake_uav.diagrams.manoeuvre_design import (
 from drake_uav.systems.excitation import SURFACES, excitation_controls
 
 RATE = 50.0
+TRIM = {"elevator": -0.02, "aileron": 0.0, "rudder": 0.001, "throttle": 0.45}
 
 
 def _simulate(signals, duration):
@@ -51,7 +52,7 @@ def _flown():
 def test_design_picks_the_input_that_moves_the_distinguishing_column():
     flown, y = _flown()
     design = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS,
-                              duration=41.0, period=20.0)
+                              trim=TRIM, duration=41.0, period=20.0)
     assert design.selected == ("throttle",)
     assert design.sensitivity["throttle"] > 0
     assert all(design.sensitivity[c] < 1e-20 for c in ("elevator", "aileron", "rudder"))
@@ -60,14 +61,14 @@ def test_design_picks_the_input_that_moves_the_distinguishing_column():
     assert separation.correlation_designed < 0.9
     assert separation.f_flown[0] == pytest.approx(1.0, abs=1e-6)
     assert separation.f_designed[0] > 100.0
-    assert set(design.summary()) == {"duration_s", "selected_inputs", "sensitivity", "peaks",
-                                     "separations"}
+    assert set(design.summary()) == {"duration_s", "selected_inputs", "trim", "sensitivity",
+                                     "peaks", "separations"}
 
 
 def test_designed_multisines_are_orthogonal_and_within_their_limits():
     flown, y = _flown()
     design = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS,
-                              duration=41.0, period=20.0)
+                              trim=TRIM, duration=41.0, period=20.0)
     start, period = design.signals[0].start, design.signals[0].period
     t = start + np.arange(2000) * period / 2000
     x = np.array([s(t) for s in design.signals])
@@ -97,14 +98,13 @@ def test_correlation_and_expected_f_on_known_columns():
 def test_command_csv_round_trips(tmp_path):
     flown, y = _flown()
     design = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS,
-                              duration=41.0, period=20.0)
-    trim = {"elevator": -0.02, "aileron": 0.0, "rudder": 0.001, "throttle": 0.45}
-    path = write_command_csv(tmp_path / "next.csv", design, trim, rate_hz=25.0)
+                              trim=TRIM, duration=41.0, period=20.0)
+    path = write_command_csv(tmp_path / "next.csv", design, rate_hz=25.0)
     assert path.read_text().startswith("# time [s]")
     table = read_command_csv(path)
     assert list(table) == ["time_s", "elevator_rad", "aileron_rad", "rudder_rad", "throttle_1"]
     assert table["time_s"][-1] == pytest.approx(41.0)
-    expected = excitation_controls(table["time_s"], [trim[s] for s in SURFACES], design.signals)
+    expected = excitation_controls(table["time_s"], [TRIM[s] for s in SURFACES], design.signals)
     for i, surface in enumerate(SURFACES):
         unit = "1" if surface == "throttle" else "rad"
         np.testing.assert_allclose(table[f"{surface}_{unit}"], expected[:, i], atol=1e-6)
@@ -117,17 +117,18 @@ def test_bad_input_raises_a_clear_value_error(tmp_path):
     with pytest.raises(ValueError, match="channel elevator: limit must be positive"):
         InputChannel("elevator", "rad", -math.radians(2))
     with pytest.raises(ValueError, match="pairs: need at least one pair"):
-        design_manoeuvre(_simulate, [], flown, FIXED_WING_CHANNELS)
+        design_manoeuvre(_simulate, [], flown, FIXED_WING_CHANNELS, trim=TRIM)
     with pytest.raises(ValueError, match="channels: need at least one channel, each once"):
-        design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS[:1] * 2)
+        design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS[:1] * 2,
+                         trim=TRIM)
     with pytest.raises(ValueError, match="duration: 10 s must be at least one period"):
-        design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS, duration=10)
+        design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS, trim=TRIM,
+                         duration=10)
     with pytest.raises(ValueError, match="second: has 5 rows"):
         column_correlation(np.ones((4, 1)), np.ones(4), np.ones(5))
-    design = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS[:2],
-                              duration=21.0, period=20.0)
-    with pytest.raises(ValueError, match="trim: no trim command for aileron"):
-        write_command_csv(tmp_path / "x.csv", design, {"elevator": 0.0})
+    with pytest.raises(ValueError, match="trim: no finite trim command for aileron"):
+        design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS[:2],
+                         trim={"elevator": 0.0}, duration=21.0, period=20.0)
     (tmp_path / "bad.csv").write_text("t,elevator_rad\n0,1\n")
     with pytest.raises(ValueError, match="no 'time_s' column"):
         read_command_csv(tmp_path / "bad.csv")

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -56,8 +57,8 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["InputChannel", "Rivals", "Separation", "ManoeuvreDesign", "FIXED_WING_CHANNELS",
            "SELECTED_SHARE", "BACKGROUND_SHARE", "distinguishing_energy", "column_correlation",
-           "expected_f", "design_manoeuvre", "propose_manoeuvre", "write_command_csv",
-           "read_command_csv"]
+           "expected_f", "design_manoeuvre", "propose_manoeuvre", "command_csv",
+           "write_command_csv", "read_command_csv", "COMMAND_CSV"]
 
 SELECTED_SHARE = 0.25
 """A channel whose sensitivity reaches this share of the best channel's separates the
@@ -305,6 +306,8 @@ class ManoeuvreDesign:
         The predicted separation of each pair.
     duration : float
         Length of the manoeuvre [s].
+    trim : dict of str to float
+        Each channel's trim command the signals are added to [channel unit].
     """
 
     signals: tuple[Multisine, ...]
@@ -313,10 +316,12 @@ class ManoeuvreDesign:
     sensitivity: dict[str, float]
     separations: tuple[Separation, ...]
     duration: float
+    trim: dict[str, float]
 
     def summary(self) -> dict:
         """JSON-ready summary (``summary.json``'s ``what_to_fly_next``)."""
         return {"duration_s": self.duration, "selected_inputs": list(self.selected),
+                "trim": self.trim,
                 "sensitivity": self.sensitivity,
                 "peaks": {s.surface: float(np.max(np.abs(s(np.linspace(s.start, s.end, 4001)))))
                           for s in self.signals},
@@ -344,7 +349,8 @@ def _sizes(rivals: Rivals, y, flown) -> tuple[tuple, tuple]:
 
 def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                      pairs: Sequence[tuple[Rivals, np.ndarray]], flown,
-                     channels: Sequence[InputChannel], *, duration: float = 60.0,
+                     channels: Sequence[InputChannel], *, trim: Mapping[str, float],
+                     duration: float = 60.0,
                      period: float = 20.0, band: tuple[float, float] = (0.1, 1.5)
                      ) -> ManoeuvreDesign:
     """Designs the manoeuvre that separates each pair of rivals and predicts how well.
@@ -360,6 +366,8 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
         The flown samples (what the columns read).
     channels : sequence of InputChannel
         The inputs the manoeuvre may move, with their limits.
+    trim : mapping of str to float
+        Each channel's trim command [its unit] (the command file adds the signals to it).
     duration : float
         Length of the manoeuvre [s], at least one ``period``.
     period : float
@@ -375,8 +383,8 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
     Raises
     ------
     ValueError
-        For no pair, no channel, a channel named twice or a duration shorter than the
-        period.
+        For no pair, no channel, a channel named twice, a channel without a trim or a
+        duration shorter than the period.
     """
     if not pairs:
         raise ValueError("pairs: need at least one pair of rivals to separate")
@@ -384,6 +392,10 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
     names = [c.name for c in channels]
     if not channels or len(set(names)) != len(names):
         raise ValueError(f"channels: need at least one channel, each once, got {names}")
+    missing = [n for n in names if n not in trim or not math.isfinite(trim[n])]
+    if missing:
+        raise ValueError(f"trim: no finite trim command for {', '.join(missing)}; give one "
+                         "per channel")
     if not (duration >= period > 0):
         raise ValueError(f"duration: {duration} s must be at least one period ({period} s)")
     start = 1.0
@@ -413,7 +425,7 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
         separations.append(Separation(rivals, figures["flown"][0], figures["designed"][0],
                                       figures["flown"][1], figures["designed"][1]))
     return ManoeuvreDesign(tuple(signals), channels, selected, sensitivity, tuple(separations),
-                           duration)
+                           duration, {n: float(trim[n]) for n in names})
 
 
 def _effect_columns(name: str, params: FixedWingParams, quantity: str) -> Columns | None:
@@ -478,20 +490,62 @@ def propose_manoeuvre(run: IdentificationRun, *,
                   airspeed=airspeed)
         return samples_from_log(log, model)
 
-    return design_manoeuvre(simulate, pairs, run.samples, channels, duration=duration)
+    condition = run.samples.condition
+    trim = {"elevator": condition.elevator, "aileron": condition.aileron,
+            "rudder": condition.rudder, "throttle": run.samples.throttle}
+    return design_manoeuvre(simulate, pairs, run.samples, channels, duration=duration,
+                            trim={c.name: float(np.median(trim[c.name])) for c in channels})
 
 
-COMMAND_HEADER = "# time [s], then one column per input: its command (trim + manoeuvre) in " \
-                 "its unit ([rad] for a surface, [1] for a throttle fraction of full)"
+COMMAND_CSV = "next_manoeuvre.csv"
+"""Name of the command file in the main job's report folder."""
+COMMAND_HEADER = ("# time [s], then one column per input named <input>_<unit>: its command "
+                  "(trim + manoeuvre) in that unit (rad for a surface, 1 for a throttle fraction "
+                  "of full)")
 
 
-def write_command_csv(path: str | Path, design: ManoeuvreDesign, trim: Mapping[str, float],
-                      rate_hz: float = 50.0) -> Path:
-    """Writes the manoeuvre as a command sequence a user can fly.
+def command_csv(design: ManoeuvreDesign, rate_hz: float = 50.0) -> str:
+    """The manoeuvre as a command sequence a user can fly, as CSV text.
 
-    Columns ``time_s`` and ``<channel>_<unit>`` (``elevator_rad``, ``throttle_1``): the
-    trim of each channel plus its multisine, at ``rate_hz`` from 0 to the manoeuvre's
-    end; a first comment line says what they are.
+    A first comment line says what the columns are; then ``time_s`` and
+    ``<channel>_<unit>`` (``elevator_rad``, ``throttle_1``): each channel's trim plus its
+    multisine, at ``rate_hz`` from 0 to the manoeuvre's end.
+
+    Parameters
+    ----------
+    design : ManoeuvreDesign
+        The manoeuvre.
+    rate_hz : float
+        Rate of the rows [Hz].
+
+    Returns
+    -------
+    str
+        The CSV text.
+
+    Raises
+    ------
+    ValueError
+        For a non-positive rate.
+    """
+    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+        raise ValueError(f"rate_hz: must be positive and finite, got {rate_hz}")
+    t = np.arange(round(design.duration * rate_hz) + 1) / rate_hz
+    controls = excitation_controls(t, [design.trim.get(s, 0.0) for s in SURFACES],
+                                   design.signals)
+    out = io.StringIO()
+    out.write(COMMAND_HEADER + "\n")
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["time_s", *(f"{c.name}_{c.unit}" for c in design.channels)])
+    for i, ti in enumerate(t):
+        writer.writerow([f"{ti:.4f}", *(f"{controls[i, SURFACES.index(c.name)]:.6g}"
+                                        for c in design.channels)])
+    return out.getvalue()
+
+
+def write_command_csv(path: str | Path, design: ManoeuvreDesign, rate_hz: float = 50.0
+                      ) -> Path:
+    """Writes :func:`command_csv` to ``path``; returns the path.
 
     Parameters
     ----------
@@ -499,8 +553,6 @@ def write_command_csv(path: str | Path, design: ManoeuvreDesign, trim: Mapping[s
         The CSV file.
     design : ManoeuvreDesign
         The manoeuvre.
-    trim : mapping of str to float
-        Each channel's trim command [its unit].
     rate_hz : float
         Rate of the rows [Hz].
 
@@ -508,28 +560,9 @@ def write_command_csv(path: str | Path, design: ManoeuvreDesign, trim: Mapping[s
     -------
     Path
         The file written.
-
-    Raises
-    ------
-    ValueError
-        For a channel without a trim or a non-positive rate.
     """
-    if not (rate_hz > 0 and math.isfinite(rate_hz)):
-        raise ValueError(f"rate_hz: must be positive and finite, got {rate_hz}")
-    missing = [c.name for c in design.channels if c.name not in trim]
-    if missing:
-        raise ValueError(f"trim: no trim command for {', '.join(missing)}; give one per "
-                         "channel of the manoeuvre")
-    t = np.arange(round(design.duration * rate_hz) + 1) / rate_hz
-    controls = excitation_controls(t, [trim.get(s, 0.0) for s in SURFACES], design.signals)
     path = Path(path)
-    with path.open("w", newline="") as f:
-        f.write(COMMAND_HEADER + "\n")
-        writer = csv.writer(f)
-        writer.writerow(["time_s", *(f"{c.name}_{c.unit}" for c in design.channels)])
-        for i, ti in enumerate(t):
-            writer.writerow([f"{ti:.4f}", *(f"{controls[i, SURFACES.index(c.name)]:.6g}"
-                                            for c in design.channels)])
+    path.write_text(command_csv(design, rate_hz))
     return path
 
 
