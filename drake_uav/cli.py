@@ -151,8 +151,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                               coefficients=_parse_coefficients(args.coefficients),
                               imu_position=_parse_imu_position(args.imu_position))
     run = identify(log, params, options, progress=progress)
+    design = None
+    if run.near_ties:
+        from drake_uav.diagrams.manoeuvre_design import propose_manoeuvre
+
+        progress("designing the manoeuvre that separates the near ties")
+        try:
+            design = propose_manoeuvre(run)
+        except (ValueError, RuntimeError) as error:  # the model does not trim or fly
+            print(f"note: no manoeuvre proposed: the identified model could not fly it "
+                  f"({error})")
     progress("writing the report")
-    out = write_report(run, args.out)
+    out = write_report(run, args.out, design)
     progress.finish()
     for note in run.notes:
         print(f"note: {note}")

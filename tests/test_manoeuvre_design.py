@@ -1,11 +1,16 @@
 """The manoeuvre design: which input separates two rivals, its signals and its command file."""
 
+import json
 import math
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import drake_uav
 from drake_uav.diagrams.manoeuvre_design import (
+    COMMAND_CSV,
     FIXED_WING_CHANNELS,
     InputChannel,
     Rivals,
@@ -16,8 +21,13 @@ from drake_uav.diagrams.manoeuvre_design import (
     read_command_csv,
     write_command_csv,
 )
+from drake_uav.identification.pipeline import identify
+from drake_uav.io.flight_log import FlightLog
+from drake_uav.reporting.identification_report import write_report
 from drake_uav.systems.excitation import SURFACES, excitation_controls
+from drake_uav.vehicles.fixed_wing import aerosonde
 
+SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
 RATE = 50.0
 TRIM = {"elevator": -0.02, "aileron": 0.0, "rudder": 0.001, "throttle": 0.45}
 
@@ -132,3 +142,27 @@ def test_bad_input_raises_a_clear_value_error(tmp_path):
     (tmp_path / "bad.csv").write_text("t,elevator_rad\n0,1\n")
     with pytest.raises(ValueError, match="no 'time_s' column"):
         read_command_csv(tmp_path / "bad.csv")
+
+
+def test_the_report_shows_the_manoeuvre_and_holds_its_command_file(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sample's thrust/C_X confounding note
+        run = identify(FlightLog.load(SAMPLE), aerosonde(), source="sample",
+                       segment=(0.0, 30.0), propulsion="catalog")
+    flown, y = _flown()
+    design = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS,
+                              trim=TRIM, duration=41.0, period=20.0)
+    out = write_report(run, tmp_path / "report", design)
+    text = (out / "report.md").read_text()
+    assert "## What to fly next" in text
+    assert f"`{COMMAND_CSV}`" in text and "throttle" in text
+    assert "`with_throttle` against `elevator_only` on CD" in text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["what_to_fly_next"]["manoeuvre"]["command_file"] == COMMAND_CSV
+    assert summary["what_to_fly_next"]["manoeuvre"]["selected_inputs"] == ["throttle"]
+    assert COMMAND_CSV in summary["report_files"]
+    table = read_command_csv(out / COMMAND_CSV)
+    assert table["throttle_1"][0] == pytest.approx(TRIM["throttle"], abs=1e-6)
+    without = write_report(run, tmp_path / "plain")
+    assert "What to fly next" not in (without / "report.md").read_text()
+    assert "what_to_fly_next" not in json.loads((without / "summary.json").read_text())

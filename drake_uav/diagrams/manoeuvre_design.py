@@ -42,11 +42,15 @@ from typing import Any
 import numpy as np
 
 from drake_uav.diagrams.identification_flight import fly
-from drake_uav.identification.discovery.coefficient_design import baseline_design
+from drake_uav.identification.discovery.coefficient_design import baseline_names
 from drake_uav.identification.discovery.effects import effect_library
+from drake_uav.identification.discovery.vector_effects import vector_effect_library
 from drake_uav.identification.pipeline import IdentificationRun
+from drake_uav.identification.propulsion import thrust_correction_columns
 from drake_uav.identification.samples.flight_data import samples_from_log
 from drake_uav.identification.statistics.residuals import effective_sample_size
+from drake_uav.model.coefficients import regressor_matrix
+from drake_uav.model.propeller import THROTTLE_TERMS
 from drake_uav.systems.excitation import (
     SURFACES,
     Multisine,
@@ -429,11 +433,30 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
 
 
 def _effect_columns(name: str, params: FixedWingParams, quantity: str) -> Columns | None:
-    effect = {e.name: e for e in effect_library()}.get(name)
+    """A named effect's columns on ``quantity`` (its non-zero ones), or None for a name the
+    libraries do not hold (a data-driven product, a logged channel)."""
+    effect = {e.name: e for e in [*effect_library(), *vector_effect_library()]}.get(name)
     if effect is None:
         return None
     candidate = effect.candidate(params)
-    return lambda samples: np.column_stack(list(candidate.columns(samples, quantity).values()))
+
+    def columns(samples):
+        X = np.column_stack(list(candidate.columns(samples, quantity).values()))
+        return X[:, np.any(X != 0, axis=0)]
+    return columns
+
+
+def _base_columns(params: FixedWingParams, quantity: str) -> Columns:
+    """The job's baseline of ``quantity``: the catalog's terms and, on C_D, the correction
+    terms of a thrust identified from the flight (when the samples carry them)."""
+    names = baseline_names(params, quantity)
+
+    def columns(samples):
+        view = samples.aligned(quantity)
+        X = regressor_matrix(names, view.condition, params.b, params.c)
+        thrust = thrust_correction_columns(view) if quantity == "CD" else {}
+        return np.column_stack([X, *thrust.values()])
+    return columns
 
 
 def _identified_model(run: IdentificationRun) -> FixedWingParams:
@@ -449,10 +472,16 @@ def propose_manoeuvre(run: IdentificationRun, *,
                       duration: float = 60.0) -> ManoeuvreDesign | None:
     """The manoeuvre that separates the near ties of a main-job result, or None.
 
-    Only rivals that are named effects of the library
-    (:func:`~drake_uav.identification.discovery.effects.effect_library`) are designed for;
+    Only rivals that are named effects of the libraries
+    (:func:`~drake_uav.identification.discovery.effects.effect_library`,
+    :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`, on the
+    tied coefficient) are designed for;
     the model is the catalog aircraft with the identified derivatives, trimmed at the
-    flight's median airspeed, flown in still air with the default sensors.
+    flight's median airspeed, flown in still air with the default sensors. The baseline the
+    rivals are tested against is the job's: on C_D it holds the correction terms of a thrust
+    identified from the flight where the job identified one, and on a manoeuvre that moves
+    the throttle (the job then identifies the thrust): a throttle input that only moves what
+    the job reads as thrust separates nothing.
 
     Parameters
     ----------
@@ -478,7 +507,7 @@ def propose_manoeuvre(run: IdentificationRun, *,
             if first is None or second is None:
                 continue
             rivals = Rivals(k, tie.winner.effect, rival.effect, first, second,
-                            lambda samples, k=k: baseline_design(samples, params, k).X)
+                            _base_columns(params, k))
             pairs.append((rivals, np.asarray(run.samples.coefficients[k], dtype=float)))
     if not pairs:
         return None
@@ -488,7 +517,11 @@ def propose_manoeuvre(run: IdentificationRun, *,
     def simulate(signals, length):
         log = fly(model, turbulence=None, excitation=tuple(signals), duration=length,
                   airspeed=airspeed)
-        return samples_from_log(log, model)
+        samples = samples_from_log(log, model)
+        if any(s.surface == "throttle" for s in signals):
+            # The job identifies the thrust from a throttle that moves on its own.
+            samples = dataclasses.replace(samples, thrust_correction_terms=THROTTLE_TERMS)
+        return samples
 
     condition = run.samples.condition
     trim = {"elevator": condition.elevator, "aileron": condition.aileron,
