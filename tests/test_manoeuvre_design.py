@@ -89,6 +89,11 @@ def test_designed_multisines_are_orthogonal_and_within_their_limits():
     for channel in FIXED_WING_CHANNELS:
         share = 1.0 if channel.name in design.selected else 0.5
         assert peaks[channel.name] == pytest.approx(share * channel.limit, rel=1e-3)
+    # Only the inputs the flight moved are flown besides the selected one.
+    moved = design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS, trim=TRIM,
+                             background=("elevator",), duration=41.0, period=20.0)
+    assert [c.name for c in moved.channels] == ["elevator", "throttle"]
+    assert [s.surface for s in moved.signals] == ["elevator", "throttle"]
 
 
 def test_correlation_and_expected_f_on_known_columns():

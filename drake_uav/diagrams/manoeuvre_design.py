@@ -12,9 +12,10 @@ plant-agnostic (it sees candidates' columns and input channels only):
    the channel's sensitivity [column unit^2 / input unit^2]
    (:func:`distinguishing_energy`).
 2. **Inputs.** The channels whose sensitivity reaches :data:`SELECTED_SHARE` of the best are
-   the ones that separate the rivals; they get their full amplitude limit, the others
-   :data:`BACKGROUND_SHARE` of theirs, so the new flight still identifies the baseline.
-3. **Signals.** Mutually orthogonal low-peak-factor multisines on every channel (Morelli
+   the ones that separate the rivals; they get their full amplitude limit, the others the
+   flight moved :data:`BACKGROUND_SHARE` of theirs, so the new flight still identifies the
+   baseline; the rest stay at trim.
+3. **Signals.** Mutually orthogonal low-peak-factor multisines on those channels (Morelli
    2003; :func:`~drake_uav.systems.excitation.orthogonal_multisines`), peaks within the
    limits.
 4. **Predicted separation.** The designed manoeuvre is flown on the model and, for each
@@ -60,16 +61,19 @@ from drake_uav.systems.excitation import (
 from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["InputChannel", "Rivals", "Separation", "ManoeuvreDesign", "FIXED_WING_CHANNELS",
-           "SELECTED_SHARE", "BACKGROUND_SHARE", "distinguishing_energy", "column_correlation",
-           "expected_f", "design_manoeuvre", "propose_manoeuvre", "command_csv",
-           "write_command_csv", "read_command_csv", "COMMAND_CSV"]
+           "SELECTED_SHARE", "BACKGROUND_SHARE", "MOVED_SHARE", "distinguishing_energy",
+           "column_correlation", "expected_f", "design_manoeuvre", "propose_manoeuvre",
+           "command_csv", "write_command_csv", "read_command_csv", "COMMAND_CSV"]
 
 SELECTED_SHARE = 0.25
 """A channel whose sensitivity reaches this share of the best channel's separates the
 rivals and is flown at its full limit."""
 BACKGROUND_SHARE = 0.5
-"""Share of its limit a channel that does not separate the rivals is flown at (it keeps the
-baseline's derivatives identified on the new flight)."""
+"""Share of its limit a channel that does not separate the rivals is flown at, when the
+flown data moved it (it keeps the baseline's derivatives identified on the new flight)."""
+MOVED_SHARE = 0.1
+"""A channel moved on the flown data when its standard deviation exceeds this share of its
+limit (an airspeed hold's throttle, within about 0.01, did not)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -298,7 +302,7 @@ class ManoeuvreDesign:
     signals : tuple of Multisine
         The orthogonal multisines, one per channel [channel unit].
     channels : tuple of InputChannel
-        The channels flown, in the order of ``signals``.
+        The channels flown, in the order of ``signals`` (the others stay at trim).
     selected : tuple of str
         The channels that separate the rivals (flown at their limit).
     sensitivity : dict of str to float
@@ -354,7 +358,7 @@ def _sizes(rivals: Rivals, y, flown) -> tuple[tuple, tuple]:
 def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                      pairs: Sequence[tuple[Rivals, np.ndarray]], flown,
                      channels: Sequence[InputChannel], *, trim: Mapping[str, float],
-                     duration: float = 60.0,
+                     background: Sequence[str] | None = None, duration: float = 60.0,
                      period: float = 20.0, band: tuple[float, float] = (0.1, 1.5)
                      ) -> ManoeuvreDesign:
     """Designs the manoeuvre that separates each pair of rivals and predicts how well.
@@ -372,6 +376,10 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
         The inputs the manoeuvre may move, with their limits.
     trim : mapping of str to float
         Each channel's trim command [its unit] (the command file adds the signals to it).
+    background : sequence of str, optional
+        The channels that do not separate the rivals but are still flown, at
+        :data:`BACKGROUND_SHARE` of their limit (the inputs the baseline needs; None: every
+        channel). The others are held at trim.
     duration : float
         Length of the manoeuvre [s], at least one ``period``.
     period : float
@@ -414,9 +422,12 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
             for (rivals, _), size in zip(pairs, sizes, strict=True)) / channel.limit**2
     best = max(sensitivity.values())
     selected = tuple(n for n in names if best > 0 and sensitivity[n] >= SELECTED_SHARE * best)
-    peaks = [c.limit if c.name in selected else BACKGROUND_SHARE * c.limit for c in channels]
-    signals = orthogonal_multisines(names, period, peaks, band, start,
-                                    cycles=(duration - start) / period)
+    background = names if background is None else background
+    flown_channels = tuple(c for c in channels if c.name in selected or c.name in background)
+    peaks = [c.limit if c.name in selected else BACKGROUND_SHARE * c.limit
+             for c in flown_channels]
+    signals = orthogonal_multisines([c.name for c in flown_channels], period, peaks, band,
+                                    start, cycles=(duration - start) / period)
     designed = simulate(signals, duration)
     separations = []
     for (rivals, _), ((t1, s1, n1), (t2, s2, n2)) in zip(pairs, sizes, strict=True):
@@ -428,8 +439,9 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                              expected_f(t2, s2, second, first, base, n2)))
         separations.append(Separation(rivals, figures["flown"][0], figures["designed"][0],
                                       figures["flown"][1], figures["designed"][1]))
-    return ManoeuvreDesign(tuple(signals), channels, selected, sensitivity, tuple(separations),
-                           duration, {n: float(trim[n]) for n in names})
+    return ManoeuvreDesign(tuple(signals), flown_channels, selected, sensitivity,
+                           tuple(separations), duration,
+                           {c.name: float(trim[c.name]) for c in flown_channels})
 
 
 def _effect_columns(name: str, params: FixedWingParams, quantity: str) -> Columns | None:
@@ -526,8 +538,11 @@ def propose_manoeuvre(run: IdentificationRun, *,
     condition = run.samples.condition
     trim = {"elevator": condition.elevator, "aileron": condition.aileron,
             "rudder": condition.rudder, "throttle": run.samples.throttle}
+    moved = [c.name for c in channels
+             if np.std(trim[c.name]) > MOVED_SHARE * c.limit]
     return design_manoeuvre(simulate, pairs, run.samples, channels, duration=duration,
-                            trim={c.name: float(np.median(trim[c.name])) for c in channels})
+                            trim={c.name: float(np.median(trim[c.name])) for c in channels},
+                            background=moved)
 
 
 COMMAND_CSV = "next_manoeuvre.csv"
