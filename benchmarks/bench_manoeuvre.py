@@ -8,7 +8,8 @@ aircraft with the same effect and runs the job again. It prints, per effect, the
 whose report held a near tie, and among them the share the manoeuvre resolved (the
 injected effect named alone, with no near tie) with its 95 % Wilson interval (target
 >= 80 %), the inputs the design moved and the predicted separation (median expected
-F-statistic, the smaller way round, and column correlation, flown against designed).
+F-statistic, the smaller way round, the share of the gain the rival would reach and the
+column correlation, flown against designed).
 
     python benchmarks/bench_manoeuvre.py [--effects tow_force,propwash_drag]
         [--seeds 0:10] [--suite research] [--size 0.2] [--turbulence light] [--quick]
@@ -46,9 +47,13 @@ def _predicted(rows: list[dict]) -> str:
     f = {k: np.median([min(p["expected_f"]["first_true"][k], p["expected_f"]["second_true"][k])
                        for p in pairs]) for k in ("flown", "designed")}
     c = {k: np.median([p["correlation"][k] for p in pairs]) for k in ("flown", "designed")}
-    return (f"{len(pairs)} pairs: expected F (median) {f['flown']:.1f} flown -> "
-            f"{f['designed']:.1f} designed; correlation {c['flown']:.3f} -> "
-            f"{c['designed']:.3f}")
+    share = {k: np.median([max(p["rival_share"]["first_true"][k],
+                               p["rival_share"]["second_true"][k]) for p in pairs])
+             for k in ("flown", "designed")}
+    return (f"{len(pairs)} pairs, {sum(p['resolves'] for p in pairs)} predicted separated: "
+            f"rival's share of the gain (median) {share['flown']:.0%} flown -> "
+            f"{share['designed']:.0%} designed; expected F {f['flown']:.1f} -> "
+            f"{f['designed']:.1f}; correlation {c['flown']:.3f} -> {c['designed']:.3f}")
 
 
 def main() -> None:

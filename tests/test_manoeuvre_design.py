@@ -19,6 +19,7 @@ from drake_uav.diagrams.manoeuvre_design import (
     distinguishing_energy,
     expected_f,
     read_command_csv,
+    rival_share,
     write_command_csv,
 )
 from drake_uav.identification.pipeline import identify
@@ -71,6 +72,8 @@ def test_design_picks_the_input_that_moves_the_distinguishing_column():
     assert separation.correlation_designed < 0.9
     assert separation.f_flown[0] == pytest.approx(1.0, abs=1e-6)
     assert separation.f_designed[0] > 100.0
+    assert separation.share_flown[0] == pytest.approx(1.0, abs=1e-9)
+    assert max(separation.share_designed) < 0.9 and separation.resolves
     assert set(design.summary()) == {"duration_s", "selected_inputs", "trim", "sensitivity",
                                      "peaks", "separations"}
 
@@ -108,6 +111,8 @@ def test_correlation_and_expected_f_on_known_columns():
     f = expected_f([2.0], 0.5, first, second, base)
     assert f == pytest.approx(1 + 4 * 9.0 / 0.25, rel=1e-9)
     assert distinguishing_energy(base, a, a)[0] == pytest.approx(0.0, abs=1e-20)
+    # The rival reaches the squared correlation of the two (after the baseline) of the gain.
+    assert rival_share([1.0], first, first + second, base) == pytest.approx(0.9, rel=1e-9)
 
 
 def test_command_csv_round_trips(tmp_path):
@@ -162,6 +167,7 @@ def test_the_report_shows_the_manoeuvre_and_holds_its_command_file(tmp_path):
     assert "## What to fly next" in text
     assert f"`{COMMAND_CSV}`" in text and "throttle" in text
     assert "`with_throttle` against `elevator_only` on CD" in text
+    assert "the manoeuvre separates them" in text
     summary = json.loads((out / "summary.json").read_text())
     assert summary["what_to_fly_next"]["manoeuvre"]["command_file"] == COMMAND_CSV
     assert summary["what_to_fly_next"]["manoeuvre"]["selected_inputs"] == ["throttle"]

@@ -19,10 +19,12 @@ plant-agnostic (it sees candidates' columns and input channels only):
    2003; :func:`~drake_uav.systems.excitation.orthogonal_multisines`), peaks within the
    limits.
 4. **Predicted separation.** The designed manoeuvre is flown on the model and, for each
-   rival taken as the truth with the size the flight gave it, the expected partial
-   F-statistic of its columns against the other's (:func:`expected_f`), next to the
-   same figure on the flown data, and the largest canonical correlation of the two
-   column sets after the baseline (:func:`column_correlation`) on both.
+   rival taken as the truth with the size the flight gave it, the share of its gain the
+   other would reach (:func:`rival_share`: the near-tie rule's own measure, a tie from
+   90 %) and the expected partial F-statistic of its columns against the other's
+   (:func:`expected_f`), next to the same figures on the flown data, and the largest
+   canonical correlation of the two column sets after the baseline
+   (:func:`column_correlation`) on both.
 
 :func:`propose_manoeuvre` does this for the fixed-wing main job's result
 (:class:`~drake_uav.identification.pipeline.IdentificationRun`): it flies the model with
@@ -43,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from drake_uav.diagrams.identification_flight import fly
+from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN
 from drake_uav.identification.discovery.coefficient_design import baseline_names
 from drake_uav.identification.discovery.effects import effect_library
 from drake_uav.identification.discovery.vector_effects import vector_effect_library
@@ -62,8 +65,9 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 
 __all__ = ["InputChannel", "Rivals", "Separation", "ManoeuvreDesign", "FIXED_WING_CHANNELS",
            "SELECTED_SHARE", "BACKGROUND_SHARE", "MOVED_SHARE", "distinguishing_energy",
-           "column_correlation", "expected_f", "design_manoeuvre", "propose_manoeuvre",
-           "command_csv", "write_command_csv", "read_command_csv", "COMMAND_CSV"]
+           "column_correlation", "expected_f", "rival_share", "design_manoeuvre",
+           "propose_manoeuvre", "command_csv", "write_command_csv", "read_command_csv",
+           "COMMAND_CSV"]
 
 SELECTED_SHARE = 0.25
 """A channel whose sensitivity reaches this share of the best channel's separates the
@@ -251,6 +255,42 @@ def expected_f(theta, sigma: float, first, second, base, independent_share: floa
     return 1.0 + float(part @ part) / sigma**2 * independent_share / theta.size
 
 
+def rival_share(theta, first, second, base) -> float:
+    """The share of ``first``'s gain that ``second`` reaches when ``first`` is the truth.
+
+    With ``first`` the truth with parameters ``theta``, the baseline leaves its term's part
+    ``r0`` unexplained and the baseline with ``second`` leaves ``r1``; the rival explains
+    ``1 - |r1|^2 / |r0|^2`` of what the truth explains (the squared correlation, for single
+    columns). The near-tie rule names the rival when this reaches ``1 - NEAR_TIE_MARGIN``.
+
+    Parameters
+    ----------
+    theta : array_like
+        (q,) the first candidate's parameters.
+    first, second, base : array_like
+        (N, k) columns.
+
+    Returns
+    -------
+    float
+        In [0, 1] (0 also when the baseline already explains the first's term).
+
+    Raises
+    ------
+    ValueError
+        For a ``theta`` of the wrong size or bad columns.
+    """
+    first = _matrix("first", first)
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    if theta.shape != (first.shape[1],) or not np.all(np.isfinite(theta)):
+        raise ValueError(f"theta: need {first.shape[1]} finite values, got {theta}")
+    base, second = _matrix("base", base, len(first)), _matrix("second", second, len(first))
+    r0 = _residual(first, base) @ theta
+    r1 = _residual(first, np.column_stack([base, second])) @ theta
+    total = float(r0 @ r0)
+    return 0.0 if total <= 0.0 else float(np.clip(1.0 - (r1 @ r1) / total, 0.0, 1.0))
+
+
 @dataclasses.dataclass(frozen=True)
 class Separation:
     """Predicted separation of one pair of rivals.
@@ -265,6 +305,9 @@ class Separation:
         Expected F-statistic of (first against second, second against first), each taken
         as the truth with its size on the flown data, on the flown data and on the designed
         manoeuvre (:func:`expected_f`).
+    share_flown, share_designed : tuple of float
+        The share of each rival's gain the other would reach, each taken as the truth
+        (:func:`rival_share`), on the flown data and on the designed manoeuvre.
     """
 
     rivals: Rivals
@@ -272,6 +315,14 @@ class Separation:
     correlation_designed: float
     f_flown: tuple[float, float]
     f_designed: tuple[float, float]
+    share_flown: tuple[float, float]
+    share_designed: tuple[float, float]
+
+    @property
+    def resolves(self) -> bool:
+        """The designed manoeuvre is predicted to end the near tie: whichever rival is true,
+        the other reaches less than ``1 - NEAR_TIE_MARGIN`` of its gain."""
+        return max(self.share_designed) < 1.0 - NEAR_TIE_MARGIN
 
     def summary(self) -> dict:
         """JSON-ready figures of the pair."""
@@ -282,15 +333,25 @@ class Separation:
                 "expected_f": {"first_true": {"flown": self.f_flown[0],
                                               "designed": self.f_designed[0]},
                                "second_true": {"flown": self.f_flown[1],
-                                               "designed": self.f_designed[1]}}}
+                                               "designed": self.f_designed[1]}},
+                "rival_share": {"first_true": {"flown": self.share_flown[0],
+                                               "designed": self.share_designed[0]},
+                                "second_true": {"flown": self.share_flown[1],
+                                                "designed": self.share_designed[1]}},
+                "resolves": self.resolves}
 
     def sentence(self) -> str:
         """One line for the report."""
         r = self.rivals
-        return (f"`{r.first}` against `{r.second}` on {r.quantity}: column correlation "
+        verdict = ("separates them" if self.resolves else
+                   "does not separate them: a near tie is expected to remain")
+        return (f"`{r.first}` against `{r.second}` on {r.quantity}: the rival reaches "
+                f"{max(self.share_flown):.0%} of the true one's gain flown, "
+                f"{max(self.share_designed):.0%} designed; column correlation "
                 f"{self.correlation_flown:.3f} flown, {self.correlation_designed:.3f} "
                 f"designed; expected F {min(self.f_flown):.1f} flown, "
-                f"{min(self.f_designed):.1f} designed (the smaller of the two ways round).")
+                f"{min(self.f_designed):.1f} designed (each the worse of the two ways round): "
+                f"the manoeuvre {verdict}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -436,9 +497,12 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
             base, first, second = _pair_figures(rivals, samples)
             figures[key] = (column_correlation(base, first, second),
                             (expected_f(t1, s1, first, second, base, n1),
-                             expected_f(t2, s2, second, first, base, n2)))
+                             expected_f(t2, s2, second, first, base, n2)),
+                            (rival_share(t1, first, second, base),
+                             rival_share(t2, second, first, base)))
         separations.append(Separation(rivals, figures["flown"][0], figures["designed"][0],
-                                      figures["flown"][1], figures["designed"][1]))
+                                      figures["flown"][1], figures["designed"][1],
+                                      figures["flown"][2], figures["designed"][2]))
     return ManoeuvreDesign(tuple(signals), flown_channels, selected, sensitivity,
                            tuple(separations), duration,
                            {c.name: float(trim[c.name]) for c in flown_channels})

@@ -138,9 +138,11 @@ def _add_next_flight(report: Report, run: IdentificationRun,
             "fraction). Inputs that move the columns telling the rivals apart, flown at "
             f"their limit: {', '.join(design.selected) or 'none'}; peaks "
             + ", ".join(f"{k} {v:.3g}" for k, v in peaks.items())
-            + ". Predicted on the identified model (expected partial F-statistic of each "
-            "rival against the other, the smaller way round, and the correlation of their "
-            "columns after the baseline; about 1 and 1.000: no separation):\n")
+            + ". Predicted on the identified model, each rival taken as the truth with the "
+            "size this flight gave it: the share of its held-out gain the other would reach "
+            f"(a near tie from {1 - NEAR_TIE_MARGIN:.0%}), the correlation of their columns "
+            "after the baseline, and the expected partial F-statistic of one against the "
+            "other (about 1: no evidence either way):\n")
         lines += [f"- {s.sentence()}" for s in design.separations]
     if run.rate_limits:
         lines.append("\nLog the channels of 'Not identifiable at the logged rates' at the "
