@@ -12,8 +12,12 @@ F-statistic, the smaller way round, the share of the gain the rival would reach 
 column correlation, flown against designed).
 
     python benchmarks/bench_manoeuvre.py [--effects tow_force,propwash_drag]
-        [--seeds 0:10] [--suite research] [--size 0.2] [--turbulence light] [--quick]
+        [--seeds 0:10] [--suite research] [--size 0.2] [--turbulence light]
+        [--propulsion data] [--quick]
 
+``--propulsion catalog`` runs both jobs with the thrust known (the catalog's propulsion,
+which the simulated aircraft has: what a logged motor speed or a declared propeller
+gives); ``data``, the job's default, identifies it from a throttle that moves on its own.
 ``--quick``: one tow-force seed on 60 s flights.
 """
 
@@ -64,6 +68,9 @@ def main() -> None:
     parser.add_argument("--size", type=float, default=0.2)
     parser.add_argument("--turbulence", default="light")
     parser.add_argument("--duration", type=float, default=FLIGHT_DURATION)
+    parser.add_argument("--propulsion", default="data", choices=("data", "catalog"),
+                        help="the job's thrust: identified from the data, or known "
+                             "(catalog: as with a logged motor speed)")
     parser.add_argument("--quick", action="store_true", help="one tow-force seed, 60 s")
     args = parser.parse_args()
     if args.quick:
@@ -74,7 +81,8 @@ def main() -> None:
         rows = []
         for seed in parse_seeds(args.seeds):
             row = fly_next(seed, effect, suite=args.suite, size=args.size,
-                           turbulence=args.turbulence, duration=args.duration)
+                           turbulence=args.turbulence, duration=args.duration,
+                           propulsion=args.propulsion)
             rows.append(row)
             print(f"  {effect} seed {seed}: first {row['found_first'] or '-'}"
                   f"{' (tied)' if row['tied_first'] else ''}; inputs {row['selected'] or '-'};"
@@ -82,7 +90,8 @@ def main() -> None:
                   flush=True)
         tied = [r for r in rows if r["resolved"] is not None]
         selected = collections.Counter(r["selected"] for r in tied)
-        print(f"{effect} ({args.suite}, {args.turbulence}, size {args.size:.0%}): "
+        print(f"{effect} ({args.suite}, {args.turbulence}, size {args.size:.0%}, thrust "
+              f"{args.propulsion}): "
               f"{len(tied)} of {len(rows)} flights with a near tie between named effects; "
               f"resolved by the next flight {_rate([r['resolved'] for r in tied])} "
               f"(target >= {TARGET:.0%}); exact on the first flight "

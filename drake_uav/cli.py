@@ -157,7 +157,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
         progress("designing the manoeuvre that separates the near ties")
         try:
-            design = propose_manoeuvre(run)
+            design = propose_manoeuvre(run, propulsion=args.propulsion)
         except (ValueError, RuntimeError) as error:  # the model does not trim or fly
             print(f"note: no manoeuvre proposed: the identified model could not fly it "
                   f"({error})")

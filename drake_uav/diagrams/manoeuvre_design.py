@@ -545,7 +545,8 @@ def _identified_model(run: IdentificationRun) -> FixedWingParams:
 
 def propose_manoeuvre(run: IdentificationRun, *,
                       channels: Sequence[InputChannel] = FIXED_WING_CHANNELS,
-                      duration: float = 60.0) -> ManoeuvreDesign | None:
+                      duration: float = 60.0, propulsion: str = "data"
+                      ) -> ManoeuvreDesign | None:
     """The manoeuvre that separates the near ties of a main-job result, or None.
 
     Only rivals that are named effects of the libraries
@@ -557,7 +558,8 @@ def propose_manoeuvre(run: IdentificationRun, *,
     rivals are tested against is the job's: on C_D it holds the correction terms of a thrust
     identified from the flight where the job identified one, and on a manoeuvre that moves
     the throttle (the job then identifies the thrust): a throttle input that only moves what
-    the job reads as thrust separates nothing.
+    the job reads as thrust separates nothing (``propulsion="catalog"``: the next flight's
+    thrust is known, the throttle separates what scales with it).
 
     Parameters
     ----------
@@ -567,12 +569,23 @@ def propose_manoeuvre(run: IdentificationRun, *,
         The inputs and their limits (:data:`FIXED_WING_CHANNELS`).
     duration : float
         Length of the manoeuvre [s].
+    propulsion : str
+        How the next flight's job will know the thrust, as the job's option: "data" (it
+        identifies the thrust from a throttle that moves on its own), "catalog" (the thrust
+        is known: a declared propeller, a logged motor speed).
 
     Returns
     -------
     ManoeuvreDesign or None
         None when the run has no near tie between named effects.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``propulsion``.
     """
+    if propulsion not in ("data", "catalog"):
+        raise ValueError(f"propulsion: {propulsion!r} unknown; use 'data' or 'catalog'")
     params = run.params
     pairs = []
     for tie in run.near_ties:
@@ -594,7 +607,7 @@ def propose_manoeuvre(run: IdentificationRun, *,
         log = fly(model, turbulence=None, excitation=tuple(signals), duration=length,
                   airspeed=airspeed)
         samples = samples_from_log(log, model)
-        if any(s.surface == "throttle" for s in signals):
+        if propulsion == "data" and any(s.surface == "throttle" for s in signals):
             # The job identifies the thrust from a throttle that moves on its own.
             samples = dataclasses.replace(samples, thrust_correction_terms=THROTTLE_TERMS)
         return samples

@@ -34,7 +34,8 @@ def resolved(run, expected: str) -> bool:
 
 
 def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0.2,
-             turbulence: str = "light", duration: float = FLIGHT_DURATION) -> dict:
+             turbulence: str = "light", duration: float = FLIGHT_DURATION,
+             propulsion: str = "data") -> dict:
     """A campaign flight, its near ties, and the flight of the manoeuvre proposed for them.
 
     Parameters
@@ -49,6 +50,10 @@ def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0
         The effect's size on the campaign flight (its strength is kept on the next one).
     duration : float
         Length of both flights [s].
+    propulsion : str
+        The job's thrust on both flights: "data" (identified from the flight where the
+        throttle moves on its own) or "catalog" (known, as from a logged motor speed or a
+        declared propeller; the aircraft flown has the catalog's propulsion).
 
     Returns
     -------
@@ -73,16 +78,17 @@ def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
                "duration": duration, "sensors": SUITES[suite](catalog.rho),
                **injection.fly_options(strength, catalog, duration)}
-    first = identify(measured_only(fly(excitation="multisine", **options)), catalog, seed=seed)
+    first = identify(measured_only(fly(excitation="multisine", **options)), catalog, seed=seed,
+                     propulsion=propulsion)
     out = {"expected": injection.expected, "found_first": ",".join(first.findings),
            "tied_first": " | ".join(t.sentence() for t in first.near_ties),
            "selected": "", "predicted": [], "found_next": "", "tied_next": "",
            "resolved": None}
-    design = propose_manoeuvre(first, duration=duration)
+    design = propose_manoeuvre(first, duration=duration, propulsion=propulsion)
     if design is None:
         return out
     run = identify(measured_only(fly(excitation=design.signals, **options)), catalog,
-                   seed=seed)
+                   seed=seed, propulsion=propulsion)
     return out | {"selected": ",".join(design.selected),
                   "predicted": [s.summary() for s in design.separations],
                   "found_next": ",".join(run.findings),
