@@ -8,9 +8,9 @@ plant-agnostic (it sees candidates' columns and input channels only):
 
 1. **Sensitivity.** For each input channel, a probe multisine on that channel alone is flown
    on the model (``simulate``); on it, each rival's columns are regressed on the other's
-   and the baseline's, and the residual's mean square per unit probe amplitude squared is
-   the channel's sensitivity [column unit^2 / input unit^2]
-   (:func:`distinguishing_energy`).
+   and the baseline's (:func:`distinguishing_energy`), and the residual's mean square,
+   weighted by the rival's squared size over its squared residual on the flown data, per
+   unit probe amplitude squared, is the channel's sensitivity [1 / input unit^2].
 2. **Inputs.** The channels whose sensitivity reaches :data:`SELECTED_SHARE` of the best are
    the ones that separate the rivals; they get their full amplitude limit, the others the
    flight moved :data:`BACKGROUND_SHARE` of theirs, so the new flight still identifies the
