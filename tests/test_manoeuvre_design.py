@@ -18,6 +18,7 @@ from drake_uav.diagrams.manoeuvre_design import (
     design_manoeuvre,
     distinguishing_energy,
     expected_f,
+    propose_manoeuvre,
     read_command_csv,
     rival_share,
     write_command_csv,
@@ -26,6 +27,7 @@ from drake_uav.identification.pipeline import identify
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.reporting.identification_report import write_report
 from drake_uav.systems.excitation import SURFACES, excitation_controls
+from drake_uav.testing.manoeuvre_cases import fly_next
 from drake_uav.vehicles.fixed_wing import aerosonde
 
 SAMPLE = Path(drake_uav.__file__).parent / "data" / "sample_flight.parquet"
@@ -149,6 +151,8 @@ def test_bad_input_raises_a_clear_value_error(tmp_path):
     with pytest.raises(ValueError, match="trim: no finite trim command for aileron"):
         design_manoeuvre(_simulate, [(RIVALS, y)], flown, FIXED_WING_CHANNELS[:2],
                          trim={"elevator": 0.0}, duration=21.0, period=20.0)
+    with pytest.raises(ValueError, match="propulsion: 'rpm' unknown"):
+        propose_manoeuvre(None, propulsion="rpm")
     (tmp_path / "bad.csv").write_text("t,elevator_rad\n0,1\n")
     with pytest.raises(ValueError, match="no 'time_s' column"):
         read_command_csv(tmp_path / "bad.csv")
@@ -177,3 +181,14 @@ def test_the_report_shows_the_manoeuvre_and_holds_its_command_file(tmp_path):
     without = write_report(run, tmp_path / "plain")
     assert "What to fly next" not in (without / "report.md").read_text()
     assert "what_to_fly_next" not in json.loads((without / "summary.json").read_text())
+
+
+@pytest.mark.slow
+def test_the_proposed_manoeuvre_resolves_the_propwash_tie_with_a_known_thrust():
+    """A drag that follows the thrust, on research-grade flights (20 % of C_D's variation)
+    with the thrust known as from a logged motor speed: among the seeds whose report holds
+    a near tie, flying the proposed manoeuvre names `thrust_propwash` alone in >= 80 %."""
+    rows = [fly_next(seed, "propwash_drag", propulsion="catalog") for seed in range(10)]
+    tied = [r["resolved"] for r in rows if r["resolved"] is not None]
+    assert len(tied) >= 5, rows
+    assert sum(tied) >= 0.8 * len(tied), rows
