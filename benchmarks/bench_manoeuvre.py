@@ -18,7 +18,7 @@ column correlation, flown against designed).
 ``--propulsion catalog`` runs both jobs with the thrust known (the catalog's propulsion,
 which the simulated aircraft has: what a logged motor speed or a declared propeller
 gives); ``data``, the job's default, identifies it from a throttle that moves on its own.
-``--quick``: one tow-force seed on 60 s flights.
+``--quick``: one propwash-drag seed on 60 s flights with the thrust known.
 """
 
 from __future__ import annotations
@@ -71,10 +71,12 @@ def main() -> None:
     parser.add_argument("--propulsion", default="data", choices=("data", "catalog"),
                         help="the job's thrust: identified from the data, or known "
                              "(catalog: as with a logged motor speed)")
-    parser.add_argument("--quick", action="store_true", help="one tow-force seed, 60 s")
+    parser.add_argument("--quick", action="store_true",
+                        help="one propwash-drag seed, 60 s, thrust known")
     args = parser.parse_args()
     if args.quick:
-        args.effects, args.seeds, args.duration = "tow_force", "0:1", 60.0
+        args.effects, args.seeds, args.duration = "propwash_drag", "0:1", 60.0
+        args.propulsion = "catalog"
     warnings.simplefilter("ignore")  # the thrust/C_X confounding note of every flight
     start = time.perf_counter()
     for effect in args.effects.split(","):
