@@ -423,10 +423,11 @@ class Report:
             _write_text(partial / "report.md", self.to_markdown())
             _write_text(partial / "report.html",
                         self.to_html(pngs if self.embed_images else None))
-            for name, text in (files or {}).items():
+            extra = dict(files or {})
+            for name, text in extra.items():
                 _write_text(partial / name, text)
-            files = sorted([*pngs, *(files or {}), "report.md", "report.html", "summary.json"])
-            data.update(complete=True, report_title=self.title, report_files=files)
+            written = sorted([*pngs, *extra, "report.md", "report.html", "summary.json"])
+            data.update(complete=True, report_title=self.title, report_files=written)
             _write_text(partial / "summary.json",
                         json.dumps(data, indent=2, allow_nan=False) + "\n")
         return out_dir
