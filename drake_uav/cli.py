@@ -157,8 +157,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                               imu_position=_parse_imu_position(args.imu_position),
                               propeller=propeller)
     run = identify(log, params, options, progress=progress)
+    design = None
+    if run.near_ties:
+        from drake_uav.diagrams.manoeuvre_design import propose_manoeuvre
+
+        progress("designing the manoeuvre that separates the near ties")
+        try:
+            design = propose_manoeuvre(run, propulsion=args.propulsion)
+        except (ValueError, RuntimeError) as error:  # the model does not trim or fly
+            print(f"note: no manoeuvre proposed: the identified model could not fly it "
+                  f"({error})")
     progress("writing the report")
-    out = write_report(run, args.out)
+    out = write_report(run, args.out, design)
     progress.finish()
     for note in run.notes:
         print(f"note: {note}")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_uav.diagrams.manoeuvre_design import COMMAND_CSV, ManoeuvreDesign, command_csv
 from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN, accepted_evidence
 from drake_uav.identification.assessment.noise_floor import NoiseFloor
 from drake_uav.identification.discovery.plausibility import DerivativeWarning
@@ -28,7 +29,7 @@ from drake_uav.model.coefficients import SIGNALS
 from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
 
-__all__ = ["write_report", "result_warnings", "ROUND_ROWS"]
+__all__ = ["write_report", "result_warnings", "what_to_fly_next", "ROUND_ROWS"]
 
 _IMU = ("imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r")
 """The channels the coefficients are measured from: their residuals' spectra end at these
@@ -45,11 +46,14 @@ _AT_FLOOR = 1.1
 estimated from the data is good to about that)."""
 
 
-def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
+def write_report(run: IdentificationRun, out_dir: str | Path,
+                 next_manoeuvre: ManoeuvreDesign | None = None) -> Path:
     """Writes the report folder for ``run``; returns its path.
 
     The report formats what the run holds; ``summary.json`` is :meth:`IdentificationRun.
-    summary` (with the folder's own keys).
+    summary` (with the folder's own keys), and ``what_to_fly_next``
+    (:func:`what_to_fly_next`) when a manoeuvre is proposed or the log's rates leave terms
+    unidentified.
 
     Parameters
     ----------
@@ -57,6 +61,11 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
         The main job's result.
     out_dir : str or Path
         The report folder (replaced atomically).
+    next_manoeuvre : ManoeuvreDesign, optional
+        The manoeuvre proposed for the run's near ties
+        (:func:`~drake_uav.diagrams.manoeuvre_design.propose_manoeuvre`): the section
+        "What to fly next" shows it and the folder holds its command file
+        (:data:`~drake_uav.diagrams.manoeuvre_design.COMMAND_CSV`).
 
     Returns
     -------
@@ -79,9 +88,68 @@ def write_report(run: IdentificationRun, out_dir: str | Path) -> Path:
     report.add_key_values(run.coefficient_sigma, caption="Monte-Carlo standard deviation of "
                           "the measured force coefficients (Vaiopoulos 2017, sec. 5.6) [-]")
     _add_parameters(report, run)
+    _add_next_flight(report, run, next_manoeuvre)
     _add_rounds(report, run)
     _add_glossary(report)
-    return report.write(out_dir, run.summary())
+    files, summary = {}, run.summary()
+    if next_manoeuvre is not None or run.rate_limits:
+        summary["what_to_fly_next"] = what_to_fly_next(run, next_manoeuvre)
+    if next_manoeuvre is not None:
+        files[COMMAND_CSV] = command_csv(next_manoeuvre)
+    return report.write(out_dir, summary, files)
+
+
+def what_to_fly_next(run: IdentificationRun, design: ManoeuvreDesign | None) -> dict:
+    """``summary.json``'s ``what_to_fly_next``: the proposed manoeuvre and the log rates.
+
+    Parameters
+    ----------
+    run : IdentificationRun
+        The main job's result.
+    design : ManoeuvreDesign or None
+        The manoeuvre proposed for its near ties.
+
+    Returns
+    -------
+    dict
+        ``manoeuvre`` (:meth:`ManoeuvreDesign.summary` with its ``command_file``; None
+        without one) and ``log_rates`` (each term not identifiable at the logged rates with
+        the rate it needs [Hz], from ``not_identifiable_at_logged_rates``).
+    """
+    return {"manoeuvre": None if design is None
+            else design.summary() | {"command_file": COMMAND_CSV},
+            "log_rates": [{"term": r.term, "channel": r.channel,
+                           "needed_rate_hz": r.needed_rate_hz} for r in run.rate_limits]}
+
+
+def _add_next_flight(report: Report, run: IdentificationRun,
+                     design: ManoeuvreDesign | None) -> None:
+    """What to fly next: the manoeuvre that separates the near ties, and the rates to log."""
+    if design is None and not run.rate_limits:
+        return
+    report.add_heading("What to fly next")
+    lines = []
+    if design is not None:
+        peaks = design.summary()["peaks"]
+        lines.append(
+            f"A {design.duration:.0f} s manoeuvre of orthogonal multisines (Morelli 2003) "
+            f"that separates the near ties: `{COMMAND_CSV}` in this folder holds its commands "
+            "(time [s], then each input's trim plus its signal, in rad or a throttle "
+            "fraction). Inputs that move the columns telling the rivals apart, flown at "
+            f"their limit: {', '.join(design.selected) or 'none'}; peaks "
+            + ", ".join(f"{k} {v:.3g}" for k, v in peaks.items())
+            + ". Predicted on the identified model, each rival taken as the truth with the "
+            "size this flight gave it: the share of its held-out gain the other would reach "
+            f"(a near tie from {1 - NEAR_TIE_MARGIN:.0%}), the correlation of their columns "
+            "after the baseline, and the expected partial F-statistic of one against the "
+            "other (about 1: no evidence either way):\n")
+        lines += [f"- {s.sentence()}" for s in design.separations]
+    if run.rate_limits:
+        lines.append("\nLog the channels of 'Not identifiable at the logged rates' at the "
+                     "rates given there: "
+                     + ", ".join(f"{r.channel} at {r.needed_rate_hz:.3g} Hz for {r.term}"
+                                 for r in run.rate_limits) + ".")
+    report.add_text("\n".join(lines))
 
 
 def result_warnings(run: IdentificationRun) -> list[str]:

@@ -393,7 +393,8 @@ class Report:
 
     # ------------------------------------------------------------------------- writing
 
-    def write(self, out_dir: str | os.PathLike, summary: Mapping[str, Any]) -> Path:
+    def write(self, out_dir: str | os.PathLike, summary: Mapping[str, Any],
+              files: Mapping[str, str] | None = None) -> Path:
         """Writes the report folder atomically (module docstring); returns its absolute path.
 
         Args:
@@ -401,6 +402,7 @@ class Report:
                 files its manifest lists); replaced only once the new report is complete.
             summary: JSON-able mapping (numpy values allowed, see :func:`json_ready`) written
                 to summary.json together with ``"complete": true``.
+            files: further text files of the folder, name -> content (a command file).
 
         Raises:
             ValueError: summary uses a reserved key. TypeError: a summary value has no JSON form.
@@ -421,8 +423,11 @@ class Report:
             _write_text(partial / "report.md", self.to_markdown())
             _write_text(partial / "report.html",
                         self.to_html(pngs if self.embed_images else None))
-            files = sorted([*pngs, "report.md", "report.html", "summary.json"])
-            data.update(complete=True, report_title=self.title, report_files=files)
+            extra = dict(files or {})
+            for name, text in extra.items():
+                _write_text(partial / name, text)
+            written = sorted([*pngs, *extra, "report.md", "report.html", "summary.json"])
+            data.update(complete=True, report_title=self.title, report_files=written)
             _write_text(partial / "summary.json",
                         json.dumps(data, indent=2, allow_nan=False) + "\n")
         return out_dir

@@ -407,6 +407,15 @@ def _strength(injection: Injection, key: str, size: float, turbulence: str,
     return strength
 
 
+def calibrated_strength(key: str, size: float, turbulence: str = "light",
+                        duration: float = FLIGHT_DURATION, excitation: str = "multisine"
+                        ) -> float:
+    """The strength of the effect ``key`` of :data:`INJECTED` that gives ``size`` on the
+    calibration flights of ``turbulence``, ``duration`` [s] and ``excitation`` (the one a
+    campaign flight of these settings carries)."""
+    return _strength(INJECTED[key], key, size, turbulence, duration, excitation)
+
+
 def _realised_size(injection: Injection, flight: FlightLog, params: FixedWingParams,
                    strength: float) -> float:
     return strength / unit_strength_ratio(injection, flight, params)

@@ -1,0 +1,96 @@
+"""Does the proposed manoeuvre resolve a near tie? One campaign flight, then the next one.
+
+:func:`fly_next` flies a flight of the ``discovery`` campaign
+(:mod:`~drake_uav.testing.discovery_cases`: the aerosonde, one effect put into the physics,
+the three-axis multisine under the airspeed hold), runs the main job, and when the report
+holds a near tie, designs the manoeuvre that separates it
+(:func:`~drake_uav.diagrams.manoeuvre_design.propose_manoeuvre`) and flies it on the same
+aircraft with the same effect (the physics do not change with the manoeuvre), then runs the
+main job again. The tie is resolved when the second flight's findings are exactly the
+injected effect and the report names no near tie of it.
+"""
+
+from __future__ import annotations
+
+from drake_uav.diagrams import fly
+from drake_uav.diagrams.manoeuvre_design import propose_manoeuvre
+from drake_uav.identification.pipeline import identify
+from drake_uav.testing.discovery_cases import (
+    FLIGHT_DURATION,
+    INJECTED,
+    SUITES,
+    calibrated_strength,
+    measured_only,
+)
+from drake_uav.vehicles.loading import load_fixed_wing
+
+__all__ = ["fly_next", "resolved"]
+
+
+def resolved(run, expected: str) -> bool:
+    """The job named exactly ``expected`` and no other effect comes close to it."""
+    return list(run.findings) == [expected] and not any(
+        t.winner.effect == expected for t in run.near_ties)
+
+
+def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0.2,
+             turbulence: str = "light", duration: float = FLIGHT_DURATION,
+             propulsion: str = "data") -> dict:
+    """A campaign flight, its near ties, and the flight of the manoeuvre proposed for them.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of both flights (turbulence and sensor noise).
+    effect : str
+        A key of :data:`~drake_uav.testing.discovery_cases.INJECTED`.
+    suite, turbulence : str
+        Sensor suite and turbulence level of both flights.
+    size : float
+        The effect's size on the campaign flight (its strength is kept on the next one).
+    duration : float
+        Length of both flights [s].
+    propulsion : str
+        The job's thrust on both flights: "data" (identified from the flight where the
+        throttle moves on its own) or "catalog" (known, as from a logged motor speed or a
+        declared propeller; the aircraft flown has the catalog's propulsion).
+
+    Returns
+    -------
+    dict
+        ``found_first`` and ``tied_first`` (findings and near-tie sentences of the campaign
+        flight), ``expected``, ``selected`` (the inputs the design moves, empty without a
+        tie), ``predicted`` (each pair's summary), ``found_next``, ``tied_next`` and
+        ``resolved`` (:func:`resolved` on the next flight; None without a tie).
+
+    Raises
+    ------
+    ValueError
+        For an unknown effect or suite.
+    """
+    if effect not in INJECTED:
+        raise ValueError(f"effect: {effect!r} unknown (known: {', '.join(INJECTED)})")
+    if suite not in SUITES:
+        raise ValueError(f"suite: {suite!r} unknown (known: {', '.join(SUITES)})")
+    injection = INJECTED[effect]
+    catalog = load_fixed_wing("aerosonde")
+    strength = calibrated_strength(effect, size, turbulence, duration)
+    options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
+               "duration": duration, "sensors": SUITES[suite](catalog.rho),
+               **injection.fly_options(strength, catalog, duration)}
+    first = identify(measured_only(fly(excitation="multisine", **options)), catalog, seed=seed,
+                     propulsion=propulsion)
+    out = {"expected": injection.expected, "found_first": ",".join(first.findings),
+           "tied_first": " | ".join(t.sentence() for t in first.near_ties),
+           "selected": "", "predicted": [], "found_next": "", "tied_next": "",
+           "resolved": None}
+    design = propose_manoeuvre(first, duration=duration, propulsion=propulsion)
+    if design is None:
+        return out
+    run = identify(measured_only(fly(excitation=design.signals, **options)), catalog,
+                   seed=seed, propulsion=propulsion)
+    return out | {"selected": ",".join(design.selected),
+                  "predicted": [s.summary() for s in design.separations],
+                  "found_next": ",".join(run.findings),
+                  "tied_next": " | ".join(t.sentence() for t in run.near_ties),
+                  "resolved": resolved(run, injection.expected)}
