@@ -192,3 +192,14 @@ def test_the_proposed_manoeuvre_resolves_the_propwash_tie_with_a_known_thrust():
     tied = [r["resolved"] for r in rows if r["resolved"] is not None]
     assert len(tied) >= 5, rows
     assert sum(tied) >= 0.8 * len(tied), rows
+
+
+def test_a_rival_whose_direction_awaits_a_search_is_not_designed_for():
+    """The library's force towards a point has no direction until the data locate the point:
+    no columns, so the proposal leaves that pair out instead of failing."""
+    from drake_uav.diagrams.manoeuvre_design import _effect_columns
+
+    params = aerosonde()
+    assert _effect_columns("force_towards_point", params, "CD") is None
+    assert _effect_columns("force_body_x_off_cg", params, "CD") is not None
+    assert _effect_columns("p_hat*r_hat", params, "CD") is None

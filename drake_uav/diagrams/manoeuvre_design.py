@@ -510,9 +510,10 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
 
 def _effect_columns(name: str, params: FixedWingParams, quantity: str) -> Columns | None:
     """A named effect's columns on ``quantity`` (its non-zero ones), or None for a name the
-    libraries do not hold (a data-driven product, a logged channel)."""
+    libraries do not hold (a data-driven product, a logged channel) or one whose direction
+    the library leaves to a search (a force towards a point the data locate)."""
     effect = {e.name: e for e in [*effect_library(), *vector_effect_library()]}.get(name)
-    if effect is None:
+    if effect is None or getattr(effect, "unit_vectors", True) is None:
         return None
     candidate = effect.candidate(params)
 
