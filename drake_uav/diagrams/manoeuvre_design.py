@@ -349,9 +349,9 @@ class Separation:
                 f"{max(self.share_flown):.0%} of the true one's gain flown, "
                 f"{max(self.share_designed):.0%} designed; column correlation "
                 f"{self.correlation_flown:.3f} flown, {self.correlation_designed:.3f} "
-                f"designed; expected F {min(self.f_flown):.1f} flown, "
-                f"{min(self.f_designed):.1f} designed (each the worse of the two ways round): "
-                f"the manoeuvre {verdict}.")
+                f"designed; expected F {min(self.f_flown):.1f} over the flown flight, "
+                f"{min(self.f_designed):.1f} over the manoeuvre (each the worse of the two "
+                f"ways round; it grows with the length flown): the manoeuvre {verdict}.")
 
 
 @dataclasses.dataclass(frozen=True)

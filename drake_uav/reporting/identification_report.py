@@ -142,7 +142,9 @@ def _add_next_flight(report: Report, run: IdentificationRun,
             "size this flight gave it: the share of its held-out gain the other would reach "
             f"(a near tie from {1 - NEAR_TIE_MARGIN:.0%}), the correlation of their columns "
             "after the baseline, and the expected partial F-statistic of one against the "
-            "other (about 1: no evidence either way):\n")
+            "other (about 1: no evidence either way; it grows with the length flown, so a "
+            "long flight may give a large F to a pair the near-tie rule still ties: the "
+            "share decides):\n")
         lines += [f"- {s.sentence()}" for s in design.separations]
     if run.rate_limits:
         lines.append("\nLog the channels of 'Not identifiable at the logged rates' at the "
