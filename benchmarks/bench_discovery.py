@@ -49,7 +49,6 @@ from __future__ import annotations
 import argparse
 import collections
 import contextlib
-import os
 import sys
 import tempfile
 import time
@@ -57,6 +56,7 @@ from pathlib import Path
 
 import numpy as np
 from figures import figure
+from timing import finished_runs
 from validation_report import update as write_validation_page
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
@@ -215,13 +215,7 @@ def _campaigns(args: argparse.Namespace) -> None:
                     "discovery", seeds=parse_seeds(args.seeds), grid=grid,
                     fixed={"effect": effect, "size": size, **options}), out, scheduler)
     wall = time.perf_counter() - start
-    failed = [r for r in clean + effect_rows if r["status"] != "ok"]
-    print(f"{len(clean) + len(effect_rows) - len(failed)} runs finished, {len(failed)} failed, "
-          f"{wall:.0f} s wall on {args.workers or 1} worker(s), load {os.getloadavg()[0]:.1f}")
-    for row in failed[:10]:
-        print(f"  {row.get('effect')} seed {row['seed']}: {row['status']} {row.get('error', '')}")
-    if failed and args.quick:
-        raise SystemExit(f"{len(failed)} run(s) failed")
+    finished_runs(clean + effect_rows, wall, args.workers, args.quick)
     ok = [r for r in effect_rows if r["status"] == "ok"]
     clean_ok = [r for r in clean if r["status"] == "ok"]
     for suite in suites:

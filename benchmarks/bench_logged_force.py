@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import os
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from figures import figure
+from timing import finished_runs
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
 from drake_uav.campaigns.runner import local_cluster
@@ -134,14 +134,7 @@ def main() -> None:
             tether = _run(f"tether_{round(args.size * 100)}", Campaign(
                 "logged_force", seeds=parse_seeds(args.seeds), grid=grid,
                 fixed={"effect": "tether", "size": args.size}), out, scheduler)
-    failed = [r for r in clean + tether if r["status"] != "ok"]
-    print(f"{len(clean) + len(tether) - len(failed)} runs finished, {len(failed)} failed, "
-          f"{time.perf_counter() - start:.0f} s wall on {args.workers or 1} worker(s), load "
-          f"{os.getloadavg()[0]:.1f}")
-    for row in failed[:10]:
-        print(f"  {row.get('effect')} seed {row['seed']}: {row['status']} {row.get('error', '')}")
-    if failed and args.quick:
-        raise SystemExit(f"{len(failed)} run(s) failed")
+    finished_runs(clean + tether, time.perf_counter() - start, args.workers, args.quick)
     tether = [r for r in tether if r["status"] == "ok"]
     clean = [r for r in clean if r["status"] == "ok"]
     for suite in grid["suite"]:
