@@ -228,8 +228,8 @@ class FaultResponseSettings:
     tube_terminal: bool = False
     """Category IV with the recovery tube as terminal region (the source's choice). Off by
     default: the tube's value grows with a yaw rate beyond its limit, which the failures
-    that must spin exceed; with a noisy state it raised the position RMSE of motors 2 and 4
-    failed from 4.3 cm to 31 cm (docs/faults.md)."""
+    that must spin exceed, so the region fights the spin they need (motors 2 and 4 failed
+    then leave the mission and touch the ground; docs/faults.md)."""
     yaw_allocation_weight: float = 0.1
     """Weight of the yaw-torque row when the mission's wrench is allocated on the healthy
     motors and they cannot produce all of it (thrust and roll/pitch torques weigh 1): the
