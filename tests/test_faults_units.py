@@ -309,3 +309,22 @@ def test_a_tube_that_fails_classifies_as_II_and_the_loop_goes_on(params):
     assert run.category == Category.II and np.isnan(run.tube_value)
     assert np.all(np.isfinite(run.thrusts)) and np.all(run.thrusts[:, 2][run.control_time > 4.0]
                                                         == 0.0)
+
+
+def test_the_healthy_motors_carry_the_wrench_and_give_up_the_yaw_first(params):
+    """Motors 2 and 4 failed: hover is exact on the opposite pair 0 and 3 (zero yaw torque,
+    the input reference after the failure); 24 N is beyond the 20 N of zero yaw torque, and
+    with the yaw row weighed 0.1 the thrust and the roll/pitch torques are kept, the yaw
+    torque given up."""
+    health = np.ones(6)
+    health[[2, 4]] = 0.0
+    hover = params.thrusts_for_wrench([params.weight, 0.0, 0.0, 0.0], health)
+    np.testing.assert_allclose(hover, [params.weight / 2, 0, 0, params.weight / 2, 0, 0],
+                               atol=1e-9)
+    free_yaw = params.allocation_matrix @ params.thrusts_for_wrench(
+        [24.0, 0.0, 0.0, 0.0], health, yaw_weight=0.1)
+    equal = params.allocation_matrix @ params.thrusts_for_wrench([24.0, 0.0, 0.0, 0.0],
+                                                                 health)
+    print(f"24 N asked: yaw row 0.1 gives {free_yaw.round(4)}, 1 gives {equal.round(4)}")
+    assert abs(free_yaw[0] - 24.0) < 1e-3 and np.abs(free_yaw[1:3]).max() < 1e-3
+    assert np.abs(equal[1:3]).max() > 1e-2  # equal weights trade roll/pitch for yaw
