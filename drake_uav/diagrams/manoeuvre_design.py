@@ -150,6 +150,20 @@ def _matrix(name: str, x, n: int | None = None) -> np.ndarray:
     return x
 
 
+def _columns(base, first, second) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The baseline's and both rivals' columns, checked to be finite and of one length."""
+    first = _matrix("first", first)
+    return _matrix("base", base, len(first)), first, _matrix("second", second, len(first))
+
+
+def _parameters(theta, first: np.ndarray) -> np.ndarray:
+    """``theta`` as one finite value per column of ``first``."""
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    if theta.shape != (first.shape[1],) or not np.all(np.isfinite(theta)):
+        raise ValueError(f"theta: need {first.shape[1]} finite values, got {theta}")
+    return theta
+
+
 def _residual(x: np.ndarray, on: np.ndarray) -> np.ndarray:
     """``x`` minus its least-squares fit on ``on`` and a constant."""
     design = np.column_stack([np.ones(len(on)), on])
@@ -175,8 +189,7 @@ def distinguishing_energy(base, first, second) -> tuple[float, float]:
     ValueError
         For columns that are not finite or whose lengths differ.
     """
-    first = _matrix("first", first)
-    base, second = _matrix("base", base, len(first)), _matrix("second", second, len(first))
+    base, first, second = _columns(base, first, second)
     return (float(np.mean(_residual(first, np.column_stack([base, second])) ** 2)
                   * first.shape[1]),
             float(np.mean(_residual(second, np.column_stack([base, first])) ** 2)
@@ -204,8 +217,7 @@ def column_correlation(base, first, second) -> float:
     ValueError
         For columns that are not finite or whose lengths differ.
     """
-    first = _matrix("first", first)
-    base, second = _matrix("base", base, len(first)), _matrix("second", second, len(first))
+    base, first, second = _columns(base, first, second)
     a, b = _residual(first, base), _residual(second, base)
     qa, qb = np.linalg.qr(a)[0], np.linalg.qr(b)[0]
     if not (np.any(np.abs(a) > 0) and np.any(np.abs(b) > 0)):
@@ -244,13 +256,10 @@ def expected_f(theta, sigma: float, first, second, base, independent_share: floa
     ValueError
         For a non-positive ``sigma``, a ``theta`` of the wrong size or bad columns.
     """
-    first = _matrix("first", first)
-    theta = np.atleast_1d(np.asarray(theta, dtype=float))
-    if theta.shape != (first.shape[1],) or not np.all(np.isfinite(theta)):
-        raise ValueError(f"theta: need {first.shape[1]} finite values, got {theta}")
+    base, first, second = _columns(base, first, second)
+    theta = _parameters(theta, first)
     if not (sigma > 0 and math.isfinite(sigma)):
         raise ValueError(f"sigma: must be positive and finite, got {sigma}")
-    base, second = _matrix("base", base, len(first)), _matrix("second", second, len(first))
     part = _residual(first, np.column_stack([base, second])) @ theta
     return 1.0 + float(part @ part) / sigma**2 * independent_share / theta.size
 
@@ -280,11 +289,8 @@ def rival_share(theta, first, second, base) -> float:
     ValueError
         For a ``theta`` of the wrong size or bad columns.
     """
-    first = _matrix("first", first)
-    theta = np.atleast_1d(np.asarray(theta, dtype=float))
-    if theta.shape != (first.shape[1],) or not np.all(np.isfinite(theta)):
-        raise ValueError(f"theta: need {first.shape[1]} finite values, got {theta}")
-    base, second = _matrix("base", base, len(first)), _matrix("second", second, len(first))
+    base, first, second = _columns(base, first, second)
+    theta = _parameters(theta, first)
     r0 = _residual(first, base) @ theta
     r1 = _residual(first, np.column_stack([base, second])) @ theta
     total = float(r0 @ r0)
