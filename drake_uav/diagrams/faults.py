@@ -124,9 +124,9 @@ class FaultRun:
         return float(np.sqrt(np.mean(e**2))) if len(e) else np.nan
 
 
-def _touched_down(ground: Ground, context) -> bool:
-    """Whether ``ground`` has recorded a touchdown in the diagram ``context``."""
-    return ground.GetOutputPort("touchdown").Eval(ground.GetMyContextFromRoot(context))[0] > 0
+def _touchdown(ground: Ground, context) -> np.ndarray:
+    """The ``touchdown`` output (8) of ``ground`` in the diagram ``context``."""
+    return ground.GetOutputPort("touchdown").Eval(ground.GetMyContextFromRoot(context))
 
 
 def _check_failures(failures, duration: float, num_motors: int) -> tuple[MotorFailure, ...]:
@@ -247,19 +247,19 @@ def fly_fault(params: MultirotorParams, reference: ReferenceTable,
     xc[:13] = reference.state[0]
     plant_context.SetContinuousState(xc)
     start = _time.perf_counter()
-    if end_after_mission is not None and reference.end_time + end_after_mission < duration:
-        sim.AdvanceTo(reference.end_time + end_after_mission)
-        tracking = int(supervisor.GetOutputPort("category").Eval(
-            supervisor.GetMyContextFromRoot(context))[0]) in (Category.NONE, Category.IV)
-        if not tracking and not _touched_down(ground, context):
+    stop = duration if end_after_mission is None else min(
+        duration, reference.end_time + end_after_mission)
+    sim.AdvanceTo(stop)
+    if stop < duration and _touchdown(ground, context)[0] == 0:
+        category = supervisor.GetOutputPort("category").Eval(
+            supervisor.GetMyContextFromRoot(context))[0]
+        if int(category) not in (Category.NONE, Category.IV):  # a landing flies on
             sim.AdvanceTo(duration)
-    else:
-        sim.AdvanceTo(duration)
     wall = _time.perf_counter() - start
     get = {k: v.FindLog(context) for k, v in logs.items()}
     c = get["control"].data().T
     sup = supervisor.GetOutputPort("all").Eval(supervisor.GetMyContextFromRoot(context))
-    td = ground.GetOutputPort("touchdown").Eval(ground.GetMyContextFromRoot(context))
+    td = _touchdown(ground, context)
     touchdown = Touchdown(float(td[1]), td[2:5].copy(), td[5:8].copy()) if td[0] > 0 \
         else None
     failed = tuple(int(i) for i in np.flatnonzero(injector.health_at(duration) < 0.5)) \
