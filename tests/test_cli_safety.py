@@ -6,6 +6,7 @@ Parquet file that is not campaign results, a non-scenario callable, Ctrl-C, two 
 report folder, an aircraft file with an impossible value, and the options of ``track``.
 """
 
+import fcntl
 import hashlib
 import json
 import os
@@ -13,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 from pathlib import Path
 
 import pyarrow as pa
@@ -304,6 +306,36 @@ def test_two_writers_of_one_report_folder_take_turns(replacements, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["report"]  # no .old nor .partial folder
     summary = json.loads((out / "summary.json").read_text())
     assert summary["i"] == replacements - 1 and summary["complete"] is True
+
+
+def test_a_check_waits_for_a_swap_in_progress_instead_of_refusing(tmp_path):
+    """Another writer holds the parent's lock with its earlier report moved aside: a check
+    seeing the listed files but no manifest would refuse a folder that is only being
+    replaced; it waits for the lock and then finds the new report."""
+    out = tmp_path / "report"
+    Report("first").add_text("old").write(out, {"n": 1})
+    outcome = []
+
+    def check():
+        try:
+            outcome.append(check_output_folder(out))
+        except OutputRefusedError as err:
+            outcome.append(err)
+
+    fd = os.open(tmp_path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # the other writer's swap, halfway
+        moved_aside = tmp_path / ".report.old-x"
+        os.rename(out, moved_aside)
+        checker = threading.Thread(target=check)
+        checker.start()
+        checker.join(timeout=0.5)
+        assert checker.is_alive() and outcome == []  # waiting, not refusing
+        os.rename(moved_aside, out)  # the new report in place
+    finally:
+        os.close(fd)  # releases the lock
+    checker.join(timeout=10)
+    assert outcome == [out]
 
 
 def test_the_swap_rechecks_the_target_under_its_lock(tmp_path):

@@ -19,8 +19,10 @@ A folder is written into a hidden sibling ``.<name>.partial-<random>`` and swapp
 by :func:`replace_folder` only when complete, under an exclusive lock on the parent folder
 (``flock``), so two processes writing the same output take turns: the target is re-checked
 under the lock, the earlier output moved aside and deleted, and Ctrl-C is held back until the
-swap is done. A process killed while writing leaves at most a ``.partial-`` folder, never a
-half-written output.
+swap is done. A check (:func:`check_output_folder`) holds a shared lock on the parent, so it
+never looks at a folder another writer is swapping (moved aside, not yet replaced). A
+process killed while writing leaves at most a ``.partial-`` folder, never a half-written
+output.
 
 An output **file** (a replay page) may be missing or a file drake_uav wrote (recognised by the
 caller's ``ours`` test, e.g. a marker in its first bytes); it is never an input of the same
@@ -161,8 +163,9 @@ def check_output_folder(path: str | os.PathLike, *, what: str = "--out",
         ``path`` is a file, the current folder or one of its parents, holds an input, holds
         anything but an earlier drake_uav output, or cannot be written.
     """
-    with _os_errors_refused(what, path):
-        return _checked_folder(Path(os.path.abspath(path)), what, inputs)
+    path = Path(os.path.abspath(path))
+    with _os_errors_refused(what, path), _parent_locked(path, fcntl.LOCK_SH):
+        return _checked_folder(path, what, inputs)
 
 
 def _checked_folder(path: Path, what: str, inputs: Sequence[str | os.PathLike]) -> Path:
@@ -259,14 +262,24 @@ def _write_synced(path: Path, text: str) -> None:
 
 
 @contextlib.contextmanager
-def _parent_locked(target: Path) -> Iterator[None]:
-    """An exclusive ``flock`` on the parent folder of ``target`` (released on close, also
-    when the process dies): writers of one parent take turns, nothing is left on disk. On a
-    file system without ``flock`` (some network mounts) the writers are not ordered."""
-    fd = os.open(target.parent, os.O_RDONLY)
+def _parent_locked(target: Path, mode: int = fcntl.LOCK_EX) -> Iterator[None]:
+    """A ``flock`` on the parent folder of ``target`` (released on close, also when the
+    process dies): exclusive for a writer's swap (writers of one parent take turns), shared
+    for a check (it waits for a swap in progress). Nothing is left on disk. A parent that
+    cannot be opened (missing: nothing to order) and a file system without ``flock`` (some
+    network mounts) leave the callers unordered; the check then reports what it finds. Never
+    nest two locks on one parent in one process: ``flock`` treats each open of the folder as
+    another holder."""
+    try:
+        fd = os.open(target.parent, os.O_RDONLY)
+    except OSError:
+        fd = None
+    if fd is None:
+        yield
+        return
     try:
         with contextlib.suppress(OSError):  # no flock on this file system: writers unordered
-            fcntl.flock(fd, fcntl.LOCK_EX)
+            fcntl.flock(fd, mode)
         yield
     finally:
         os.close(fd)
@@ -304,7 +317,8 @@ def replace_folder(partial: str | os.PathLike, target: str | os.PathLike,
     """
     partial, target = Path(partial), Path(os.path.abspath(target))
     with _parent_locked(target), _interrupts_held():
-        check_output_folder(target, what=what)
+        with _os_errors_refused(what, target):
+            _checked_folder(target, what, ())
         if target.is_dir() and any(target.iterdir()):
             old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
             os.rename(target, old)
