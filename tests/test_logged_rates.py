@@ -162,12 +162,31 @@ def test_a_10_hz_imu_and_3_hz_commands_claim_nothing_and_name_what_they_cannot_s
     products = [n.removeprefix("data_driven:").split("*") for n in tested
                 if n.startswith("data_driven:")]
     assert products and all(set(p) <= {"alpha", "beta"} for p in products)
+    # The derivatives it cannot support are not fitted: the model keeps the catalog's.
+    # Fitted, they took whatever the slowed channels gave (a positive roll damping, Cl_p =
+    # +0.048, and a roll reconstruction off by 143 deg/s).
+    catalog = aerosonde().derivatives
+    fixed = {n: v for terms in run.discovery.fixed.values() for n, v in terms.items()}
+    assert fixed == {n: catalog[n] for n in UNSUPPORTED if n in catalog}
+    assert not any(set(fit.names) & UNSUPPORTED for fit in run.discovery.final.values())
+    assert not [w for w in run.derivative_warnings if set(w.derivatives) & UNSUPPORTED]
+    summary = run.summary()
+    assert summary["parameters"]["Cl"]["Cl_p"] == {
+        "estimate": catalog["Cl_p"], "sigma": None, "significant": False, "fixed": True,
+        "catalog": catalog["Cl_p"]}
+    mae = summary["reconstruction_mae_holdout"]
+    print(f"{kind}: reconstruction MAE p {math.degrees(mae['p']['after']):.1f} deg/s, "
+          f"q {math.degrees(mae['q']['after']):.1f} deg/s, "
+          f"r {math.degrees(mae['r']['after']):.1f} deg/s")
+    assert math.degrees(mae["p"]["after"]) < 20.0
+    assert summary["reconstruction_divergences"]["after"] == 0
     if kind == "tlog":  # the report and summary.json list them under their own heading
         folder = write_report(run, tmp_path / "report")
         report = (folder / "report.md").read_text()
         assert "## Not identifiable at the logged rates" in report
         assert "| actuator_time_delay | time delay | cmd_elevator | 3 | 50 |" in report
-        assert re.search(r"\| Cl_p \| - \| [^\n]* \| not at the logged rates \|", report)
+        assert re.search(r"\| Cl_p \| - \| -0\.26 \| [^\n]* \| fixed: not at the logged "
+                         r"rates \|", report)
         listed = json.loads((folder / "summary.json").read_text())[
             "not_identifiable_at_logged_rates"]
         assert {r["term"] for r in listed} == UNSUPPORTED

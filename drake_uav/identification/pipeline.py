@@ -49,6 +49,7 @@ from drake_uav.identification.discovery.effects import Effect, effect_library
 from drake_uav.identification.discovery.loop import check_coefficients, discover
 from drake_uav.identification.discovery.plausibility import DerivativeWarning
 from drake_uav.identification.discovery.result import (
+    CoefficientFit,
     DiscoveryResult,
     EvidenceRule,
     Finding,
@@ -409,7 +410,9 @@ class IdentificationRun:
             Adequacy`, and its noise floor, :attr:`noise_floors`),
             ``reconstruction_mae_holdout, reconstruction_divergences,
             measured_coefficient_sigma_monte_carlo, parameters`` (with each one's catalog
-            value; a baseline term the flight does not support as 0, ``dropped``: true),
+            value; a baseline term the flight does not support as 0, ``dropped``: true; a
+            derivative the log's rates cannot support at its catalog value, ``fixed``: true,
+            ``sigma``: null),
             ``dropped_terms`` (per coefficient, the figures that dropped each,
             :class:`~drake_uav.identification.discovery.parsimony.DroppedTerm`),
             ``warnings`` (:attr:`derivative_warnings`), ``near_ties`` (:attr:`near_ties`),
@@ -455,6 +458,9 @@ class IdentificationRun:
                 | {t.term: {"estimate": 0.0, "sigma": 0.0, "significant": False, "dropped": True,
                             "catalog": catalog.get(t.term)}
                    for t in d.dropped.get(k, ())}
+                | {n: {"estimate": v, "sigma": None, "significant": False, "fixed": True,
+                       "catalog": catalog.get(n)}
+                   for n, v in d.fixed.get(k, {}).items()}
                 for k, fit in d.final.items()
             },
             "dropped_terms": {k: [dataclasses.asdict(t) for t in terms]
@@ -504,8 +510,7 @@ def _reconstruct(samples: AeroSamples, params, discovery: DiscoveryResult, fits,
     start = int(np.searchsorted(samples.time, discovery.holdout_start))
     test = samples.subset(slice(start, len(samples)))
     sensor_effects = [f.name for f in discovery.found if f.kind == "sensor"]
-    models = {k: (fits[k].names, fits[k].result.estimate, fits[k].holdout_design)
-              for k in fits}
+    models = {k: _with_fixed_terms(fits[k], discovery.fixed.get(k, {})) for k in fits}
     for k in COEFFICIENTS:
         if k not in models:
             names = tuple(baseline_names(params, k))
@@ -513,6 +518,14 @@ def _reconstruct(samples: AeroSamples, params, discovery: DiscoveryResult, fits,
                          np.zeros((len(test), len(names))))
     return reconstruct(test, params, models, exclude_prefixes=sensor_effects,
                        reset_interval=reset_interval)
+
+
+def _with_fixed_terms(fit: CoefficientFit, fixed: Mapping[str, float]):
+    """``(names, values, held-out design)`` of a fit with its fixed catalog terms added
+    (their columns are recomputed by the reconstruction: zeros here)."""
+    design = fit.holdout_design
+    return ((*fit.names, *fixed), np.concatenate([fit.result.estimate, list(fixed.values())]),
+            np.hstack([design, np.zeros((len(design), len(fixed)))]))
 
 
 def coefficient_uncertainty(samples: AeroSamples, params: FixedWingParams, seed: int = 0,
@@ -714,7 +727,9 @@ def identify(log: FlightLog, params: FixedWingParams, options: IdentifyOptions |
                            effects=testable_effects(selection.air_data, command_delay),
                            vector_effects=testable_vector_effects(
                                selection.air_data, force_channels(samples)),
-                           untested={limit.term for limit in (*limits, *products)})
+                           untested={limit.term for limit in (*limits, *products)},
+                           fixed={limit.term: params.derivatives[limit.term] for limit in limits
+                                  if limit.term in params.derivatives})
     notes = ((position.note(),) if moved else ()) + selection.notes \
         + _rate_notes(limits, len(products)) + run.discovery.notes
     selection = dataclasses.replace(selection, notes=notes,
@@ -728,9 +743,10 @@ def _rate_notes(limits: Sequence[RateLimit], products: int) -> tuple[str, ...]:
     if not limits:
         return ()
     untested = f"; nor {products} data-driven products of their signals" if products else ""
+    terms = ", ".join(r.term for r in limits)
     return (f"not identifiable at the logged rates (effects not tested, calibration errors "
-            f"not claimed, derivatives not trusted): {', '.join(r.term for r in limits)}"
-            f"{untested}; the channels and the rates they need are listed in the report",)
+            f"not claimed, derivatives fixed at the catalog's values): {terms}{untested}; "
+            "the channels and the rates they need are listed in the report",)
 
 
 def check_log_channels(log: FlightLog, params: FixedWingParams, *,
@@ -1077,6 +1093,7 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
                      effects: Sequence[Effect] | None = None,
                      vector_effects: Sequence[VectorEffect] | None = None,
                      untested: Collection[str] = (),
+                     fixed: Mapping[str, float] | None = None,
                      **changes) -> IdentificationRun:
     """The main job after the isolation: discovery, reconstruction, uncertainty.
 
@@ -1105,6 +1122,9 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
     untested : collection of str
         Candidates not to test, by name (:func:`~drake_uav.identification.discovery.loop.
         discover`).
+    fixed : Mapping[str, float], optional
+        Catalog derivatives fixed at these values instead of fitted (:func:`~drake_uav.
+        identification.discovery.loop.discover`): those the log's rates cannot support.
     **changes
         Fields of :class:`IdentifyOptions` to change for this call.
 
@@ -1135,7 +1155,7 @@ def identify_samples(samples: AeroSamples, params: FixedWingParams,
     say = progress or (lambda message: None)
     result = discover(samples, params, effects=effects, vector_effects=vector_effects,
                       rule=options.rule, progress=say, coefficients=options.coefficients,
-                      untested=untested)
+                      untested=untested, fixed=fixed)
     say("reconstructing airspeed, alpha and beta (output error)")
     before = _reconstruct(samples, params, result, result.baseline, reset_interval)
     after = _reconstruct(samples, params, result, result.final, reset_interval)

@@ -199,9 +199,12 @@ def _add_rate_limits(report: Report, run: IdentificationRun) -> None:
     report.add_text(
         "Each channel is judged on the rate it was logged at, not on the grid the analysis "
         "resamples it onto. The effects below were not tested, the calibration errors not "
-        "claimed, and the derivatives stay in the fit but are not identified by this flight, "
-        "whatever their values (docs/logged_rates.md). Where the model is still incomplete, "
-        "the missing part may lie in these terms: log the channels at the rates given.")
+        "claimed, and the derivatives are not fitted: the identified model keeps their "
+        "catalog values (docs/logged_rates.md). A coefficient these terms act on may show a "
+        "held-out error above its noise floor: the slow channels lose the band the terms act "
+        "in, so neither the catalog values nor any fitted ones would match the measured "
+        "coefficient there; the reconstruction, which integrates the model, is the check. "
+        "Log the channels at the rates given.")
     report.add_table([
         {"term": r.term, "what": r.what, "channel": r.channel,
          "logged [Hz]": r.native_rate_hz, "needed [Hz]": r.needed_rate_hz, "why": r.reason}
@@ -367,10 +370,10 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
                     "the thrust was identified from the flight: by how much that thrust exceeds "
                     "the one the data now give, per unit of each throttle term, fitted again "
                     "with the effects on the drag axis."
-                    + (" A term marked *not at the logged rates* needs channels logged faster "
-                       "than this log's (Not identifiable at the logged rates): its value is "
-                       "not identified by this flight." if run.rate_limits else ""))
-    limited = {limit.term for limit in run.rate_limits}
+                    + (" A term marked *fixed: not at the logged rates* needs channels logged "
+                       "faster than this log's (Not identifiable at the logged rates): it is "
+                       "not fitted, and the identified model keeps its catalog value."
+                       if run.rate_limits else ""))
     for k, fit in run.discovery.final.items():
         r = fit.result
         report.add_table(
@@ -378,13 +381,14 @@ def _add_parameters(report: Report, run: IdentificationRun) -> None:
               "sigma": r.sigma[i], "catalog": catalog.get(n),
               "(estimate - catalog) / sigma": (None if n not in catalog or not r.sigma[i]
                                                else (r.estimate[i] - catalog[n]) / r.sigma[i]),
-              "t": r.t_statistic[i],
-              "significant": "not at the logged rates" if n in limited
-              else bool(r.significant[i])}
+              "t": r.t_statistic[i], "significant": bool(r.significant[i])}
              for i, n in enumerate(fit.names)]
             + [{"parameter": t.term, "unit": _derivative_unit(t.term), "estimate": 0.0,
                 "catalog": catalog.get(t.term), "significant": "dropped"}
-               for t in run.discovery.dropped.get(k, ())],
+               for t in run.discovery.dropped.get(k, ())]
+            + [{"parameter": n, "unit": _derivative_unit(n), "estimate": value,
+                "catalog": catalog.get(n), "significant": "fixed: not at the logged rates"}
+               for n, value in run.discovery.fixed.get(k, {}).items()],
             formats={"(estimate - catalog) / sigma": lambda v: "-" if v is None
                      else f"{v:+.1f}"},
             caption=f"{k} ({r.method}, R^2 = {r.r_squared:.3f})")

@@ -213,6 +213,36 @@ class Design:
                                 self.noise.observation, self.noise.variance)
         return Design([self.names[i] for i in keep], self.X[:, keep], self.z, noise)
 
+    def with_fixed(self, values: Mapping[str, float]) -> Design:
+        """The design with the columns ``values`` names fixed at those values, not fitted.
+
+        Their part moves to the measured side, ``z - sum_j v_j x_j``, and so does the noise
+        it carries: each source's observation sensitivity loses ``sum_j v_j dx_j/ds``, so
+        the bias compensation of the columns that stay is unchanged in kind. Names the
+        design does not hold are ignored.
+
+        Parameters
+        ----------
+        values : Mapping[str, float]
+            Column name -> the value it is fixed at (in the column's coefficient units).
+
+        Returns
+        -------
+        Design
+            The design without those columns, its measured side corrected.
+        """
+        fixed = [i for i, name in enumerate(self.names) if name in values]
+        if not fixed:
+            return self
+        v = np.array([values[self.names[i]] for i in fixed])
+        observation = dict(self.noise.observation)
+        for source, J in self.noise.regressors.items():
+            part = J[:, fixed] @ v
+            observation[source] = observation.get(source, 0.0) - part
+        reduced = self.keeping([n for n in self.names if n not in values])
+        noise = dataclasses.replace(reduced.noise, observation=observation)
+        return Design(reduced.names, reduced.X, self.z - self.X[:, fixed] @ v, noise)
+
     def moments(self, rows=None) -> tuple[np.ndarray, np.ndarray]:
         """Noise-corrected normal equations ``(X^T X - C_xx, X^T z - c_xz)`` on ``rows``.
 

@@ -71,6 +71,7 @@ from drake_uav.identification.discovery.coefficient_design import (
     Design,
     Perturbations,
     baseline_design,
+    baseline_names,
     columns_and_jacobians,
 )
 from drake_uav.identification.discovery.effects import (
@@ -267,12 +268,13 @@ def discover(samples: AeroSamples, params: FixedWingParams,
              effects: Sequence[Effect] | None = None, rule: EvidenceRule | None = None,
              coefficients: Sequence[str] = COEFFICIENTS, fallback: bool = True,
              progress=None, vector_effects: Sequence[VectorEffect] | None = None,
-             untested: Collection[str] = ()) -> DiscoveryResult:
+             untested: Collection[str] = (),
+             fixed: Mapping[str, float] | None = None) -> DiscoveryResult:
     """Runs the residual -> effect -> refit loop on ``samples`` (module docstring).
 
     The loop's stages (baseline and pruning, rounds, final check, final fits, adequacy)
     read one after the other here, in about 60 lines, so that its order is seen at once;
-    the eight parameters are the loop's inputs and switches, each with its default.
+    the nine parameters are the loop's inputs and switches, each with its default.
 
     Parameters
     ----------
@@ -298,6 +300,12 @@ def discover(samples: AeroSamples, params: FixedWingParams,
         Candidates not to test, by name (named effects, ``data_driven:<a>*<b>`` products,
         vector effects): those the data cannot support (a log's rates,
         :mod:`~drake_uav.identification.assessment.logged_rates`).
+    fixed : Mapping[str, float], optional
+        Catalog terms fixed at the given values instead of fitted
+        (:meth:`~drake_uav.identification.discovery.coefficient_design.Design.with_fixed`):
+        those the data cannot support (a derivative needing a faster log). They are
+        neither fitted nor pruned, and stay in the identified model at these values
+        (:attr:`DiscoveryResult.fixed`).
 
     Returns
     -------
@@ -337,14 +345,16 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     train = samples.subset(slice(0, n_train))
     test = samples.subset(slice(n_train, n))
     edges = fold_edges(n_train, rule.folds)
-    designs = {k: baseline_design(train, params, k) for k in fitted}
+    fixed = dict(fixed or {})
+    designs = {k: baseline_design(train, params, k).with_fixed(fixed) for k in fitted}
     pruned = {k: prune(k, d.names, d.X, d.z, d.noise, edges, rule.min_pse_reduction,
                        always=(f"{k}_0", *(n for n in d.names if n.startswith(THRUST_COLUMN))))
               if rule.parsimonious else Pruning(tuple(d.names), ())
               for k, d in designs.items()}
     # Effects are judged against the catalog's whole structure, so that none takes the
     # place of a term the flight hardly supports; the model reported is the pruned one.
-    search = _Search(designs, {k: baseline_design(test, params, k) for k in fitted},
+    search = _Search(designs, {k: baseline_design(test, params, k).with_fixed(fixed)
+                               for k in fitted},
                      _Candidates(train, params), Perturbations(test), effects, rule,
                      {k: float(np.std(samples.coefficients[k])) for k in fitted})
     baseline = {k: _fit(k, search.designs[k].keeping(pruned[k].kept),
@@ -387,6 +397,9 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                            rounds=tuple(rounds), holdout_start=float(test.time[0]),
                            checks=tuple(search.checks), skipped=skipped, adequacy=adequacy,
                            dropped={k: p.dropped for k, p in pruned.items() if p.dropped},
+                           fixed={k: f for k in fitted
+                                  if (f := {n: fixed[n] for n in baseline_names(params, k)
+                                            if n in fixed})},
                            aliases=_aliases(search, vectors, found, final,
                                             {k: d for k, (d, _) in initial.items()}, pruned))
 

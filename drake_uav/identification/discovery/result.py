@@ -392,6 +392,11 @@ class DiscoveryResult:
         Each accepted effect, on each coefficient it is kept on, whose column this flight
         cannot tell apart from a term of another physical origin, with those terms
         (:mod:`~drake_uav.identification.discovery.aliases`).
+    fixed : Mapping[str, Mapping[str, float]]
+        Fitted coefficient -> the catalog's terms fixed at these values instead of fitted
+        (the ``fixed`` of :func:`~drake_uav.identification.discovery.loop.discover`: terms
+        the data cannot support); they are not among its fits' names but are in the
+        identified model at these values.
 
     Examples
     --------
@@ -419,6 +424,7 @@ class DiscoveryResult:
     adequacy: Mapping[str, Adequacy] = dataclasses.field(default_factory=dict)
     dropped: Mapping[str, tuple[DroppedTerm, ...]] = dataclasses.field(default_factory=dict)
     aliases: tuple[AliasedEffect, ...] = ()
+    fixed: Mapping[str, Mapping[str, float]] = dataclasses.field(default_factory=dict)
 
     @property
     def incomplete(self) -> dict[str, Adequacy]:
