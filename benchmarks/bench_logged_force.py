@@ -14,6 +14,10 @@ channels alone. It prints, per sensor suite and turbulence level:
   finding explains where it was kept and there was an excess (target >= 70 % on C_D and
   C_Y, which the tether moves by about 8 times and 30 % of their variation; its lift is
   under 3 % of C_L's, below one flight's noise);
+* with ``--attachment hook`` the tether pulls at a tow hook 0.15 m ahead of and 0.10 m
+  below the centre of gravity, so its moment moves C_l, C_m and C_n too: the finding to
+  name is ``force_towards_point_logged:tension_off_cg`` and the shares are printed on the
+  six coefficients;
 * the clock offset the compatibility check estimated: its error against the truth and
   the error over its standard error;
 * the point the data located, its distance from the anchor;
@@ -21,8 +25,9 @@ channels alone. It prints, per sensor suite and turbulence level:
   aircraft (an unrelated channel), how often anything is found (target 0).
 
     python benchmarks/bench_logged_force.py [--seeds 0:20] [--clean-seeds 0:20]
-        [--suites default,research] [--turbulence light] [--size 0.3] [--workers 2]
-        [--out benchmarks/results/logged_force] [--quick]
+        [--suites default,research] [--turbulence light] [--size 0.3]
+        [--attachment cg|hook] [--workers 2] [--out benchmarks/results/logged_force]
+        [--quick]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
 ``--quick`` flies one tethered and one clean flight (default sensors, light turbulence)
@@ -43,7 +48,7 @@ from timing import finished_runs
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
 from drake_uav.campaigns.runner import local_cluster
-from drake_uav.testing.logged_force_cases import EXPECTED, MOVED
+from drake_uav.testing.logged_force_cases import EXPECTED, EXPECTED_OFF_CG, MOVED, MOVED_OFF_CG
 
 TARGET_NAMED = 0.9
 """Share of tethered flights named exactly as the logged-magnitude force."""
@@ -65,7 +70,8 @@ def _run(name: str, campaign: Campaign, out: Path, scheduler: str | None) -> lis
 
 
 
-def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict]) -> None:
+def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict],
+            hooked: bool) -> None:
     print(f"\n== {suite} sensors, {turbulence} turbulence ==")
     clean = [r for r in clean if r["suite"] == suite and r["turbulence"] == turbulence]
     rows = [r for r in tether if r["suite"] == suite and r["turbulence"] == turbulence]
@@ -77,12 +83,14 @@ def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict]) 
                float(np.mean([r["any_finding"] for r in clean])), "1", "lower")
     if not rows:
         return
+    expected, moved = (EXPECTED_OFF_CG, MOVED_OFF_CG) if hooked else (EXPECTED, MOVED)
     named = [r["named"] for r in rows]
     others = sorted({r["found"] for r in rows if not r["named"]})
-    print(f"named {EXPECTED}: {_rate(named)} (target >= {TARGET_NAMED:.0%})"
+    print(f"named {expected}: {_rate(named)} (target >= {TARGET_NAMED:.0%})"
           + (f"; otherwise found: {'; '.join(others)}" if others else ""))
-    figure(f"logged_force_named_{suite}_{turbulence}", float(np.mean(named)), "1", "higher")
-    for k in MOVED:
+    figure(f"logged_force_named_{suite}_{turbulence}" + ("_hook" if hooked else ""),
+           float(np.mean(named)), "1", "higher")
+    for k in moved:
         kept = [r for r in rows if r["named"] and r[f"kept_{k}"]]
         explained = [r[f"excess_explained_{k}"] for r in kept
                      if np.isfinite(r[f"excess_explained_{k}"])]
@@ -112,6 +120,8 @@ def main() -> None:
     parser.add_argument("--turbulence", default="light")
     parser.add_argument("--size", type=float, default=0.3,
                         help="the tether's share of C_Y's variation")
+    parser.add_argument("--attachment", choices=("cg", "hook"), default="cg",
+                        help="where the tether pulls: the centre of gravity or a tow hook")
     parser.add_argument("--workers", type=int, default=2, help="0: in this process")
     parser.add_argument("--out", default="benchmarks/results/logged_force",
                         help="folder of the Parquet results (resumable)")
@@ -131,15 +141,17 @@ def main() -> None:
         with local_cluster(args.workers) as scheduler:
             clean = _run("clean", Campaign("logged_force", seeds=parse_seeds(args.clean_seeds),
                                            grid=grid, fixed={"effect": "none"}), out, scheduler)
-            tether = _run(f"tether_{round(args.size * 100)}", Campaign(
+            suffix = "_hook" if args.attachment == "hook" else ""
+            tether = _run(f"tether_{round(args.size * 100)}{suffix}", Campaign(
                 "logged_force", seeds=parse_seeds(args.seeds), grid=grid,
-                fixed={"effect": "tether", "size": args.size}), out, scheduler)
+                fixed={"effect": "tether", "size": args.size,
+                       "attachment": args.attachment}), out, scheduler)
     finished_runs(clean + tether, time.perf_counter() - start, args.workers, args.quick)
     tether = [r for r in tether if r["status"] == "ok"]
     clean = [r for r in clean if r["status"] == "ok"]
     for suite in grid["suite"]:
         for level in grid["turbulence"]:
-            _report(suite, level, tether, clean)
+            _report(suite, level, tether, clean, args.attachment == "hook")
 
 
 if __name__ == "__main__":

@@ -161,13 +161,17 @@ the middle of the flight's track (which runs north from the origin, 100 m up).""
 
 class PullTowardsPoint(LeafSystem):
     """A force of ``magnitude`` [N] (a constant, or a function of the time [s]) towards
-    the NED ``point`` [m], at the centre of gravity (a tether to an anchor), as the plant's
-    body-axis external wrench; input the plant's state (position NED, quaternion, ...)."""
+    the NED ``point`` [m] (a tether to an anchor), applied at the body point
+    ``attachment`` [m, FRD from the centre of gravity; zero: at the centre of gravity,
+    no moment], as the plant's body-axis external wrench (force, then its moment
+    ``attachment x force``); input the plant's state (position NED, quaternion, ...)."""
 
-    def __init__(self, magnitude: float | Callable[[float], float], point=PULL_POINT):
+    def __init__(self, magnitude: float | Callable[[float], float], point=PULL_POINT,
+                 attachment=(0.0, 0.0, 0.0)):
         super().__init__()
         self._magnitude = magnitude if callable(magnitude) else (lambda t: magnitude)
         self._point = np.asarray(point, dtype=float)
+        self._attachment = np.asarray(attachment, dtype=float)
         self._state = self.DeclareVectorInputPort("state", 13)
         self.DeclareVectorOutputPort("wrench", 6, self._wrench)
 
@@ -175,16 +179,17 @@ class PullTowardsPoint(LeafSystem):
         x = self._state.Eval(context)
         towards = self._point - x[:3]
         body = np.asarray(quat_to_rotmat(x[3:7])).T @ (towards / np.linalg.norm(towards))
-        output.SetFromVector(np.concatenate([self._magnitude(context.get_time()) * body,
-                                             np.zeros(3)]))
+        force = self._magnitude(context.get_time()) * body
+        output.SetFromVector(np.concatenate([force, np.cross(self._attachment, force)]))
 
 
-def pull_towards_point(magnitude: float | Callable[[float], float], point=PULL_POINT):
+def pull_towards_point(magnitude: float | Callable[[float], float], point=PULL_POINT,
+                       attachment=(0.0, 0.0, 0.0)):
     """Fly options (``extend``): a pull of ``magnitude`` [N] (or a function of the time)
-    towards the NED ``point`` [m] (:class:`PullTowardsPoint`) on the plant's external
-    wrench."""
+    towards the NED ``point`` [m], applied at the body point ``attachment`` [m, FRD]
+    (:class:`PullTowardsPoint`), on the plant's external wrench."""
     def extend(builder, ports):
-        pull = builder.AddNamedSystem("pull", PullTowardsPoint(magnitude, point))
+        pull = builder.AddNamedSystem("pull", PullTowardsPoint(magnitude, point, attachment))
         builder.Connect(ports["state"], pull.get_input_port(0))
         builder.Connect(pull.get_output_port(0),
                         ports["state"].get_system().GetInputPort("external_wrench"))

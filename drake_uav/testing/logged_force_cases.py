@@ -47,7 +47,8 @@ from drake_uav.vehicles.fixed_wing import FixedWingParams
 from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["ANCHOR", "LOGGER_RATE", "TENSION_NOISE", "OFFSET_RANGE", "EXPECTED",
-           "MOVED", "clock_offset", "separate_logger", "logged_force"]
+           "EXPECTED_OFF_CG", "HOOK", "MOVED", "MOVED_OFF_CG", "clock_offset",
+           "separate_logger", "logged_force"]
 
 ANCHOR = (1500.0, 400.0, 0.0)
 """NED point [m] of the tether's anchor: on the ground, 400 m east of the middle of the
@@ -64,6 +65,14 @@ EXPECTED = "force_towards_point_logged:tension"
 a point the data locate."""
 MOVED = ("CL", "CD", "CY")
 """The coefficients the tether moves (it acts at the centre of gravity)."""
+HOOK = (0.15, 0.0, 0.10)
+"""[m] FRD body point of a tow hook: 0.15 m ahead of and 0.10 m below the centre of
+gravity, under the fuselage (``attachment="hook"``)."""
+EXPECTED_OFF_CG = "force_towards_point_logged:tension_off_cg"
+"""The finding that names a tether pulling at :data:`HOOK`: the same force, with its
+moment."""
+MOVED_OFF_CG = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
+"""The coefficients a tether pulling at :data:`HOOK` moves."""
 
 
 def clock_offset(seed: int) -> float:
@@ -141,13 +150,16 @@ def logged_force(seed: int, params: dict) -> dict:
 
     Parameters (defaults): ``effect`` ("tether" or "none"), ``size`` (0.3, share of
     ``C_Y``'s variation), ``suite`` ("default" or "research"), ``turbulence`` ("light"),
-    ``offset`` (the logger's clock offset [s]; None: :func:`clock_offset` of the seed).
+    ``offset`` (the logger's clock offset [s]; None: :func:`clock_offset` of the seed),
+    ``attachment`` ("cg", or "hook": the tether pulls at :data:`HOOK`, so its moment moves
+    C_l, C_m and C_n too).
 
     Metrics: ``found`` (comma-separated findings), ``named`` (the discovery's findings are
-    exactly :data:`EXPECTED`), ``exact`` (that, and no calibration finding but the
-    channel's clock offset), ``any_finding`` (on a clean flight), ``offset`` (the true
-    one), ``offset_estimate``, ``offset_sigma``, ``offset_applied``, ``strength``; per
-    coefficient of :data:`MOVED`, ``excess_explained_<k>`` (NaN at the floor) and
+    exactly :data:`EXPECTED`, or :data:`EXPECTED_OFF_CG` at the hook), ``exact`` (that, and
+    no calibration finding but the channel's clock offset), ``any_finding`` (on a clean
+    flight), ``offset`` (the true one), ``offset_estimate``, ``offset_sigma``,
+    ``offset_applied``, ``strength``; per coefficient of :data:`MOVED` (at the hook
+    :data:`MOVED_OFF_CG`), ``excess_explained_<k>`` (NaN at the floor) and
     ``kept_<k>`` (the finding was kept on it); ``point_error`` [m] and ``point_sigma`` [m].
     """
     effect = params.get("effect", "tether")
@@ -157,6 +169,11 @@ def logged_force(seed: int, params: dict) -> dict:
     if suite not in SUITES:
         raise ValueError(f"logged_force: suite {suite!r} unknown (known: {', '.join(SUITES)})")
     turbulence = params.get("turbulence", "light")
+    attachment = params.get("attachment", "cg")
+    if attachment not in ("cg", "hook"):
+        raise ValueError(f"logged_force: attachment {attachment!r} unknown (known: cg, hook)")
+    hooked = attachment == "hook"
+    expected, moved = (EXPECTED_OFF_CG, MOVED_OFF_CG) if hooked else (EXPECTED, MOVED)
     offset = params.get("offset")
     offset = clock_offset(seed) if offset is None else float(offset)
     catalog = load_fixed_wing("aerosonde")
@@ -168,7 +185,8 @@ def logged_force(seed: int, params: dict) -> dict:
         return strength * tether_tension(t)
 
     if effect == "tether":
-        options |= pull_towards_point(lambda t: float(tension(t)[0]), ANCHOR)
+        options |= pull_towards_point(lambda t: float(tension(t)[0]), ANCHOR,
+                                      HOOK if hooked else (0.0, 0.0, 0.0))
     log = separate_logger(fly(**options), "tension", tension, strength * TENSION_NOISE,
                           offset, seed)
     run = identify(measured_only(log), catalog, seed=seed)
@@ -184,12 +202,12 @@ def logged_force(seed: int, params: dict) -> dict:
                "offset_applied": bool(shift is not None and shift.applied)}
     if effect == "none":
         return metrics
-    named = discovered == [EXPECTED]
+    named = discovered == [expected]
     metrics |= {"named": named,
                 "exact": named and set(calibration) <= {"tension_clock_offset"}}
     floors = held_out_noise_floor(run.samples, run.discovery, catalog)
-    finding = next((f for f in run.discovery.found if f.name == EXPECTED), None)
-    for k in MOVED:
+    finding = next((f for f in run.discovery.found if f.name == expected), None)
+    for k in moved:
         explained = floors[k].excess_explained
         metrics[f"excess_explained_{k}"] = math.nan if explained is None else explained
         metrics[f"kept_{k}"] = finding is not None and k in finding.coefficients

@@ -469,7 +469,10 @@ def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
     ``constant_body_force``: here a body-axis force always has its lever arm. The forces
     against the GPS velocity and towards a point the data locate (``force_towards_point``,
     :mod:`~drake_uav.identification.discovery.fitted_point`) need the GPS in the samples'
-    signals.
+    signals. A force towards a located point is also tried away from the centre of gravity
+    (a tether on a hook) when its magnitude is a logged channel; of constant magnitude,
+    only at the centre of gravity, so that a flight without a logged force is searched as
+    the validation campaign measured it (docs/validation.md).
 
     Parameters
     ----------
@@ -493,12 +496,26 @@ def vector_effect_library(magnitudes: Sequence[str | None] = (None,),
         out += [vector_effect(f"body_{a}", magnitude=magnitude, lever_arm=True) for a in "xyz"]
         out += [vector_effect(d, magnitude=magnitude, lever_arm=arm)
                 for d in ("air_velocity", "ground_velocity") for arm in (False, True)]
-        if located_point:
-            out.append(vector_effect("towards_point", magnitude=magnitude))
+        if located_point:  # away from the c.g. only with a logged magnitude (docstring)
+            out += [vector_effect("towards_point", magnitude=magnitude, lever_arm=arm)
+                    for arm in ((False, True) if magnitude else (False,))]
     return out
 
 
 # ----------------------------------------------------------------------------- joint fit
+
+
+def _twin_at_cg_does_as_well(joint: JointEvidence, passing: Sequence[JointEvidence],
+                             margin: float) -> bool:
+    """True for a passing force away from the centre of gravity whose twin at the centre
+    of gravity (same name without ``_off_cg``) passes too and removes within ``margin`` per
+    moment coefficient as much held-out error (:meth:`JointSearch.accept`)."""
+    if not joint.effect.lever_arm:
+        return False
+    twin = joint.effect.name.removesuffix("_off_cg")
+    rival = next((j for j in passing if j.effect.name == twin), None)
+    moments = sum(k in _MOMENT_AXIS for k in joint.coefficients)
+    return rival is not None and joint.total - rival.total <= margin * max(moments, 1)
 
 
 class JointSearch:
@@ -723,8 +740,12 @@ class JointSearch:
         :attr:`EvidenceRule.min_pse_reduction` more on each coefficient its total sums over,
         as a data-driven product must on its one coefficient; so does a force proportional to
         a logged channel, whose rival is the channel itself on each coefficient (which needs
-        no direction). Every effect tried joins
-        ``used``.
+        no direction). A force away from the centre of gravity whose twin at the centre of
+        gravity passes too competes only when its moment removes
+        :attr:`EvidenceRule.min_pse_reduction` more than the twin on each moment coefficient
+        it moves (the twin is the same force with the lever arm fixed at zero: the simpler
+        of two nested models, named unless the data ask for the moment). Every effect tried
+        joins ``used``.
 
         Parameters
         ----------
@@ -744,7 +765,9 @@ class JointSearch:
         FoundEffect or None
             The effect accepted.
         """
-        passing = sorted((j for j in joint if j.passed), key=lambda j: -j.total)
+        passing = [j for j in joint if j.passed]
+        passing = sorted((j for j in passing if not _twin_at_cg_does_as_well(
+            j, passing, search.rule.min_pse_reduction)), key=lambda j: -j.total)
         totals: dict[str, float] = {}
         for e in named:
             if e.passed and e.effect not in used:
