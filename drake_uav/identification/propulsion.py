@@ -746,9 +746,10 @@ def declared_thrust(grid: GriddedLog, params: FixedWingParams,
     Returns
     -------
     dict
-        ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] (at the logged shaft speed) and
-        no ``thrust_correction_terms``, ``thrust_from_shaft_speed`` True: the keyword
-        arguments of
+        ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] (at the logged shaft speed),
+        ``thrust_speed_slope`` [N/(rad/s)] and ``shaft_speed`` [rad/s] (which carry the
+        speed's noise into the thrust), no ``thrust_correction_terms``,
+        ``thrust_from_shaft_speed`` True: the keyword arguments of
         :func:`~drake_uav.identification.samples.isolation.isolate_coefficients`.
 
     Raises
@@ -762,13 +763,31 @@ def declared_thrust(grid: GriddedLog, params: FixedWingParams,
                              "propeller's shaft speed in the log (motor_speed: an RPM sensor, "
                              "or the one ESC's esc_rpm_0); none is logged")
     diameter, coefficients = propeller.diameter, propeller.thrust_coefficients
-    n_d = _speed_diameter(uniform["motor_speed"], diameter)
-    airspeed = uniform["pitot_airspeed"]
-    slopes = thrust_regressor_airspeed_slopes(params.rho, n_d, airspeed, diameter)
-    return {"thrust": propeller_thrust(params.rho, n_d, airspeed, diameter, coefficients),
+    speed, airspeed = uniform["motor_speed"], uniform["pitot_airspeed"]
+    slopes = thrust_regressor_airspeed_slopes(params.rho, _speed_diameter(speed, diameter),
+                                              airspeed, diameter)
+
+    def thrust(shaft_speed):
+        return propeller_thrust(params.rho, _speed_diameter(shaft_speed, diameter), airspeed,
+                                diameter, coefficients)
+
+    return {"thrust": thrust(speed),
             "thrust_airspeed_slope": sum(c * x for c, x in zip(coefficients, slopes,
                                                                strict=True)),
-            "thrust_correction_terms": (), "thrust_from_shaft_speed": True}
+            "thrust_correction_terms": (), "thrust_from_shaft_speed": True,
+            **_shaft_speed_noise_path(thrust, speed)}
+
+
+SPEED_STEP = 0.1
+"""Finite-difference step of the shaft speed [rad/s] for d(thrust)/d(speed)."""
+
+
+def _shaft_speed_noise_path(thrust, speed: np.ndarray) -> dict[str, np.ndarray]:
+    """``thrust_speed_slope`` (central difference of ``thrust(speed)`` [N/(rad/s)]) and
+    ``shaft_speed``: the isolation's keywords that carry the speed's noise into a thrust
+    computed from it."""
+    return {"thrust_speed_slope": (thrust(speed + SPEED_STEP) - thrust(speed - SPEED_STEP))
+            / (2.0 * SPEED_STEP), "shaft_speed": speed}
 
 
 def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
@@ -800,7 +819,9 @@ def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
     -------
     dict
         ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] and
-        ``thrust_correction_terms`` and ``thrust_from_shaft_speed``, the keyword arguments of
+        ``thrust_correction_terms`` and ``thrust_from_shaft_speed`` (from the shaft speed,
+        also ``thrust_speed_slope`` and ``shaft_speed``, :func:`declared_thrust`), the
+        keyword arguments of
         :func:`~drake_uav.identification.samples.isolation.isolate_coefficients`; empty
         when the catalog model predicts best or the data cannot tell.
 
@@ -824,7 +845,12 @@ def thrust_from_gridded_log(grid: GriddedLog, params: FixedWingParams,
                              ) from None
     if not model.terms:
         return {}
-    value, _, slope = model.thrust(uniform["pitot_airspeed"], controls[:, 3], speed)
-    return {"thrust": value, "thrust_airspeed_slope": slope,
-            "thrust_correction_terms": model.terms if model.source == "throttle" else (),
-            "thrust_from_shaft_speed": model.source == "motor_speed"}
+    airspeed = uniform["pitot_airspeed"]
+    value, _, slope = model.thrust(airspeed, controls[:, 3], speed)
+    out = {"thrust": value, "thrust_airspeed_slope": slope,
+           "thrust_correction_terms": model.terms if model.source == "throttle" else (),
+           "thrust_from_shaft_speed": model.source == "motor_speed"}
+    if model.source == "motor_speed":
+        out |= _shaft_speed_noise_path(
+            lambda shaft_speed: model.thrust(airspeed, controls[:, 3], shaft_speed)[0], speed)
+    return out

@@ -18,7 +18,7 @@ import numpy as np
 from drake_uav.model.coefficients import AeroCondition
 
 __all__ = ["AeroSamples", "MomentInputs", "Signal", "LOGGED", "logged", "MOMENTS", "ATTITUDE",
-           "GPS_VELOCITY", "GPS_POSITION"]
+           "GPS_VELOCITY", "GPS_POSITION", "SHAFT_SPEED"]
 
 class Signal(StrEnum):
     """The named signals of :attr:`AeroSamples.signals` (a logged extra channel is
@@ -52,6 +52,10 @@ GPS_VELOCITY = (Signal.GPS_VN, Signal.GPS_VE, Signal.GPS_VD)
 """:attr:`AeroSamples.signals` of the GPS velocity, NED [m/s]."""
 GPS_POSITION = (Signal.GPS_PN, Signal.GPS_PE, Signal.GPS_PD)
 """:attr:`AeroSamples.signals` of the GPS position, NED [m]."""
+
+SHAFT_SPEED = "motor_speed"
+"""Noise source of a thrust computed from the logged propeller shaft speed [rad/s]
+(:attr:`AeroSamples.thrust_speed_slope`), in :attr:`AeroSamples.noise_variance`."""
 
 MOMENTS = ("Cl", "Cm", "Cn")
 """Coefficients measured from the angular accelerations."""
@@ -113,6 +117,9 @@ class MomentInputs:
     rate_derivatives: np.ndarray
     logged: Mapping[str, np.ndarray]
     noise_variance: Mapping[str, float]
+    thrust_speed_slope: np.ndarray | None = None
+    """d(thrust)/d(shaft speed) [N/(rad/s)] of a thrust from the logged shaft speed, or
+    None (:attr:`AeroSamples.thrust_speed_slope`)."""
 
     def subset(self, index) -> MomentInputs:
         """The samples selected by a boolean mask or an index array.
@@ -133,7 +140,8 @@ class MomentInputs:
             self.dynamic_pressure[index], self.throttle[index], self.thrust[index],
             None if self.thrust_airspeed_slope is None else self.thrust_airspeed_slope[index],
             self.rate_derivatives[index], {k: v[index] for k, v in self.logged.items()},
-            dict(self.noise_variance))
+            dict(self.noise_variance),
+            None if self.thrust_speed_slope is None else self.thrust_speed_slope[index])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -181,6 +189,10 @@ class AeroSamples:
         Whether the thrust comes from the logged shaft speed through the propeller law
         (:mod:`drake_uav.model.propeller`): it then already follows the throttle as the
         motor did, so a command delay puts no error on it.
+    thrust_speed_slope : numpy.ndarray of shape (N,) or None
+        d(thrust)/d(shaft speed) [N/(rad/s)] of a thrust from the logged shaft speed, which
+        carries the speed's noise (:data:`SHAFT_SPEED` in ``noise_variance``) into the
+        thrust, the thrust coefficient and C_L, C_D; None otherwise.
     reference_area : float
         Wing area S [m^2] the coefficients refer to.
     moments : MomentInputs or None
@@ -218,6 +230,7 @@ class AeroSamples:
     thrust_airspeed_slope: np.ndarray | None = None
     thrust_correction_terms: tuple[str, ...] = ()
     thrust_from_shaft_speed: bool = False
+    thrust_speed_slope: np.ndarray | None = None
     reference_area: float = 1.0
     moments: MomentInputs | None = None
     signal_units: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -253,7 +266,8 @@ class AeroSamples:
         return dataclasses.replace(
             self, condition=m.condition, dynamic_pressure=m.dynamic_pressure,
             throttle=m.throttle, thrust=m.thrust, thrust_airspeed_slope=m.thrust_airspeed_slope,
-            rate_derivatives=m.rate_derivatives, signals={**signals, **m.logged},
+            thrust_speed_slope=m.thrust_speed_slope, rate_derivatives=m.rate_derivatives,
+            signals={**signals, **m.logged},
             noise_variance=m.noise_variance, moments=None)
 
     def with_moments(self, update) -> AeroSamples:
@@ -276,7 +290,8 @@ class AeroSamples:
         """d(measured coefficient)/d(air-data signal) per sample, for noise propagation.
 
         Every coefficient divides by qbar, so d/dVa = -2 C / Va; the wind-axis
-        rotation gives d C_L / d alpha = -C_D and d C_D / d alpha = C_L.
+        rotation gives d C_L / d alpha = -C_D and d C_D / d alpha = C_L. A thrust from
+        the logged shaft speed moves C_L and C_D with the speed too.
 
         Parameters
         ----------
@@ -286,16 +301,21 @@ class AeroSamples:
         Returns
         -------
         dict of str to numpy.ndarray
-            ``airspeed`` [1/(m/s)], ``alpha``, ``beta`` [1/rad] -> (N,) sensitivity.
+            ``airspeed`` [1/(m/s)], ``alpha``, ``beta`` [1/rad] and, with
+            :attr:`thrust_speed_slope`, :data:`SHAFT_SPEED` [1/(rad/s)] -> (N,)
+            sensitivity.
         """
         value = self.coefficients[coefficient]
         out = {"airspeed": -2.0 * value / self.condition.airspeed}
-        if coefficient in ("CL", "CD") and self.thrust_airspeed_slope is not None:
+        if coefficient in ("CL", "CD"):
             # C_X = (m a_x - T) / (qbar S) also moves with the modelled thrust.
-            dcx = -self.thrust_airspeed_slope / (self.dynamic_pressure * self.reference_area)
             alpha = self.condition.alpha
-            rotate = np.sin(alpha) if coefficient == "CL" else -np.cos(alpha)
-            out["airspeed"] = out["airspeed"] + rotate * dcx
+            rotate = (np.sin(alpha) if coefficient == "CL" else -np.cos(alpha)) / (
+                -self.dynamic_pressure * self.reference_area)
+            if self.thrust_airspeed_slope is not None:
+                out["airspeed"] = out["airspeed"] + rotate * self.thrust_airspeed_slope
+            if self.thrust_speed_slope is not None:
+                out[SHAFT_SPEED] = rotate * self.thrust_speed_slope
         if coefficient == "CL":
             out["alpha"] = -self.coefficients["CD"]
         elif coefficient == "CD":
@@ -303,30 +323,35 @@ class AeroSamples:
         return out
 
     def perturbed(self, signal: str, delta: float) -> AeroSamples:
-        """A copy with ``delta`` added to one air-data signal, as the forces and the moments see it.
+        """A copy with ``delta`` added to one air-data signal (or the shaft speed), as the
+        forces and the moments see it.
 
-        The dynamic pressure (and a thrust computed from the airspeed) follow the airspeed.
+        The dynamic pressure (and a thrust computed from the airspeed) follow the airspeed;
+        a thrust from the shaft speed follows :data:`SHAFT_SPEED` through
+        :attr:`thrust_speed_slope`, and the thrust coefficient the thrust.
 
         Parameters
         ----------
         signal : str
-            ``airspeed``, ``alpha`` or ``beta``.
+            ``airspeed``, ``alpha``, ``beta`` or :data:`SHAFT_SPEED`.
         delta : float
-            The step [m/s or rad].
+            The step [m/s, rad or rad/s].
 
         Returns
         -------
         AeroSamples
             The perturbed copy.
         """
-        condition, q_bar, thrust = _perturbed_air_data(
-            self.condition, self.dynamic_pressure, self.thrust, self.thrust_airspeed_slope,
-            self.reference_area, signal, delta)
+        condition, q_bar, thrust = _perturbed_inputs(
+            self.condition, self.dynamic_pressure, self.thrust,
+            (self.thrust_airspeed_slope, self.thrust_speed_slope), self.reference_area,
+            signal, delta)
         return dataclasses.replace(
             self.with_moments(lambda m: dataclasses.replace(m, **dict(zip(
-                ("condition", "dynamic_pressure", "thrust"), _perturbed_air_data(
-                    m.condition, m.dynamic_pressure, m.thrust, m.thrust_airspeed_slope,
-                    self.reference_area, signal, delta), strict=True)))),
+                ("condition", "dynamic_pressure", "thrust"), _perturbed_inputs(
+                    m.condition, m.dynamic_pressure, m.thrust,
+                    (m.thrust_airspeed_slope, m.thrust_speed_slope), self.reference_area,
+                    signal, delta), strict=True)))),
             condition=condition, dynamic_pressure=q_bar, thrust=thrust)
 
     def subset(self, index) -> AeroSamples:
@@ -362,18 +387,29 @@ class AeroSamples:
                                    else pick(self.thrust_airspeed_slope)),
             thrust_correction_terms=self.thrust_correction_terms,
             thrust_from_shaft_speed=self.thrust_from_shaft_speed,
+            thrust_speed_slope=(None if self.thrust_speed_slope is None
+                                else pick(self.thrust_speed_slope)),
             reference_area=self.reference_area,
             moments=None if self.moments is None else self.moments.subset(index),
             signal_units=dict(self.signal_units),
         )
 
 
-def _perturbed_air_data(condition: AeroCondition, q_bar: np.ndarray, thrust: np.ndarray,
-                        slope: np.ndarray | None, area: float, signal: str, delta: float
-                        ) -> tuple[AeroCondition, np.ndarray, np.ndarray]:
+def _perturbed_inputs(condition: AeroCondition, q_bar: np.ndarray, thrust: np.ndarray,
+                      slopes: tuple[np.ndarray | None, np.ndarray | None], area: float,
+                      signal: str, delta: float
+                      ) -> tuple[AeroCondition, np.ndarray, np.ndarray]:
     """The condition, dynamic pressure [Pa] and thrust [N] with ``delta`` added to the
-    air-data ``signal``: qbar scales with the airspeed squared, the modelled thrust
-    follows its airspeed ``slope``, and the thrust coefficient both (wing area ``area``)."""
+    air-data ``signal`` or the shaft speed: qbar scales with the airspeed squared, the
+    modelled thrust follows its airspeed and shaft-speed ``slopes``, and the thrust
+    coefficient both (wing area ``area``)."""
+    slope, speed_slope = slopes
+    if signal == SHAFT_SPEED:
+        if speed_slope is None:
+            raise ValueError("AeroSamples.perturbed: the thrust does not come from a logged "
+                             "shaft speed (no thrust_speed_slope)")
+        thrust = thrust + speed_slope * delta
+        return condition._replace(thrust_coefficient=thrust / (q_bar * area)), q_bar, thrust
     value = getattr(condition, signal) + delta
     moved = condition._replace(**{signal: value})
     if signal != "airspeed":

@@ -72,6 +72,7 @@ from drake_uav.estimation.signals import HELD_FRACTION, fresh_samples, unheld
 from drake_uav.identification.samples.aero_samples import (
     GPS_POSITION,
     GPS_VELOCITY,
+    SHAFT_SPEED,
     AeroSamples,
     Signal,
 )
@@ -695,7 +696,9 @@ def isolated_samples(grid: GriddedLog, params: FixedWingParams,
         The aircraft.
     thrust : Mapping, optional
         An identified thrust: ``thrust`` [N], ``thrust_airspeed_slope`` [N/(m/s)] and
-        ``thrust_correction_terms``
+        ``thrust_correction_terms``, from the shaft speed with ``thrust_speed_slope`` and
+        ``shaft_speed``, whose noise then enters the samples (declared, or read at its
+        native rate, :func:`gridded_log`; else on the grid)
         (:func:`~drake_uav.identification.propulsion.thrust_from_gridded_log`); None keeps
         the catalog's propulsion model.
 
@@ -714,7 +717,7 @@ def isolated_samples(grid: GriddedLog, params: FixedWingParams,
             params, uniform.time, uniform.stack(SPECIFIC_FORCE), uniform.stack(RATES),
             uniform.stack(AIR_DATA), grid.controls, signals=grid.signals,
             raw_noise_variance={k: v for k, v in grid.noise_variance.items()
-                                if k != "motor_speed"},  # the thrust fit's alone
+                                if k != SHAFT_SPEED or "shaft_speed" in (thrust or {})},
             moment_controls=grid.moment_controls,
             logged={c: (uniform[c], unit) for c, unit in grid.extras.items()},
             **(thrust or {}))

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 from scipy.special import ndtr
 
-from drake_uav.identification.samples.aero_samples import AeroSamples, MomentInputs
+from drake_uav.identification.samples.aero_samples import SHAFT_SPEED, AeroSamples, MomentInputs
 from drake_uav.identification.samples.aero_samples import logged as logged_key
 from drake_uav.model.air_data import dynamic_pressure
 from drake_uav.model.coefficients import COEFFICIENTS, AeroCondition
@@ -180,6 +180,8 @@ def isolate_coefficients(
     logged: Mapping[str, tuple[np.ndarray, str]] | None = None,
     thrust_correction_terms: tuple[str, ...] = (),
     thrust_from_shaft_speed: bool = False,
+    thrust_speed_slope: np.ndarray | None = None,
+    shaft_speed: np.ndarray | None = None,
 ) -> AeroSamples:
     """Measured coefficients (Vaiopoulos 2017, eq. 5.41) from uniformly sampled flight data.
 
@@ -237,6 +239,12 @@ def isolate_coefficients(
     thrust_from_shaft_speed : bool
         Whether ``thrust`` comes from the logged shaft speed
         (:attr:`AeroSamples.thrust_from_shaft_speed`).
+    thrust_speed_slope : numpy.ndarray of shape (N,), optional
+        d(thrust)/d(shaft speed) [N/(rad/s)] of a ``thrust`` computed from the logged shaft
+        speed, which carries the speed's noise (:attr:`AeroSamples.thrust_speed_slope`).
+    shaft_speed : numpy.ndarray of shape (N,), optional
+        The logged shaft speed [rad/s] with ``thrust_speed_slope``: its noise variance is
+        read from it unless ``raw_noise_variance`` declares it (key ``motor_speed``).
 
     Returns
     -------
@@ -273,15 +281,21 @@ def isolate_coefficients(
                                 len(time))
     filters = _Filters(time, derivative_window)
     model = FixedWingModel(params)
-    measured_thrust = None if thrust is None else (
-        np.asarray(thrust, dtype=float),
-        None if thrust_airspeed_slope is None else np.asarray(thrust_airspeed_slope, float))
+    if (thrust_speed_slope is None) != (shaft_speed is None) or (
+            thrust_speed_slope is not None and thrust is None):
+        raise ValueError("isolate_coefficients: thrust_speed_slope and shaft_speed go "
+                         "together, with the thrust computed from that shaft speed")
+    speed_channel = {} if shaft_speed is None else _checked_signals(
+        {SHAFT_SPEED: shaft_speed}, len(time))
+    measured_thrust = None if thrust is None else tuple(
+        None if v is None else np.asarray(v, dtype=float)
+        for v in (thrust, thrust_airspeed_slope, thrust_speed_slope))
     forces = _force_samples(params, model, filters, arrays, measured_thrust)
     moments = _moment_samples(params, model, filters, arrays, measured_thrust)
     coefficients = dict(zip(COEFFICIENTS, forces.coefficients + moments.coefficients,
                             strict=True))
     noise_variance, moment_gain = _noise_variance(filters, arrays, raw_noise_variance,
-                                                  channels)
+                                                  channels | speed_channel)
     view = forces.view
     samples = AeroSamples(
         time=time, condition=forces.condition, coefficients=coefficients,
@@ -291,14 +305,15 @@ def isolate_coefficients(
         signals={**extra, **{k: filters.sample(v) for k, v in channels.items()}},
         noise_variance=noise_variance, thrust_airspeed_slope=view.thrust_slope,
         thrust_correction_terms=tuple(thrust_correction_terms),
-        thrust_from_shaft_speed=bool(thrust_from_shaft_speed), reference_area=params.S,
+        thrust_from_shaft_speed=bool(thrust_from_shaft_speed),
+        thrust_speed_slope=view.speed_slope, reference_area=params.S,
         signal_units={logged_key(k): unit for k, (_, unit) in (logged or {}).items()},
     )
     view = moments.view
     return dataclasses.replace(samples, moments=MomentInputs(
         condition=moments.condition, dynamic_pressure=view.q_bar, throttle=view.controls[:, 3],
         thrust=view.thrust, thrust_airspeed_slope=view.thrust_slope,
-        rate_derivatives=moments.rate_derivatives,
+        thrust_speed_slope=view.speed_slope, rate_derivatives=moments.rate_derivatives,
         logged={k: filters.interval(interval_averages(v)) for k, v in channels.items()},
         noise_variance={k: v * moment_gain for k, v in noise_variance.items()}))
 
@@ -362,6 +377,8 @@ class _ControlView(NamedTuple):
     """Thrust [N]."""
     thrust_slope: np.ndarray | None
     """d(thrust)/d(airspeed) of the propulsion model [N/(m/s)], None if thrust is measured."""
+    speed_slope: np.ndarray | None
+    """d(thrust)/d(shaft speed) [N/(rad/s)] of a thrust from the logged shaft speed."""
     torque: np.ndarray
     """Propeller torque [N m]."""
 
@@ -378,6 +395,7 @@ def _control_view(model: FixedWingModel, raw_air, raw_controls, filt,
     # The propeller model is strongly nonlinear in throttle: evaluate it on the raw
     # values, then filter the result like every other signal.
     raw_thrust, raw_torque = model.thrust(raw_air[:, 0], raw_controls[:, 3])
+    speed_slope = None
     if raw_measured_thrust is None:
         step = 0.01
         slope = filt((model.thrust(raw_air[:, 0] + step, raw_controls[:, 3])[0]
@@ -385,12 +403,13 @@ def _control_view(model: FixedWingModel, raw_air, raw_controls, filt,
                      / (2 * step))
         thrust = filt(raw_thrust)
     else:
-        raw_value, raw_slope = raw_measured_thrust
+        raw_value, raw_slope, raw_speed_slope = raw_measured_thrust
         slope = None if raw_slope is None else filt(raw_slope)
+        speed_slope = None if raw_speed_slope is None else filt(raw_speed_slope)
         thrust = filt(raw_value)
     torque = filt(np.broadcast_to(raw_torque, raw_air[:, 0].shape).astype(float))
     q_bar = dynamic_pressure(air[:, 0], model.params.rho)
-    return _ControlView(air, u, q_bar, thrust, slope, torque)
+    return _ControlView(air, u, q_bar, thrust, slope, speed_slope, torque)
 
 
 class _Isolated(NamedTuple):
@@ -449,8 +468,8 @@ def _moment_samples(params, model, filters: _Filters, arrays, measured_thrust) -
 def _noise_variance(filters: _Filters, arrays, raw_noise_variance,
                     logged: Mapping[str, np.ndarray]):
     """White-noise variance of the smoothed channels (:data:`NOISE_CHANNELS` and the
-    ``logged`` extra channels) and the factor by which the moments' interval filter
-    changes it."""
+    ``logged`` extra channels and shaft speed) and the factor by which the moments'
+    interval filter changes it."""
     time, window = filters.time, filters.window
     noise = np.concatenate([smoothed_noise_variance(time, arrays[k], window)
                             for k in ("air_data", "rates", "specific_force")])

@@ -21,6 +21,8 @@ source               what carries it                                   variance 
 ``logged:<channel>`` an extra channel of the log (a tension, a        the isolation's
                      voltage), smoothed like the regressors: the       (smoothed channel)
                      candidates built on it
+``motor_speed``      a thrust from the logged shaft speed: the         the isolation's
+                     thrust coefficient, C_L and C_D                   (smoothed channel)
 ===================  ===============================================  ====================
 
 The derivative weights of a centred smoothing filter are antisymmetric and its
@@ -29,7 +31,7 @@ of its derivative are uncorrelated: they are separate sources. The moments' inte
 filter is the same derivative written on the sample increments, so the derivatives carry
 the same noise for forces and moments. The controls are the logged commands (exact); the
 thrust coefficient's noise is the airspeed's (the propulsion model's thrust at the
-measured airspeed, over qbar).
+measured airspeed, over qbar), and the shaft speed's when the thrust comes from it.
 
 A column's sensitivity to a source is the central difference of the column over a copy
 of the samples with the source moved by :data:`STEPS` (:func:`perturbed`).
@@ -44,7 +46,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from drake_uav.identification.samples.aero_samples import LOGGED, MOMENTS, AeroSamples
+from drake_uav.identification.samples.aero_samples import (
+    LOGGED,
+    MOMENTS,
+    SHAFT_SPEED,
+    AeroSamples,
+)
 from drake_uav.identification.samples.isolation import isolate_coefficients
 from drake_uav.identification.statistics.errors_in_variables import PropagatedNoise
 from drake_uav.model.isolation import differentiate, force_coefficients, moment_coefficients
@@ -62,7 +69,8 @@ ISOLATION_WINDOW = inspect.signature(isolate_coefficients).parameters[
 """Savitzky-Golay window [s] of the isolation (its default, which the main job uses)."""
 
 STEPS = {"airspeed": 1e-3, "alpha": 1e-5, "beta": 1e-5, "alphadot": 1e-5,
-         "p": 1e-5, "q": 1e-5, "r": 1e-5, "p_dot": 1e-4, "q_dot": 1e-4, "r_dot": 1e-4}
+         "p": 1e-5, "q": 1e-5, "r": 1e-5, "p_dot": 1e-4, "q_dot": 1e-4, "r_dot": 1e-4,
+         SHAFT_SPEED: 1e-2}
 """Every noise source with its finite-difference step [m/s, rad, rad/s, rad/s^2]."""
 
 LOGGED_STEP = 1e-4
@@ -128,7 +136,7 @@ def source_variances(samples: AeroSamples, coefficient: str) -> dict[str, float]
         Source (module table) -> variance [unit^2]; sources without noise are left out.
     """
     view = samples.aligned(coefficient).noise_variance
-    out = {s: float(view[s]) for s in (*AIR_DATA_SOURCES, *_RATES) if s in view}
+    out = {s: float(view[s]) for s in (*AIR_DATA_SOURCES, *_RATES, SHAFT_SPEED) if s in view}
     out.update((s, float(v)) for s, v in view.items() if s.startswith(LOGGED))
     smooth, derivative = smoothing_gains(float(np.median(np.diff(samples.time))))
     for source, channel in DERIVATIVES.items():
@@ -177,7 +185,8 @@ def perturbed(samples: AeroSamples, source: str, delta: float) -> AeroSamples:
     samples : AeroSamples
         The samples.
     source : str
-        An air-data source, a rate derivative or a logged channel (module table).
+        An air-data source, a rate derivative, the shaft speed or a logged channel (module
+        table).
     delta : float
         The step, in the source's unit.
 
