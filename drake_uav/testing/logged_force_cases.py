@@ -48,7 +48,7 @@ from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["ANCHOR", "LOGGER_RATE", "TENSION_NOISE", "OFFSET_RANGE", "EXPECTED",
            "EXPECTED_OFF_CG", "HOOK", "MOVED", "MOVED_OFF_CG", "clock_offset",
-           "separate_logger", "logged_force"]
+           "separate_logger", "tethered_flight", "logged_force"]
 
 ANCHOR = (1500.0, 400.0, 0.0)
 """NED point [m] of the tether's anchor: on the ground, 400 m east of the middle of the
@@ -143,6 +143,51 @@ def _unit_strength(turbulence: str) -> float:
     return float(np.median(ratios))
 
 
+def tethered_flight(seed: int, *, effect: str = "tether", size: float = 0.3,
+                    suite: str = "default", turbulence: str = "light",
+                    offset: float | None = None, attachment: str = "cg"
+                    ) -> tuple[FlightLog, float, float]:
+    """One flight of the :func:`logged_force` scenario (its parameters, same defaults): the
+    aerosonde pulled by a tether (or not) whose tension a separate logger records.
+
+    Returns
+    -------
+    log : FlightLog
+        The flight's log with the ``tension`` channel [N], truth channels included
+        (:func:`~drake_uav.testing.discovery_cases.measured_only` strips them).
+    strength : float
+        The tension's scale (1: mean 3 N, standard deviation 1 N).
+    offset : float
+        The logger's clock offset [s].
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown effect, suite or attachment.
+    """
+    if effect not in ("tether", "none"):
+        raise ValueError(f"logged_force: effect {effect!r} unknown (known: tether, none)")
+    if suite not in SUITES:
+        raise ValueError(f"logged_force: suite {suite!r} unknown (known: {', '.join(SUITES)})")
+    if attachment not in ("cg", "hook"):
+        raise ValueError(f"logged_force: attachment {attachment!r} unknown (known: cg, hook)")
+    offset = clock_offset(seed) if offset is None else float(offset)
+    catalog = load_fixed_wing("aerosonde")
+    strength = float(size) * _unit_strength(turbulence)
+    options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
+               "duration": FLIGHT_DURATION, "sensors": SUITES[suite](catalog.rho)}
+
+    def tension(t):
+        return strength * tether_tension(t)
+
+    if effect == "tether":
+        options |= pull_towards_point(lambda t: float(tension(t)[0]), ANCHOR,
+                                      HOOK if attachment == "hook" else (0.0, 0.0, 0.0))
+    log = separate_logger(fly(**options), "tension", tension, strength * TENSION_NOISE,
+                          offset, seed)
+    return log, strength, offset
+
+
 @register_scenario("logged_force")
 def logged_force(seed: int, params: dict) -> dict:
     """One tethered flight (or a clean one with an unrelated tension channel), then the
@@ -163,32 +208,13 @@ def logged_force(seed: int, params: dict) -> dict:
     ``kept_<k>`` (the finding was kept on it); ``point_error`` [m] and ``point_sigma`` [m].
     """
     effect = params.get("effect", "tether")
-    if effect not in ("tether", "none"):
-        raise ValueError(f"logged_force: effect {effect!r} unknown (known: tether, none)")
-    suite = params.get("suite", "default")
-    if suite not in SUITES:
-        raise ValueError(f"logged_force: suite {suite!r} unknown (known: {', '.join(SUITES)})")
-    turbulence = params.get("turbulence", "light")
-    attachment = params.get("attachment", "cg")
-    if attachment not in ("cg", "hook"):
-        raise ValueError(f"logged_force: attachment {attachment!r} unknown (known: cg, hook)")
-    hooked = attachment == "hook"
+    hooked = params.get("attachment", "cg") == "hook"
     expected, moved = (EXPECTED_OFF_CG, MOVED_OFF_CG) if hooked else (EXPECTED, MOVED)
-    offset = params.get("offset")
-    offset = clock_offset(seed) if offset is None else float(offset)
+    log, strength, offset = tethered_flight(
+        seed, effect=effect, size=float(params.get("size", 0.3)),
+        suite=params.get("suite", "default"), turbulence=params.get("turbulence", "light"),
+        offset=params.get("offset"), attachment=params.get("attachment", "cg"))
     catalog = load_fixed_wing("aerosonde")
-    strength = float(params.get("size", 0.3)) * _unit_strength(turbulence)
-    options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
-               "duration": FLIGHT_DURATION, "sensors": SUITES[suite](catalog.rho)}
-
-    def tension(t):
-        return strength * tether_tension(t)
-
-    if effect == "tether":
-        options |= pull_towards_point(lambda t: float(tension(t)[0]), ANCHOR,
-                                      HOOK if hooked else (0.0, 0.0, 0.0))
-    log = separate_logger(fly(**options), "tension", tension, strength * TENSION_NOISE,
-                          offset, seed)
     run = identify(measured_only(log), catalog, seed=seed)
     found = list(run.findings)
     discovered = [f.name for f in run.discovery.found]

@@ -24,7 +24,8 @@ The loop (:func:`discover`):
    signals), which reports the signals involved (or, with
    :attr:`EvidenceRule.named_first` off, both in one pool);
 5. check every effect against each coefficient's final fit under the same
-   held-out rules, drop those it does not need, refit, and report the
+   held-out rules, drop those it does not need, judge the terms step 1 dropped again
+   beside the effects kept (a term an effect drowned comes back), refit, and report the
    equation-error RMS before and after on the held-out tail of the flight;
 6. hold each final fit's error against its noise floor: where the sensor noise
    does not explain it, the model is incomplete there, and the result says where
@@ -379,6 +380,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
 
     unchanged = {k for k in fitted if search.designs[k] is initial[k][0]
                  and search.tests[k] is initial[k][1]}
+    whole = {k: (search.designs[k], search.tests[k]) for k in fitted}
     for k in fitted:
         dropped = {t.term for t in pruned[k].dropped}
         if dropped:
@@ -387,6 +389,12 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                 for d in (search.designs[k], search.tests[k]))
     # The effects must also hold against the model reported, without the pruned terms.
     found = search.final_check(found)
+    # Then the pruned terms are judged again beside the effects kept: a term an unmodelled
+    # effect drowned in the baseline comes back once the effect is in the model.
+    for k in fitted:
+        if pruned[k].dropped and any(k in f.coefficients for f in found):
+            pruned[k] = _dropped_again(k, pruned[k], search, whole[k], edges,
+                                       rule.min_pse_reduction)
     # A coefficient whose designs the loop left as they were keeps its baseline fit.
     final = {k: baseline[k] if k in unchanged
              else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
@@ -402,6 +410,30 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                                             if n in fixed})},
                            aliases=_aliases(search, vectors, found, final,
                                             {k: d for k, (d, _) in initial.items()}, pruned))
+
+
+def _dropped_again(coefficient: str, pruned: Pruning, search: _Search,
+                   whole: tuple[Design, Design], edges: Sequence[int],
+                   min_gain: float) -> Pruning:
+    """The catalog terms the baseline dropped, judged again by the same rule
+    (:func:`~drake_uav.identification.discovery.parsimony.prune`) on the model that holds
+    the effects kept: a term an unmodelled effect drowned (a tether's pitching moment hiding
+    C_m_q) comes back, no other term goes. ``whole`` is the training and held-out design
+    with every catalog term; ``search``'s designs of ``coefficient`` gain the terms
+    restored."""
+    dropped = {t.term for t in pruned.dropped}
+    train, test = (d.keeping([*search_design.names, *dropped]) for d, search_design in
+                   zip(whole, (search.designs[coefficient], search.tests[coefficient]),
+                       strict=True))
+    again = prune(coefficient, train.names, train.X, train.z, train.noise, edges, min_gain,
+                  always=[n for n in train.names if n not in dropped])
+    gone = {t.term for t in again.dropped}
+    if gone == dropped:
+        return pruned
+    search.designs[coefficient], search.tests[coefficient] = (
+        d.keeping([n for n in d.names if n not in gone]) for d in (train, test))
+    return Pruning(tuple(n for n in train.names if n in pruned.kept or n in dropped - gone),
+                   again.dropped)
 
 
 def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect],

@@ -22,7 +22,9 @@ so that adding and dropping ask the same. Among the terms that may go, the one w
 removal raises the PSE least goes first; the others are judged again without it, until
 none may go. The constant is never dropped. A dropped term is 0 in the identified model;
 the discovery loop still tests the effects against the catalog's whole structure, so that
-no effect takes the place of a dropped term.
+no effect takes the place of a dropped term, and once effects are accepted it judges the
+dropped terms again beside them (the same rule, with every other term kept), so that a term
+an unmodelled effect drowned in the baseline comes back.
 """
 
 from __future__ import annotations

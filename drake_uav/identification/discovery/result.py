@@ -385,9 +385,10 @@ class DiscoveryResult:
     adequacy : Mapping[str, Adequacy]
         Fitted coefficient -> its final fit's error against the noise floor.
     dropped : Mapping[str, tuple of DroppedTerm]
-        Fitted coefficient -> the catalog's terms its baseline dropped, which the flight
-        does not support (:mod:`~drake_uav.identification.discovery.parsimony`); each is 0
-        in the identified model.
+        Fitted coefficient -> the catalog's terms the flight does not support
+        (:mod:`~drake_uav.identification.discovery.parsimony`), dropped from the baseline
+        and not restored beside the effects found; each is 0 in the identified model (the
+        baseline fit may leave out more: a term an effect drowned there).
     aliases : tuple of AliasedEffect
         Each accepted effect, on each coefficient it is kept on, whose column this flight
         cannot tell apart from a term of another physical origin, with those terms
