@@ -147,8 +147,24 @@ def tethered_flight(seed: int, *, effect: str = "tether", size: float = 0.3,
                     suite: str = "default", turbulence: str = "light",
                     offset: float | None = None, attachment: str = "cg"
                     ) -> tuple[FlightLog, float, float]:
-    """One flight of the :func:`logged_force` scenario (its parameters, same defaults): the
-    aerosonde pulled by a tether (or not) whose tension a separate logger records.
+    """One flight of the :func:`logged_force` scenario: the aerosonde pulled by a tether
+    (or not) whose tension a separate logger records.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the turbulence, the sensors' and the logger's noise (and of the clock
+        offset when ``offset`` is None).
+    effect : str
+        "tether", or "none" (the logger records a tension that does not act).
+    size : float
+        The tether's share of C_Y's variation.
+    suite, turbulence : str
+        Sensor suite (:data:`~drake_uav.testing.discovery_cases.SUITES`) and turbulence.
+    offset : float or None
+        The logger's clock offset [s]; None: :func:`clock_offset` of the seed.
+    attachment : str
+        "cg", or "hook" (the tether pulls at :data:`HOOK`).
 
     Returns
     -------
