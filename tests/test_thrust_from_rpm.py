@@ -251,3 +251,27 @@ def test_the_shaft_speeds_noise_enters_the_thrust_and_the_drag_coefficients_floo
     print(f"C_D error from the shaft speed's noise: predicted {predicted:.2e}, made "
           f"{actual:.2e} (RMS)")
     assert predicted == pytest.approx(actual, rel=0.25)
+
+
+def test_spans_joined_keep_the_shaft_speeds_noise_path():
+    """Two airborne spans of an RPM flight joined into one set of samples keep
+    d(thrust)/d(speed) beside the speed's noise, so the speed still moves the thrust
+    coefficient and C_D of the noise model."""
+    from drake_uav.identification.samples.aero_samples import SHAFT_SPEED
+    from drake_uav.identification.samples.flight_data import isolated_samples
+    from drake_uav.identification.samples.regressor_noise import perturbed, source_variances
+    from drake_uav.identification.samples.segments import concatenate_samples
+    from drake_uav.testing.discovery_cases import propeller_table
+
+    grid = gridded_log(measured_only(_flight()), PARAMS)
+    samples = isolated_samples(grid, PARAMS,
+                               declared_thrust(grid, PARAMS, propeller_table(PARAMS)))
+    half = len(samples) // 2
+    joined = concatenate_samples([samples.subset(slice(0, half - 10)),
+                                  samples.subset(slice(half + 10, None))])
+    assert len(joined.thrust_speed_slope) == len(joined)
+    assert len(joined.moment_view.thrust_speed_slope) == len(joined)
+    assert source_variances(joined, "CD")[SHAFT_SPEED] > 0.0
+    moved = perturbed(joined, SHAFT_SPEED, 1.0)
+    np.testing.assert_allclose(moved.thrust - joined.thrust, joined.thrust_speed_slope)
+    assert np.all(joined.observation_sensitivity("CD")[SHAFT_SPEED] != 0.0)

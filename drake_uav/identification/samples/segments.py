@@ -98,13 +98,15 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
     first = parts[0]
     if any((p.moments is None) != (first.moments is None)
            or (p.thrust_airspeed_slope is None) != (first.thrust_airspeed_slope is None)
+           or (p.thrust_speed_slope is None) != (first.thrust_speed_slope is None)
            or set(p.signals) != set(first.signals) for p in parts):
         raise ValueError("segments differ in their signals, thrust model or moment view")
     weights = np.array([len(p) for p in parts], float)
     noise = {name: float(np.average([p.noise_variance[name] for p in parts], weights=weights))
              for name in first.noise_variance}
-    slope = (None if first.thrust_airspeed_slope is None
-             else _joined(parts, lambda p: p.thrust_airspeed_slope))
+    slope, speed_slope = (None if getattr(first, name) is None
+                          else _joined(parts, lambda p, name=name: getattr(p, name))
+                          for name in ("thrust_airspeed_slope", "thrust_speed_slope"))
     moments = None if first.moments is None else _joined_moments(parts, weights)
     return AeroSamples(
         time=_joined(parts, lambda p: p.time),
@@ -123,6 +125,7 @@ def concatenate_samples(parts: Sequence[AeroSamples]) -> AeroSamples:
         thrust_correction_terms=tuple(t for t in THROTTLE_TERMS if any(
             t in p.thrust_correction_terms for p in parts)),
         thrust_from_shaft_speed=all(p.thrust_from_shaft_speed for p in parts),
+        thrust_speed_slope=speed_slope,
         reference_area=first.reference_area,
         moments=moments,
         signal_units=dict(first.signal_units),
@@ -141,6 +144,8 @@ def _joined_moments(parts: Sequence[AeroSamples], weights: np.ndarray) -> Moment
         thrust=_joined(parts, lambda p: p.moments.thrust),
         thrust_airspeed_slope=(None if first.thrust_airspeed_slope is None
                                else _joined(parts, lambda p: p.moments.thrust_airspeed_slope)),
+        thrust_speed_slope=(None if first.thrust_speed_slope is None
+                            else _joined(parts, lambda p: p.moments.thrust_speed_slope)),
         rate_derivatives=np.concatenate([p.moments.rate_derivatives for p in parts]),
         logged={k: _joined(parts, lambda p, k=k: p.moments.logged[k]) for k in first.logged},
         noise_variance={name: float(np.average([p.moments.noise_variance[name] for p in parts],
