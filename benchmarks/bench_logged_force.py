@@ -48,7 +48,7 @@ from timing import finished_runs
 
 from drake_uav.campaigns import Campaign, parse_seeds, read_results, run_campaign, wilson_interval
 from drake_uav.campaigns.runner import local_cluster
-from drake_uav.testing.logged_force_cases import EXPECTED, EXPECTED_OFF_CG, MOVED, MOVED_OFF_CG
+from drake_uav.testing.logged_force_cases import expected_finding
 
 TARGET_NAMED = 0.9
 """Share of tethered flights named exactly as the logged-magnitude force."""
@@ -71,7 +71,7 @@ def _run(name: str, campaign: Campaign, out: Path, scheduler: str | None) -> lis
 
 
 def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict],
-            hooked: bool) -> None:
+            attachment: str) -> None:
     print(f"\n== {suite} sensors, {turbulence} turbulence ==")
     clean = [r for r in clean if r["suite"] == suite and r["turbulence"] == turbulence]
     rows = [r for r in tether if r["suite"] == suite and r["turbulence"] == turbulence]
@@ -83,12 +83,12 @@ def _report(suite: str, turbulence: str, tether: list[dict], clean: list[dict],
                float(np.mean([r["any_finding"] for r in clean])), "1", "lower")
     if not rows:
         return
-    expected, moved = (EXPECTED_OFF_CG, MOVED_OFF_CG) if hooked else (EXPECTED, MOVED)
+    expected, moved = expected_finding(attachment)
     named = [r["named"] for r in rows]
     others = sorted({r["found"] for r in rows if not r["named"]})
     print(f"named {expected}: {_rate(named)} (target >= {TARGET_NAMED:.0%})"
           + (f"; otherwise found: {'; '.join(others)}" if others else ""))
-    figure(f"logged_force_named_{suite}_{turbulence}" + ("_hook" if hooked else ""),
+    figure(f"logged_force_named_{suite}_{turbulence}" + ("_hook" if attachment == "hook" else ""),
            float(np.mean(named)), "1", "higher")
     for k in moved:
         kept = [r for r in rows if r["named"] and r[f"kept_{k}"]]
@@ -151,7 +151,7 @@ def main() -> None:
     clean = [r for r in clean if r["status"] == "ok"]
     for suite in grid["suite"]:
         for level in grid["turbulence"]:
-            _report(suite, level, tether, clean, args.attachment == "hook")
+            _report(suite, level, tether, clean, args.attachment)
 
 
 if __name__ == "__main__":

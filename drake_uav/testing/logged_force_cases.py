@@ -48,7 +48,7 @@ from drake_uav.vehicles.loading import load_fixed_wing
 
 __all__ = ["ANCHOR", "LOGGER_RATE", "TENSION_NOISE", "OFFSET_RANGE", "EXPECTED",
            "EXPECTED_OFF_CG", "HOOK", "MOVED", "MOVED_OFF_CG", "clock_offset",
-           "separate_logger", "tethered_flight", "logged_force"]
+           "separate_logger", "expected_finding", "tethered_flight", "logged_force"]
 
 ANCHOR = (1500.0, 400.0, 0.0)
 """NED point [m] of the tether's anchor: on the ground, 400 m east of the middle of the
@@ -143,6 +143,13 @@ def _unit_strength(turbulence: str) -> float:
     return float(np.median(ratios))
 
 
+def expected_finding(attachment: str) -> tuple[str, tuple[str, ...]]:
+    """The finding that names a tether pulling at ``attachment`` ("cg" or "hook") and the
+    coefficients it moves: :data:`EXPECTED` and :data:`MOVED`, or :data:`EXPECTED_OFF_CG`
+    and :data:`MOVED_OFF_CG`."""
+    return (EXPECTED_OFF_CG, MOVED_OFF_CG) if attachment == "hook" else (EXPECTED, MOVED)
+
+
 def tethered_flight(seed: int, *, effect: str = "tether", size: float = 0.3,
                     suite: str = "default", turbulence: str = "light",
                     offset: float | None = None, attachment: str = "cg"
@@ -224,8 +231,7 @@ def logged_force(seed: int, params: dict) -> dict:
     ``kept_<k>`` (the finding was kept on it); ``point_error`` [m] and ``point_sigma`` [m].
     """
     effect = params.get("effect", "tether")
-    hooked = params.get("attachment", "cg") == "hook"
-    expected, moved = (EXPECTED_OFF_CG, MOVED_OFF_CG) if hooked else (EXPECTED, MOVED)
+    expected, moved = expected_finding(params.get("attachment", "cg"))
     log, strength, offset = tethered_flight(
         seed, effect=effect, size=float(params.get("size", 0.3)),
         suite=params.get("suite", "default"), turbulence=params.get("turbulence", "light"),
