@@ -7,10 +7,13 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from drake_uav.systems.excitation import (
+    REFERENCES,
+    SURFACES,
     Doublet,
     ExcitationSource,
     Multisine,
     ThreeTwoOneOne,
+    Turn,
     doublet,
     excitation_controls,
     low_peak_factor_phases,
@@ -105,6 +108,9 @@ def test_orthogonal_multisines():
         (lambda: orthogonal_multisines(["elevator", "wing"], 5.0, 0.1, (0.1, 2.0)), "surface"),
         (lambda: ExcitationSource([0.0, 0.0, 0.0], ()), "trim_controls"),
         (lambda: ExcitationSource(np.zeros(4), (), sample_period=-0.01), "sample_period"),
+        (lambda: Turn(0.0, 10.0).validate(), "rate"),
+        (lambda: Turn(0.1, -1.0).validate(), "duration"),
+        (lambda: excitation_controls([0.0], np.zeros(4), (Turn(0.1, 5.0),)), "surface"),
     ],
 )
 def test_bad_inputs_name_the_field(make, field):
@@ -133,3 +139,16 @@ def test_source_holds_trim_plus_signals():
     np.testing.assert_allclose(u[0], expected_now[0], atol=1e-15)
     assert np.all(u[:, 3] == 0.4)
     assert np.abs(u[:, 1] - trim[1]).max() > 0.02
+
+
+def test_a_turn_moves_the_heading_reference_and_holds_where_it_ends():
+    turn = Turn(0.1, duration=20.0, start=2.0).validate()
+    t = np.array([0.0, 2.0, 12.0, 22.0, 30.0])
+    np.testing.assert_allclose(turn(t), [0.0, 0.0, 1.0, 2.0, 2.0])
+    assert turn.end == 22.0 and turn.surface == "heading"
+    offsets = excitation_controls(t, np.zeros(len(REFERENCES)), (turn,), REFERENCES)
+    np.testing.assert_allclose(offsets[:, REFERENCES.index("heading")], turn(t))
+    assert not np.any(offsets[:, [REFERENCES.index(r) for r in REFERENCES if r != "heading"]])
+    both = excitation_controls(t, np.zeros(8), (turn, Doublet("elevator", 0.1, 1.0)),
+                               SURFACES + REFERENCES)
+    np.testing.assert_allclose(both[:, len(SURFACES) + REFERENCES.index("heading")], turn(t))

@@ -25,7 +25,10 @@ The safety pilot (:class:`~drake_uav.systems.safety_pilot.SafetyPilot`) is a wea
 attitude/altitude/heading/airspeed hold added on top of trim + excitation so that long
 flights stay near the trim condition; its rate dampers use the IMU's gyro (the sample
 of the previous period). It can be switched off (``stabilize=False``) for open-loop
-excitation.
+excitation. A signal on a reference channel (a
+:class:`~drake_uav.systems.excitation.Turn` of the heading) goes to its
+``reference_offsets`` input through a second ExcitationSource, ``reference_schedule``:
+the holds fly it.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ from drake_uav.model.rotations import quat_to_euler, quat_to_rotmat
 from drake_uav.optimization.trim import TrimResult, trim
 from drake_uav.systems.disturbances import AerodynamicIncrement
 from drake_uav.systems.excitation import (
+    REFERENCES,
     SURFACES,
     Doublet,
     ExcitationSource,
@@ -408,11 +412,23 @@ def _wire(builder: DiagramBuilder, setup: _Setup, stabilize: bool, gains: Safety
     """Adds plant, excitation, safety pilot, actuator delay, disturbance, wind and sensors
     (in this order: the order of the systems in the diagram)."""
     plant = builder.AddNamedSystem("plant", FixedWingPlant(setup.params))
+    on_surfaces = [s for s in setup.signals if s.surface in SURFACES]
+    on_references = [s for s in setup.signals if s.surface not in SURFACES]
     source = builder.AddNamedSystem("excitation",
-                                    ExcitationSource(setup.trim.controls, setup.signals, setup.dt))
+                                    ExcitationSource(setup.trim.controls, on_surfaces, setup.dt))
     commands, pilot = source.GetOutputPort("controls"), None
+    if on_references and not stabilize:
+        raise ValueError("excitation: a signal on a reference ("
+                         + ", ".join(sorted({s.surface for s in on_references}))
+                         + ") is flown by the safety pilot's holds; keep stabilize=True")
     if stabilize:
         pilot, commands = _add_safety_pilot(builder, plant, commands, setup, gains)
+    if on_references:
+        references = builder.AddNamedSystem("reference_schedule", ExcitationSource(
+            np.zeros(len(REFERENCES)), on_references, setup.dt, channels=REFERENCES,
+            output="reference_offsets"))
+        builder.Connect(references.GetOutputPort("reference_offsets"),
+                        pilot.GetInputPort("reference_offsets"))
     surfaces = _add_actuator_delay(builder, commands, actuator_delay, setup.dt)
     builder.Connect(surfaces, plant.GetInputPort("controls"))
     wrench = None
@@ -478,7 +494,9 @@ def build_identification_flight(
         turbulence: "light" / "moderate" / "severe" (MIL-F-8785C, updated at the
             sensor base rate), a :class:`DrydenParams`, or None (steady wind only).
         steady_wind: steady wind NED [m/s] (overrides the DrydenParams' value).
-        excitation: a kind for :func:`default_excitation` or a sequence of signals.
+        excitation: a kind for :func:`default_excitation` or a sequence of signals
+            (on surfaces, or on the safety pilot's references: a
+            :class:`~drake_uav.systems.excitation.Turn`).
         sensors: sensor suite; default Vaiopoulos 2017, Table 7 with the aircraft's air
             density.
         seed: default random seed of :meth:`IdentificationFlight.simulate`.

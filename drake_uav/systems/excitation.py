@@ -12,11 +12,14 @@ Signals (plain functions of a time array and frozen dataclasses that call them):
 * :func:`orthogonal_multisines`: several surfaces excited at once with disjoint
   harmonic sets, mutually orthogonal over each period, so one manoeuvre
   separates the effect of each surface.
+* :class:`Turn`: a steady turn, flown by moving the heading the autopilot holds
+  (a *reference* channel, :data:`REFERENCES`, rather than a surface).
 
 Times are in seconds, frequencies in Hz; amplitudes are in the unit of their
-surface (rad for elevator, aileron and rudder, a 0..1 fraction for throttle).
-:class:`ExcitationSource` adds the signals to the trim controls and holds the
-result at a fixed sample period (the autopilot's output rate).
+channel (rad for elevator, aileron and rudder, a 0..1 fraction for throttle; for a
+reference, rad or m or m/s, :data:`REFERENCES`). :class:`ExcitationSource` adds the
+signals to the trim controls (or to zero reference offsets) and holds the result at a
+fixed sample period (the autopilot's output rate).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from pydrake.systems.framework import LeafSystem
 
 __all__ = [
     "SURFACES",
+    "REFERENCES",
     "doublet",
     "three_two_one_one",
     "multisine",
@@ -40,6 +44,7 @@ __all__ = [
     "Doublet",
     "ThreeTwoOneOne",
     "Multisine",
+    "Turn",
     "orthogonal_multisines",
     "excitation_controls",
     "ExcitationSource",
@@ -47,6 +52,10 @@ __all__ = [
 
 SURFACES = ("elevator", "aileron", "rudder", "throttle")
 """Control channels in the order of the plant's ``controls`` input."""
+REFERENCES = ("pitch", "altitude", "heading", "airspeed")
+"""Reference channels: offsets [rad, m, rad, m/s] added to what the safety pilot's holds
+keep (:class:`~drake_uav.systems.safety_pilot.SafetyPilot`, input ``reference_offsets``).
+A signal on one of them is flown by the holds, not by a surface."""
 
 
 def _positive(name: str, value: float) -> None:
@@ -59,10 +68,10 @@ def _finite(name: str, value: float) -> None:
         raise ValueError(f"{name}: must be finite, got {value}")
 
 
-def _check_surface(surface: str) -> int:
-    if surface not in SURFACES:
-        raise ValueError(f"surface: unknown control surface {surface!r}; use one of {SURFACES}")
-    return SURFACES.index(surface)
+def _check_surface(surface: str, channels: Sequence[str] = SURFACES + REFERENCES) -> int:
+    if surface not in channels:
+        raise ValueError(f"surface: unknown channel {surface!r}; use one of {tuple(channels)}")
+    return tuple(channels).index(surface)
 
 
 def _pulses(t, start: float, widths: Sequence[float], signs: Sequence[float]) -> np.ndarray:
@@ -298,7 +307,44 @@ class Multisine:
                          self.start, self.cycles)
 
 
-Signal = Doublet | ThreeTwoOneOne | Multisine
+@dataclass(frozen=True)
+class Turn:
+    """A steady turn: the heading reference turns at ``rate`` for ``duration``.
+
+    The heading offset is ``rate (t - start)`` on [start, start + duration), then holds
+    the heading reached (zero before ``start``). A signal of the ``heading`` reference
+    channel: the safety pilot's heading hold banks the aircraft to follow it (at
+    airspeed ``V`` a steady turn at ``rate`` needs a bank of ``atan(V rate / g)``).
+
+    Attributes:
+        rate: turn rate [rad/s], positive to the right (NED yaw).
+        duration: how long the heading turns [s].
+        start: time the turn starts [s].
+    """
+
+    surface: ClassVar[str] = "heading"
+    rate: float
+    duration: float
+    start: float = 0.0
+
+    def validate(self) -> Turn:
+        """Raises ValueError naming the first invalid field; returns self."""
+        if not (math.isfinite(self.rate) and self.rate != 0.0):
+            raise ValueError(f"rate: must be finite and non-zero, got {self.rate}")
+        _positive("duration", self.duration)
+        _finite("start", self.start)
+        return self
+
+    @property
+    def end(self) -> float:
+        """Time [s] after which the heading offset holds."""
+        return self.start + self.duration
+
+    def __call__(self, t) -> np.ndarray:
+        return self.rate * np.clip(np.asarray(t, float) - self.start, 0.0, self.duration)
+
+
+Signal = Doublet | ThreeTwoOneOne | Multisine | Turn
 
 
 def orthogonal_multisines(surfaces: Sequence[str], period: float, amplitudes,
@@ -344,12 +390,17 @@ def orthogonal_multisines(surfaces: Sequence[str], period: float, amplitudes,
     return tuple(out)
 
 
-def excitation_controls(t, trim_controls, signals: Sequence[Signal]) -> np.ndarray:
-    """Controls (len(t), 4) = trim + the sum of the signals on their surfaces."""
+def excitation_controls(t, trim_controls, signals: Sequence[Signal],
+                        channels: Sequence[str] = SURFACES) -> np.ndarray:
+    """Values (len(t), len(channels)) = trim + the sum of the signals on their channels.
+
+    ``channels``: :data:`SURFACES` (the controls), :data:`REFERENCES` (the safety pilot's
+    reference offsets, ``trim_controls`` zeros) or both; a signal on another channel
+    raises ValueError."""
     t = np.atleast_1d(np.asarray(t, float))
     out = np.tile(np.asarray(trim_controls, float), (t.size, 1))
     for s in signals:
-        out[:, SURFACES.index(s.surface)] += s(t)
+        out[:, _check_surface(s.surface, channels)] += s(t)
     return out
 
 
@@ -360,6 +411,11 @@ class ExcitationSource(LeafSystem):
     |------------|------|---------------------------------------------------------|
     | controls   | 4    | elevator, aileron, rudder [rad], throttle [0..1]        |
 
+    With ``channels=REFERENCES`` (zero trim) it plays reference signals instead
+    (:class:`Turn`): its output, named ``output`` (say ``reference_offsets``), holds
+    pitch [rad], altitude [m], heading [rad] and airspeed [m/s] offsets for the
+    safety pilot.
+
     The output is updated at t_k = k * sample_period with the value at t_k and
     held until t_(k+1) (no inputs; depends on the discrete state only). Samples
     are computed in vectorised blocks and memoised, so a periodic update costs a
@@ -369,23 +425,27 @@ class ExcitationSource(LeafSystem):
     _BLOCK = 1024
 
     def __init__(self, trim_controls, signals: Sequence[Signal] = (),
-                 sample_period: float = 0.01):
+                 sample_period: float = 0.01, channels: Sequence[str] = SURFACES,
+                 output: str = "controls"):
         super().__init__()
+        self.channels = tuple(channels)
         trim_controls = np.asarray(trim_controls, float)
-        if trim_controls.shape != (4,) or not np.all(np.isfinite(trim_controls)):
-            raise ValueError(f"trim_controls: need 4 finite values, got {trim_controls}")
+        if (trim_controls.shape != (len(self.channels),)
+                or not np.all(np.isfinite(trim_controls))):
+            raise ValueError(f"trim_controls: need {len(self.channels)} finite values, got "
+                             f"{trim_controls}")
         _positive("sample_period", sample_period)
         self.signals = tuple(s.validate() for s in signals)
         self.trim_controls = trim_controls
         self.sample_period = sample_period
-        self._table = np.empty((0, 4))
+        self._table = np.empty((0, len(self.channels)))
         xd = self.DeclareDiscreteState(self.controls_at(np.array([0.0]))[0])
         self.DeclarePeriodicDiscreteUpdateEvent(sample_period, 0.0, self._update)
-        self.DeclareStateOutputPort("controls", xd)
+        self.DeclareStateOutputPort(output, xd)
 
     def controls_at(self, t) -> np.ndarray:
-        """Controls (len(t), 4) at times ``t`` [s], without the hold."""
-        return excitation_controls(t, self.trim_controls, self.signals)
+        """Values (len(t), len(channels)) at times ``t`` [s], without the hold."""
+        return excitation_controls(t, self.trim_controls, self.signals, self.channels)
 
     def _update(self, context, discrete_state) -> None:
         k = round(context.get_time() / self.sample_period)

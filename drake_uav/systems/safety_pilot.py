@@ -66,6 +66,9 @@ class SafetyPilot(LeafSystem):
     | air_data   | 3    | plant ``air_data``: Va [m/s], alpha, beta [rad]    |
     | imu        | 6    | sensor suite ``imu``: the rate dampers use its     |
     |            |      | gyro p, q, r [rad/s] (unconnected: the true rates) |
+    | reference_ | 4    | offsets added to the references: pitch [rad],      |
+    | offsets    |      | altitude [m], heading [rad], airspeed [m/s]        |
+    |            |      | (unconnected: none; a turn moves the heading)      |
 
     | port (out) | size | units                                              |
     |------------|------|----------------------------------------------------|
@@ -85,13 +88,18 @@ class SafetyPilot(LeafSystem):
         self._state = self.DeclareVectorInputPort("state", 13)
         self._air = self.DeclareVectorInputPort("air_data", 3)
         self._imu = self.DeclareVectorInputPort("imu", 6)
+        self._offsets = self.DeclareVectorInputPort("reference_offsets", 4)
         xd = self.DeclareDiscreteState(4)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareStateOutputPort("correction", xd)
 
     def _update(self, context, discrete_state) -> None:
         g = self.gains
-        pitch_ref, altitude_ref, heading_ref, airspeed_ref = self._refs
+        refs = self._refs
+        if self._offsets.HasValue(context):
+            refs = [a + b for a, b in zip(refs, self._offsets.Eval(context).tolist(),
+                                          strict=True)]
+        pitch_ref, altitude_ref, heading_ref, airspeed_ref = refs
         x = self._state.Eval(context).tolist()
         roll, pitch, yaw = quat_to_euler(x[3:7]).tolist()
         p, q, r = (self._imu.Eval(context)[3:6].tolist() if self._imu.HasValue(context)

@@ -14,6 +14,7 @@ from drake_uav.diagrams.identification_flight import (
 )
 from drake_uav.io.flight_log import FlightLog
 from drake_uav.model.rotations import quat_to_rotmat
+from drake_uav.systems.excitation import Turn
 from drake_uav.systems.identifiers import (
     AeroRegressors,
     RecursiveIdentifier,
@@ -218,3 +219,21 @@ def test_log_round_trip(log, tmp_path):
 def test_bad_input_names_the_field(kwargs, field):
     with pytest.raises(ValueError, match=f"^{field}:"):
         fly(**{"duration": 1.0, **kwargs})
+
+
+def test_a_turn_of_the_heading_reference_is_flown_by_the_safety_pilot():
+    """A Turn is a reference signal: the heading hold banks the aircraft to follow it (one
+    circle in a minute at 25 m/s needs about 15 deg of bank), the airspeed hold keeps the
+    speed; without the safety pilot nothing would fly it, and the flight says so."""
+    rate = 2 * math.pi / 60.0
+    log = fly("aerosonde", turbulence=None, excitation=(Turn(rate, 59.0, 1.0),),
+              duration=60.0)
+    yaw = np.unwrap(log["yaw"])
+    assert math.degrees(yaw[-1] - yaw[0]) > 300.0
+    bank = math.degrees(math.atan(25.0 * rate / 9.81))
+    assert math.degrees(np.max(np.abs(log["roll"]))) < bank + 3.0
+    assert np.ptp(log["airspeed"]) < 0.5
+    straight = fly("aerosonde", turbulence=None, excitation="none", duration=10.0)
+    assert abs(np.unwrap(straight["yaw"])[-1] - straight["yaw"][0]) < 0.01
+    with pytest.raises(ValueError, match="excitation: a signal on a reference .heading."):
+        build_identification_flight(excitation=(Turn(rate, 10.0),), stabilize=False)
