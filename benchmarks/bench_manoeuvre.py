@@ -7,9 +7,13 @@ main job, designs the manoeuvre that separates its near ties
 aircraft with the same effect and runs the job again. It prints, per effect, the flights
 whose report held a near tie, and among them the share the manoeuvre resolved (the
 injected effect named alone, with no near tie) with its 95 % Wilson interval (target
->= 80 %), the inputs the design moved and the predicted separation (median expected
-F-statistic, the smaller way round, the share of the gain the rival would reach and the
-column correlation, flown against designed).
+>= 80 %), the inputs the design moved (and how often it turned) and the predicted
+separation (median expected F-statistic, the smaller way round, the share of the gain the
+rival would reach and the column correlation, flown against designed). Then, per aliased
+pair (the injected effect and one rival it was tied with on the campaign flight), the
+share of those flights whose next flight told the two apart (it named the injected
+effect or a near tie of it, did not name the rival and did not tie the two), with the
+share the design predicted separated.
 
     python benchmarks/bench_manoeuvre.py [--effects tow_force,propwash_drag]
         [--seeds 0:10] [--suite research] [--size 0.2] [--turbulence light]
@@ -91,7 +95,8 @@ def main() -> None:
                   f" next {row['found_next'] or '-'}{' (tied)' if row['tied_next'] else ''}",
                   flush=True)
         tied = [r for r in rows if r["resolved"] is not None]
-        selected = collections.Counter(r["selected"] for r in tied)
+        selected = collections.Counter(r["selected"] + (" in a turn" if r["turn"] else "")
+                                       for r in tied)
         print(f"{effect} ({args.suite}, {args.turbulence}, size {args.size:.0%}, thrust "
               f"{args.propulsion}): "
               f"{len(tied)} of {len(rows)} flights with a near tie between named effects; "
@@ -100,7 +105,24 @@ def main() -> None:
               f"{_rate([r['found_first'] == r['expected'] and not r['tied_first'] for r in rows])}"
               f"; inputs: " + ", ".join(f"{k} x{n}" for k, n in selected.most_common())
               + f"; {_predicted(tied)}")
+        _print_pairs(rows)
     print(f"{time.perf_counter() - start:.0f} s wall")
+
+
+def _print_pairs(rows: list[dict]) -> None:
+    """Per aliased pair: how often the next flight told them apart, and the prediction."""
+    outcomes = collections.defaultdict(list)
+    predicted = collections.defaultdict(list)
+    for r in rows:
+        for rival, apart in r["pairs"].items():
+            outcomes[rival].append(apart)
+            predicted[rival] += [p["resolves"] for p in r["predicted"]
+                                 if {p["first"], p["second"]} == {r["expected"], rival}]
+    for rival, flags in sorted(outcomes.items()):
+        guess = predicted[rival]
+        print(f"    {rows[0]['expected']} against {rival}: told apart by the next flight "
+              f"{_rate(flags)} (target >= {TARGET:.0%}); predicted separated on "
+              f"{sum(guess)} of {len(guess)} designed for")
 
 
 if __name__ == "__main__":

@@ -17,7 +17,11 @@ plant-agnostic (it sees candidates' columns and input channels only):
    baseline; the rest stay at trim.
 3. **Signals.** Mutually orthogonal low-peak-factor multisines on those channels (Morelli
    2003; :func:`~drake_uav.systems.excitation.orthogonal_multisines`), peaks within the
-   limits.
+   limits. Given a turn rate, the manoeuvre is also predicted flown in a steady turn
+   (:class:`~drake_uav.systems.excitation.Turn`: the heading the autopilot holds turns
+   through the manoeuvre), which moves what depends on the heading and the attitude (a
+   force fixed in the NED frame against one fixed in the body); the turn is kept when it
+   separates more pairs than the straight manoeuvre.
 4. **Predicted separation.** The designed manoeuvre is flown on the model and, for each
    rival taken as the truth with the size the flight gave it, the share of its gain the
    other would reach (:func:`rival_share`: the near-tie rule's own measure, a tie from
@@ -28,21 +32,25 @@ plant-agnostic (it sees candidates' columns and input channels only):
 
 :func:`propose_manoeuvre` does this for the fixed-wing main job's result
 (:class:`~drake_uav.identification.pipeline.IdentificationRun`): it flies the model with
-the identified derivatives at the flight's airspeed in still air, and
-:func:`write_command_csv` writes the commands a user can fly.
+the identified derivatives at the flight's airspeed (the probes in still air, the
+prediction in light turbulence), and :func:`write_command_csv` writes the commands a user
+can fly.
 """
 
 from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import io
+import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import optimize, stats
 
 from drake_uav.diagrams.identification_flight import fly
 from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN
@@ -56,17 +64,22 @@ from drake_uav.identification.statistics.residuals import effective_sample_size
 from drake_uav.model.coefficients import regressor_matrix
 from drake_uav.model.propeller import THROTTLE_TERMS
 from drake_uav.systems.excitation import (
+    REFERENCES,
     SURFACES,
     Multisine,
+    Turn,
     excitation_controls,
     orthogonal_multisines,
 )
-from drake_uav.vehicles.fixed_wing import FixedWingParams
+from drake_uav.vehicles.fixed_wing import GRAVITY, FixedWingParams
+from drake_uav.vehicles.sensors import SensorSuiteParams
 
 __all__ = ["InputChannel", "Rivals", "Separation", "ManoeuvreDesign", "FIXED_WING_CHANNELS",
-           "SELECTED_SHARE", "BACKGROUND_SHARE", "MOVED_SHARE", "distinguishing_energy",
+           "SELECTED_SHARE", "BACKGROUND_SHARE", "MOVED_SHARE", "TURN_BANK",
+           "DECISION_LEVEL", "DECISION_POWER", "decisive_f",
+           "distinguishing_energy",
            "column_correlation", "expected_f", "rival_share", "design_manoeuvre",
-           "propose_manoeuvre", "command_csv", "write_command_csv", "read_command_csv",
+           "propose_manoeuvre", "turn_bank", "command_csv", "write_command_csv", "read_command_csv",
            "COMMAND_CSV"]
 
 SELECTED_SHARE = 0.25
@@ -78,6 +91,13 @@ flown data moved it (it keeps the baseline's derivatives identified on the new f
 MOVED_SHARE = 0.1
 """A channel moved on the flown data when its standard deviation exceeds this share of its
 limit (an airspeed hold's throttle, within about 0.01, did not)."""
+DECISION_LEVEL = 0.01
+"""Significance level of the test a designed manoeuvre must let decide."""
+DECISION_POWER = 0.8
+"""Probability the designed manoeuvre must give that test of deciding."""
+TURN_BANK = math.radians(15.0)
+"""Largest bank [rad] of the steady turn :func:`propose_manoeuvre` considers: the turn
+is one full circle over the manoeuvre, or slower where that would need more bank."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,7 +107,9 @@ class InputChannel:
     Attributes
     ----------
     name : str
-        The channel (a surface of :data:`~drake_uav.systems.excitation.SURFACES`).
+        The channel: a surface of :data:`~drake_uav.systems.excitation.SURFACES`, or a
+        reference of :data:`~drake_uav.systems.excitation.REFERENCES` the autopilot's
+        holds fly (``heading`` for a turn).
     unit : str
         Its unit in the command file (``rad``, or ``1`` for a throttle fraction).
     limit : float
@@ -99,8 +121,9 @@ class InputChannel:
     limit: float
 
     def __post_init__(self):
-        if self.name not in SURFACES:
-            raise ValueError(f"channel: unknown input {self.name!r}; use one of {SURFACES}")
+        if self.name not in SURFACES + REFERENCES:
+            raise ValueError(f"channel: unknown input {self.name!r}; use one of "
+                             f"{SURFACES + REFERENCES}")
         if not (self.limit > 0 and math.isfinite(self.limit)):
             raise ValueError(f"channel {self.name}: limit must be positive and finite, "
                              f"got {self.limit}")
@@ -126,7 +149,8 @@ class Rivals:
     quantity : str
         The quantity (coefficient) they act on.
     first, second : str
-        Their names (``first``: the effect the flight accepted).
+        Their names (from a near tie: the effect the flight accepted first, then its rivals
+        in the order the tie lists them).
     first_columns, second_columns, base_columns : callable
         :data:`Columns` of each candidate and of the baseline.
     """
@@ -264,6 +288,37 @@ def expected_f(theta, sigma: float, first, second, base, independent_share: floa
     return 1.0 + float(part @ part) / sigma**2 * independent_share / theta.size
 
 
+def decisive_f(columns: int) -> float:
+    """Expected partial F-statistic at which a test of ``columns`` columns decides.
+
+    The expectation ``1 + lambda / q`` whose non-centrality ``lambda`` gives the test at
+    the :data:`DECISION_LEVEL` level :data:`DECISION_POWER` power (large-sample
+    chi-square approximation of the F-statistic): a pair whose expected F stays below it
+    is likely to stay tied however the columns differ (Cohen's usual 80 % power).
+
+    Parameters
+    ----------
+    columns : int
+        The number of columns q tested (at least 1).
+
+    Returns
+    -------
+    float
+        The expected F-statistic (about 12.7 for one column).
+
+    Raises
+    ------
+    ValueError
+        For fewer than one column.
+    """
+    if columns < 1:
+        raise ValueError(f"columns: need at least one, got {columns}")
+    critical = stats.chi2.ppf(1.0 - DECISION_LEVEL, columns)
+    lam = optimize.brentq(lambda x: stats.ncx2.sf(critical, columns, x) - DECISION_POWER,
+                          1e-9, 1e4)
+    return 1.0 + lam / columns
+
+
 def rival_share(theta, first, second, base) -> float:
     """The share of ``first``'s gain that ``second`` reaches when ``first`` is the truth.
 
@@ -314,6 +369,9 @@ class Separation:
     share_flown, share_designed : tuple of float
         The share of each rival's gain the other would reach, each taken as the truth
         (:func:`rival_share`), on the flown data and on the designed manoeuvre.
+    f_decisive : tuple of float
+        The expected F-statistic each way round at which the test decides
+        (:func:`decisive_f` of each rival's number of columns).
     """
 
     rivals: Rivals
@@ -323,12 +381,17 @@ class Separation:
     f_designed: tuple[float, float]
     share_flown: tuple[float, float]
     share_designed: tuple[float, float]
+    f_decisive: tuple[float, float]
 
     @property
     def resolves(self) -> bool:
         """The designed manoeuvre is predicted to end the near tie: whichever rival is true,
-        the other reaches less than ``1 - NEAR_TIE_MARGIN`` of its gain."""
-        return max(self.share_designed) < 1.0 - NEAR_TIE_MARGIN
+        the other reaches less than ``1 - NEAR_TIE_MARGIN`` of its gain (the columns part)
+        and the expected F-statistic reaches :attr:`f_decisive` (the noise lets the flight
+        see it)."""
+        return (max(self.share_designed) < 1.0 - NEAR_TIE_MARGIN
+                and all(f >= need for f, need in zip(self.f_designed, self.f_decisive,
+                                                      strict=True)))
 
     def summary(self) -> dict:
         """JSON-ready figures of the pair."""
@@ -344,6 +407,8 @@ class Separation:
                                                "designed": self.share_designed[0]},
                                 "second_true": {"flown": self.share_flown[1],
                                                 "designed": self.share_designed[1]}},
+                "decisive_f": {"first_true": self.f_decisive[0],
+                               "second_true": self.f_decisive[1]},
                 "resolves": self.resolves}
 
     def sentence(self) -> str:
@@ -357,7 +422,9 @@ class Separation:
                 f"{self.correlation_flown:.3f} flown, {self.correlation_designed:.3f} "
                 f"designed; expected F {min(self.f_flown):.1f} over the flown flight, "
                 f"{min(self.f_designed):.1f} over the manoeuvre (each the worse of the two "
-                f"ways round; it grows with the length flown): the manoeuvre {verdict}.")
+                f"ways round; it grows with the length flown; {max(self.f_decisive):.1f} "
+                f"decides, a test at {DECISION_LEVEL:.0%} with {DECISION_POWER:.0%} power): "
+                f"the manoeuvre {verdict}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -366,8 +433,10 @@ class ManoeuvreDesign:
 
     Attributes
     ----------
-    signals : tuple of Multisine
-        The orthogonal multisines, one per channel [channel unit].
+    signals : tuple of Multisine or Turn
+        The orthogonal multisines, one per surface [channel unit], and the
+        :class:`~drake_uav.systems.excitation.Turn` of the heading when the manoeuvre is
+        flown in a turn.
     channels : tuple of InputChannel
         The channels flown, in the order of ``signals`` (the others stay at trim).
     selected : tuple of str
@@ -382,10 +451,11 @@ class ManoeuvreDesign:
     duration : float
         Length of the manoeuvre [s].
     trim : dict of str to float
-        Each channel's trim command the signals are added to [channel unit].
+        Each channel's trim command the signals are added to [channel unit] (0 for the
+        heading: its column is the change from the heading at the start).
     """
 
-    signals: tuple[Multisine, ...]
+    signals: tuple[Multisine | Turn, ...]
     channels: tuple[InputChannel, ...]
     selected: tuple[str, ...]
     sensitivity: dict[str, float]
@@ -393,10 +463,17 @@ class ManoeuvreDesign:
     duration: float
     trim: dict[str, float]
 
+    @property
+    def turn(self) -> Turn | None:
+        """The steady turn the manoeuvre is flown in, or None (straight)."""
+        return next((s for s in self.signals if isinstance(s, Turn)), None)
+
     def summary(self) -> dict:
         """JSON-ready summary (``summary.json``'s ``what_to_fly_next``)."""
+        turn = self.turn
         return {"duration_s": self.duration, "selected_inputs": list(self.selected),
                 "trim": self.trim,
+                "turn_rate_deg_s": None if turn is None else math.degrees(turn.rate),
                 "sensitivity": self.sensitivity,
                 "peaks": {s.surface: float(np.max(np.abs(s(np.linspace(s.start, s.end, 4001)))))
                           for s in self.signals},
@@ -426,7 +503,9 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                      pairs: Sequence[tuple[Rivals, np.ndarray]], flown,
                      channels: Sequence[InputChannel], *, trim: Mapping[str, float],
                      background: Sequence[str] | None = None, duration: float = 60.0,
-                     period: float = 20.0, band: tuple[float, float] = (0.1, 1.5)
+                     period: float = 20.0, band: tuple[float, float] = (0.1, 1.5),
+                     turn_rate: float | None = None,
+                     predict: Callable[[Sequence, float], Any] | None = None
                      ) -> ManoeuvreDesign:
     """Designs the manoeuvre that separates each pair of rivals and predicts how well.
 
@@ -453,6 +532,16 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
         Period of the multisines [s].
     band : tuple of float
         Frequency band (f_min, f_max) [Hz] of the multisines.
+    turn_rate : float, optional
+        Rate [rad/s] of a steady turn (:class:`~drake_uav.systems.excitation.Turn` on the
+        ``heading`` reference, over the whole manoeuvre) to predict the manoeuvre with as
+        well; the turn is kept when more pairs are predicted separated with it than
+        without (:attr:`Separation.resolves`). None: straight only.
+    predict : callable, optional
+        Flies the designed manoeuvre for the predicted separation, as ``simulate`` does
+        (None: ``simulate``). The probes measure what each input moves; the prediction
+        should see what the next flight will, gusts included (:func:`propose_manoeuvre`
+        flies it in light turbulence).
 
     Returns
     -------
@@ -462,8 +551,8 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
     Raises
     ------
     ValueError
-        For no pair, no channel, a channel named twice, a channel without a trim or a
-        duration shorter than the period.
+        For no pair, no channel, a channel named twice, a channel without a trim, a
+        duration shorter than the period or a turn rate that is zero or not finite.
     """
     if not pairs:
         raise ValueError("pairs: need at least one pair of rivals to separate")
@@ -477,6 +566,8 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                          "per channel")
     if not (duration >= period > 0):
         raise ValueError(f"duration: {duration} s must be at least one period ({period} s)")
+    if turn_rate is not None and not (math.isfinite(turn_rate) and turn_rate != 0.0):
+        raise ValueError(f"turn_rate: must be finite and non-zero, got {turn_rate}")
     start = 1.0
     sizes = [_sizes(rivals, y, flown) for rivals, y in pairs]
     sensitivity = {}
@@ -495,7 +586,22 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
              for c in flown_channels]
     signals = orthogonal_multisines([c.name for c in flown_channels], period, peaks, band,
                                     start, cycles=(duration - start) / period)
-    designed = simulate(signals, duration)
+    trims = {c.name: float(trim[c.name]) for c in flown_channels}
+    predict = simulate if predict is None else predict
+    separations = _separations(pairs, sizes, flown, predict(signals, duration))
+    if turn_rate is not None:
+        turn = Turn(turn_rate, duration - start, start)
+        turning = _separations(pairs, sizes, flown, predict((*signals, turn), duration))
+        if sum(s.resolves for s in turning) > sum(s.resolves for s in separations):
+            signals, separations = (*signals, turn), turning
+            flown_channels += (InputChannel("heading", "rad", abs(turn(turn.end))),)
+            trims["heading"] = 0.0
+    return ManoeuvreDesign(tuple(signals), flown_channels, selected, sensitivity,
+                           separations, duration, trims)
+
+
+def _separations(pairs, sizes, flown, designed) -> tuple[Separation, ...]:
+    """Each pair's :class:`Separation` between the flown and the designed samples."""
     separations = []
     for (rivals, _), ((t1, s1, n1), (t2, s2, n2)) in zip(pairs, sizes, strict=True):
         figures = {}
@@ -506,12 +612,11 @@ def design_manoeuvre(simulate: Callable[[Sequence[Multisine], float], Any],
                              expected_f(t2, s2, second, first, base, n2)),
                             (rival_share(t1, first, second, base),
                              rival_share(t2, second, first, base)))
+        decisive = (decisive_f(len(np.atleast_1d(t1))), decisive_f(len(np.atleast_1d(t2))))
         separations.append(Separation(rivals, figures["flown"][0], figures["designed"][0],
                                       figures["flown"][1], figures["designed"][1],
-                                      figures["flown"][2], figures["designed"][2]))
-    return ManoeuvreDesign(tuple(signals), flown_channels, selected, sensitivity,
-                           tuple(separations), duration,
-                           {c.name: float(trim[c.name]) for c in flown_channels})
+                                      figures["flown"][2], figures["designed"][2], decisive))
+    return tuple(separations)
 
 
 def _effect_columns(name: str, params: FixedWingParams, quantity: str) -> Columns | None:
@@ -542,6 +647,11 @@ def _base_columns(params: FixedWingParams, quantity: str) -> Columns:
     return columns
 
 
+def turn_bank(turn: Turn, airspeed: float) -> float:
+    """Bank [rad] of a steady coordinated turn at ``turn.rate`` and ``airspeed`` [m/s]."""
+    return math.atan(airspeed * abs(turn.rate) / GRAVITY)
+
+
 def _identified_model(run: IdentificationRun) -> FixedWingParams:
     """The catalog model with the derivatives the run identified."""
     known = run.params.derivatives
@@ -552,16 +662,20 @@ def _identified_model(run: IdentificationRun) -> FixedWingParams:
 
 def propose_manoeuvre(run: IdentificationRun, *,
                       channels: Sequence[InputChannel] = FIXED_WING_CHANNELS,
-                      duration: float = 60.0, propulsion: str = "data"
-                      ) -> ManoeuvreDesign | None:
+                      duration: float = 60.0, propulsion: str = "data", turn: bool = True,
+                      turbulence: str | None = "light", seed: int = 0,
+                      sensors: SensorSuiteParams | None = None) -> ManoeuvreDesign | None:
     """The manoeuvre that separates the near ties of a main-job result, or None.
 
-    Only rivals that are named effects of the libraries
+    Every pair of the members of a near tie (the accepted effect and its rivals: they all
+    explain the coefficient almost equally well) is designed for, where both are named
+    effects of the libraries
     (:func:`~drake_uav.identification.discovery.effects.effect_library`,
     :func:`~drake_uav.identification.discovery.vector_effects.vector_effect_library`, on the
-    tied coefficient) are designed for;
+    tied coefficient);
     the model is the catalog aircraft with the identified derivatives, trimmed at the
-    flight's median airspeed, flown in still air with the default sensors. The baseline the
+    flight's median airspeed, flown with ``sensors`` (the probes in still air, the
+    predicted separation in ``turbulence``). The baseline the
     rivals are tested against is the job's: on C_D it holds the correction terms of a thrust
     identified from the flight where the job identified one, and on a manoeuvre that moves
     the throttle (the job then identifies the thrust): a throttle input that only moves what
@@ -580,6 +694,23 @@ def propose_manoeuvre(run: IdentificationRun, *,
         How the next flight's job will know the thrust, as the job's option: "data" (it
         identifies the thrust from a throttle that moves on its own), "catalog" (the thrust
         is known: a declared propeller, a logged motor speed).
+    turn : bool
+        Also predict the manoeuvre flown in a steady turn (one full circle over the
+        manoeuvre, or slower where that needs more than :data:`TURN_BANK` of bank at the
+        flight's airspeed), and keep it where it separates more pairs.
+    turbulence : str or None
+        Turbulence the prediction flies the designed manoeuvre in (the level of
+        :func:`~drake_uav.diagrams.identification_flight.fly`; None: still air). Gusts
+        move the rivals' columns together as the next flight's will; the probes that pick
+        the inputs fly in still air.
+    seed : int
+        Seed of the prediction's turbulence.
+    sensors : SensorSuiteParams, optional
+        The sensors the model is flown with. None: research-grade ones
+        (:meth:`~drake_uav.vehicles.sensors.SensorSuiteParams.research_grade`), so that the
+        columns carry little noise: noise in the channels the columns are computed from
+        moves two rivals' columns apart without telling them apart, and noisier sensors
+        would predict separations the next flight does not give.
 
     Returns
     -------
@@ -597,22 +728,21 @@ def propose_manoeuvre(run: IdentificationRun, *,
     pairs = []
     for tie in run.near_ties:
         k = tie.winner.coefficient
-        first = _effect_columns(tie.winner.effect, params, k)
-        for rival in tie.alternatives:
-            second = _effect_columns(rival.effect, params, k)
-            if first is None or second is None:
-                continue
-            rivals = Rivals(k, tie.winner.effect, rival.effect, first, second,
-                            _base_columns(params, k))
-            pairs.append((rivals, np.asarray(run.samples.coefficients[k], dtype=float)))
+        members = [(e.effect, _effect_columns(e.effect, params, k))
+                   for e in (tie.winner, *tie.alternatives)]
+        members = [(name, columns) for name, columns in members if columns is not None]
+        y = np.asarray(run.samples.coefficients[k], dtype=float)
+        pairs += [(Rivals(k, a, b, first, second, _base_columns(params, k)), y)
+                  for (a, first), (b, second) in itertools.combinations(members, 2)]
     if not pairs:
         return None
     model = _identified_model(run)
     airspeed = float(np.median(run.samples.condition.airspeed))
+    suite = SensorSuiteParams.research_grade(model.rho) if sensors is None else sensors
 
-    def simulate(signals, length):
-        log = fly(model, turbulence=None, excitation=tuple(signals), duration=length,
-                  airspeed=airspeed)
+    def simulate(signals, length, gusts=None):
+        log = fly(model, turbulence=gusts, excitation=tuple(signals), duration=length,
+                  airspeed=airspeed, seed=seed, sensors=suite)
         samples = samples_from_log(log, model)
         if propulsion == "data" and any(s.surface == "throttle" for s in signals):
             # The job identifies the thrust from a throttle that moves on its own.
@@ -624,16 +754,19 @@ def propose_manoeuvre(run: IdentificationRun, *,
             "rudder": condition.rudder, "throttle": run.samples.throttle}
     moved = [c.name for c in channels
              if np.std(trim[c.name]) > MOVED_SHARE * c.limit]
+    turn_rate = GRAVITY * math.tan(TURN_BANK) / airspeed
     return design_manoeuvre(simulate, pairs, run.samples, channels, duration=duration,
                             trim={c.name: float(np.median(trim[c.name])) for c in channels},
-                            background=moved)
+                            background=moved, turn_rate=turn_rate if turn else None,
+                            predict=functools.partial(simulate, gusts=turbulence))
 
 
 COMMAND_CSV = "next_manoeuvre.csv"
 """Name of the command file in the main job's report folder."""
 COMMAND_HEADER = ("# time [s], then one column per input named <input>_<unit>: its command "
                   "(trim + manoeuvre) in that unit (rad for a surface, 1 for a throttle fraction "
-                  "of full)")
+                  "of full; heading_rad: the heading to hold, as its change from the heading "
+                  "at the start)")
 
 
 def command_csv(design: ManoeuvreDesign, rate_hz: float = 50.0) -> str:
@@ -641,7 +774,9 @@ def command_csv(design: ManoeuvreDesign, rate_hz: float = 50.0) -> str:
 
     A first comment line says what the columns are; then ``time_s`` and
     ``<channel>_<unit>`` (``elevator_rad``, ``throttle_1``): each channel's trim plus its
-    multisine, at ``rate_hz`` from 0 to the manoeuvre's end.
+    multisine, at ``rate_hz`` from 0 to the manoeuvre's end; a manoeuvre flown in a turn
+    has ``heading_rad`` too, the heading the autopilot is to hold, as its change from the
+    heading at the start.
 
     Parameters
     ----------
@@ -663,14 +798,15 @@ def command_csv(design: ManoeuvreDesign, rate_hz: float = 50.0) -> str:
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise ValueError(f"rate_hz: must be positive and finite, got {rate_hz}")
     t = np.arange(round(design.duration * rate_hz) + 1) / rate_hz
-    controls = excitation_controls(t, [design.trim.get(s, 0.0) for s in SURFACES],
-                                   design.signals)
+    names = SURFACES + REFERENCES
+    controls = excitation_controls(t, [design.trim.get(s, 0.0) for s in names],
+                                   design.signals, names)
     out = io.StringIO()
     out.write(COMMAND_HEADER + "\n")
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(["time_s", *(f"{c.name}_{c.unit}" for c in design.channels)])
     for i, ti in enumerate(t):
-        writer.writerow([f"{ti:.4f}", *(f"{controls[i, SURFACES.index(c.name)]:.6g}"
+        writer.writerow([f"{ti:.4f}", *(f"{controls[i, names.index(c.name)]:.6g}"
                                         for c in design.channels)])
     return out.getvalue()
 

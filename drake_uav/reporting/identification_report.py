@@ -12,12 +12,18 @@ a glossary closes it (:mod:`~drake_uav.reporting.explanations`).
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
 import numpy as np
 
-from drake_uav.diagrams.manoeuvre_design import COMMAND_CSV, ManoeuvreDesign, command_csv
+from drake_uav.diagrams.manoeuvre_design import (
+    COMMAND_CSV,
+    ManoeuvreDesign,
+    command_csv,
+    turn_bank,
+)
 from drake_uav.identification.assessment.near_ties import NEAR_TIE_MARGIN, accepted_evidence
 from drake_uav.identification.assessment.noise_floor import NoiseFloor
 from drake_uav.identification.discovery.plausibility import DerivativeWarning
@@ -28,6 +34,7 @@ from drake_uav.identification.propulsion import THROTTLE_TERM_UNITS, THRUST_COLU
 from drake_uav.model.coefficients import SIGNALS
 from drake_uav.reporting import explanations, figures
 from drake_uav.reporting.report import Report
+from drake_uav.systems.excitation import Turn
 
 __all__ = ["write_report", "result_warnings", "what_to_fly_next", "ROUND_ROWS"]
 
@@ -146,12 +153,27 @@ def _add_next_flight(report: Report, run: IdentificationRun,
             "long flight may give a large F to a pair the near-tie rule still ties: the "
             "share decides):\n")
         lines += [f"- {s.sentence()}" for s in design.separations]
+        if design.turn is not None:
+            lines.append("\n" + _turn_sentence(design.turn, run))
     if run.rate_limits:
         lines.append("\nLog the channels of 'Not identifiable at the logged rates' at the "
                      "rates given there: "
                      + ", ".join(f"{r.channel} at {r.needed_rate_hz:.3g} Hz for {r.term}"
                                  for r in run.rate_limits) + ".")
     report.add_text("\n".join(lines))
+
+
+def _turn_sentence(turn: Turn, run: IdentificationRun) -> str:
+    """How the manoeuvre's steady turn is flown: its rate and the bank it needs."""
+    airspeed = float(np.median(run.samples.condition.airspeed))
+    bank = math.degrees(turn_bank(turn, airspeed))
+    return ("The manoeuvre is flown in a steady turn (a rival depends on the heading or the "
+            f"attitude, "
+            f"which a straight flight does not move): the heading turns at "
+            f"{math.degrees(turn.rate):.1f} deg/s from {turn.start:g} s to {turn.end:g} s, "
+            f"about {bank:.0f} deg of bank at {airspeed:.1f} m/s; the autopilot's heading hold "
+            "follows the `heading_rad` column (the change from the heading at the start) while "
+            "the surfaces play theirs.")
 
 
 def result_warnings(run: IdentificationRun) -> list[str]:

@@ -7,7 +7,10 @@ holds a near tie, designs the manoeuvre that separates it
 (:func:`~drake_uav.diagrams.manoeuvre_design.propose_manoeuvre`) and flies it on the same
 aircraft with the same effect (the physics do not change with the manoeuvre), then runs the
 main job again. The tie is resolved when the second flight's findings are exactly the
-injected effect and the report names no near tie of it.
+injected effect and the report names no near tie of it; each pair of the injected effect
+and a rival it was tied with is told apart (:func:`told_apart`) when the second flight
+names the injected effect (or a near tie of it) and neither names the rival nor ties it
+with the injected one.
 """
 
 from __future__ import annotations
@@ -24,13 +27,38 @@ from drake_uav.testing.discovery_cases import (
 )
 from drake_uav.vehicles.loading import load_fixed_wing
 
-__all__ = ["fly_next", "resolved"]
+__all__ = ["fly_next", "resolved", "tied_with", "told_apart", "PREDICTION_SEEDS"]
+
+PREDICTION_SEEDS = 10_000
+"""Offset of the seed of the design's predicted flight from the flights' seed."""
 
 
 def resolved(run, expected: str) -> bool:
     """The job named exactly ``expected`` and no other effect comes close to it."""
     return list(run.findings) == [expected] and not any(
         t.winner.effect == expected for t in run.near_ties)
+
+
+def tied_with(run, effect: str) -> set[str]:
+    """The effects a run's near ties put in one group with ``effect`` (the accepted one and
+    its rivals, in every tie that holds ``effect``), ``effect`` left out."""
+    out = set()
+    for tie in run.near_ties:
+        members = {tie.winner.effect, *(a.effect for a in tie.alternatives)}
+        if effect in members:
+            out |= members
+    return out - {effect}
+
+
+def told_apart(run, expected: str, rival: str) -> bool:
+    """The run ends the tie of ``expected`` and ``rival`` in favour of ``expected``.
+
+    It names ``expected`` or ties it with what it names (a member of the same family may
+    still be named for it: that is another pair's tie), and it neither names ``rival`` nor
+    ties it with ``expected``."""
+    group = tied_with(run, expected)
+    return ((expected in run.findings or any(f in group for f in run.findings))
+            and rival not in run.findings and rival not in group)
 
 
 def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0.2,
@@ -60,8 +88,11 @@ def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0
     dict
         ``found_first`` and ``tied_first`` (findings and near-tie sentences of the campaign
         flight), ``expected``, ``selected`` (the inputs the design moves, empty without a
-        tie), ``predicted`` (each pair's summary), ``found_next``, ``tied_next`` and
-        ``resolved`` (:func:`resolved` on the next flight; None without a tie).
+        tie), ``turn`` (the manoeuvre is flown in a turn), ``predicted`` (each pair's
+        summary), ``found_next``, ``tied_next``, ``resolved`` (:func:`resolved` on the next
+        flight; None without a tie) and ``pairs`` (each rival of the injected effect on
+        the campaign flight -> :func:`told_apart` on the next flight; empty without a
+        manoeuvre).
 
     Raises
     ------
@@ -82,15 +113,19 @@ def fly_next(seed: int, effect: str, *, suite: str = "research", size: float = 0
                      propulsion=propulsion)
     out = {"expected": injection.expected, "found_first": ",".join(first.findings),
            "tied_first": " | ".join(t.sentence() for t in first.near_ties),
-           "selected": "", "predicted": [], "found_next": "", "tied_next": "",
-           "resolved": None}
-    design = propose_manoeuvre(first, duration=duration, propulsion=propulsion)
+           "selected": "", "turn": False, "predicted": [], "found_next": "", "tied_next": "",
+           "resolved": None, "pairs": {}}
+    # The prediction's gusts are not the next flight's (its seed is another).
+    design = propose_manoeuvre(first, duration=duration, propulsion=propulsion,
+                               seed=PREDICTION_SEEDS + seed)
     if design is None:
         return out
     run = identify(measured_only(fly(excitation=design.signals, **options)), catalog,
                    seed=seed, propulsion=propulsion)
-    return out | {"selected": ",".join(design.selected),
+    rivals = tied_with(first, injection.expected)
+    return out | {"selected": ",".join(design.selected), "turn": design.turn is not None,
                   "predicted": [s.summary() for s in design.separations],
+                  "pairs": {r: told_apart(run, injection.expected, r) for r in sorted(rivals)},
                   "found_next": ",".join(run.findings),
                   "tied_next": " | ".join(t.sentence() for t in run.near_ties),
                   "resolved": resolved(run, injection.expected)}
