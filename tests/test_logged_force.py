@@ -28,7 +28,7 @@ from drake_uav.identification.discovery.vector_effects import (
     force_coefficient_change,
 )
 from drake_uav.io.flight_log import FlightLog
-from drake_uav.testing.discovery_cases import tether_tension
+from drake_uav.testing.discovery_cases import discovery, tether_tension
 from drake_uav.testing.logged_force_cases import (
     EXPECTED,
     EXPECTED_OFF_CG,
@@ -138,6 +138,16 @@ def test_a_far_or_unlocated_point_is_reported_as_a_fixed_direction():
     assert vague.name == "force_fixed_direction_logged:tension"
     assert "uncertainty" in vague.explanation
     assert vague.parameters["azimuth"][0] == pytest.approx(math.radians(90.0), abs=1e-3)
+
+
+def test_a_finding_reported_as_a_fixed_direction_gets_its_aliases_from_its_own_columns():
+    """A tow flight (RPM logged, throttle moved) whose pull the job finds towards a point far
+    outside the flight: reported as a fixed direction, whose columns in the fits still carry
+    the located point's name. The aliases were looked up under the reported name, found no
+    column and stopped the job (IndexError); now the job ends and reports them under it."""
+    run = discovery(105, {"effect": "tow_force", "suite": "research", "size": 0.2,
+                          "rpm": "table", "excitation": "multisine_throttle"})
+    assert run["found"] == "force_fixed_direction"
 
 
 # ----------------------------------------------------------------- the tethered flights

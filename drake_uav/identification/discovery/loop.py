@@ -398,7 +398,8 @@ def discover(samples: AeroSamples, params: FixedWingParams,
     # A coefficient whose designs the loop left as they were keeps its baseline fit.
     final = {k: baseline[k] if k in unchanged
              else _fit(k, search.designs[k], search.tests[k], rate) for k in fitted}
-    found = vectors.with_parameters(search, [_with_parameters(f, final) for f in found])
+    fitted_as = [_with_parameters(f, final) for f in found]
+    found = vectors.with_parameters(search, fitted_as)
     adequacy = {k: _adequacy(final[k], (train, search.designs[k]), (test, search.tests[k]),
                              params, search.scales[k], rule.adequacy) for k in fitted}
     return DiscoveryResult(baseline=baseline, final=final, found=tuple(found),
@@ -408,7 +409,7 @@ def discover(samples: AeroSamples, params: FixedWingParams,
                            fixed={k: f for k in fitted
                                   if (f := {n: fixed[n] for n in baseline_names(params, k)
                                             if n in fixed})},
-                           aliases=_aliases(search, vectors, found, final,
+                           aliases=_aliases(search, vectors, fitted_as, found, final,
                                             {k: d for k, (d, _) in initial.items()}, pruned))
 
 
@@ -436,26 +437,31 @@ def _dropped_again(coefficient: str, pruned: Pruning, search: _Search,
                    again.dropped)
 
 
-def _aliases(search: _Search, vectors: JointSearch, found: Sequence[FoundEffect],
-             final: Mapping[str, CoefficientFit], catalog: Mapping[str, Design],
-             pruned: Mapping[str, Pruning]) -> tuple[AliasedEffect, ...]:
+def _aliases(search: _Search, vectors: JointSearch, fitted_as: Sequence[FoundEffect],
+             found: Sequence[FoundEffect], final: Mapping[str, CoefficientFit],
+             catalog: Mapping[str, Design], pruned: Mapping[str, Pruning]
+             ) -> tuple[AliasedEffect, ...]:
     """Each accepted effect's aliases on each coefficient it is kept on
     (:mod:`~drake_uav.identification.discovery.aliases`), on the training part, among the
     terms the final model does not hold: the candidates not accepted and the catalog terms
-    dropped (their columns from the ``catalog``'s whole structure)."""
+    dropped (their columns from the ``catalog``'s whole structure). ``fitted_as``: the
+    findings under the names their columns carry in the fits, ``found`` the same as
+    reported (a force towards a far point is reported as a fixed direction,
+    :func:`~drake_uav.identification.discovery.vector_effects.far_point_as_direction`)."""
     origins = {e.name: e.physical_origin for e in (*search.effects, *vectors.effects)}
     out = []
-    for f in found:
+    for fitted, f in zip(fitted_as, found, strict=True):
         for k in f.coefficients:
             fit = final[k]
             model = dict(zip(fit.names, fit.training_design.T, strict=True))
             column = sum(model.pop(n) * fit.result.estimate[i]
-                         for i, n in enumerate(fit.names) if n.startswith(f"{f.name}:"))
+                         for i, n in enumerate(fit.names) if n.startswith(f"{fitted.name}:"))
             dropped = [Term(t.term, CATALOG_ORIGIN,
                             catalog[k].X[:, [catalog[k].names.index(t.term)]], baseline=True)
                        for t in pruned[k].dropped]
-            aliased = aliases_of(f.name, k, origins.get(f.name, f.name), column, model,
-                                 dropped + _candidate_terms(search, vectors, k, found))
+            aliased = aliases_of(f.name, k, origins.get(fitted.name, fitted.name), column,
+                                 model, dropped + _candidate_terms(search, vectors, k,
+                                                                   fitted_as))
             if aliased is not None:
                 out.append(aliased)
     return tuple(out)
