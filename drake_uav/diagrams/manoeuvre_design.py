@@ -96,8 +96,9 @@ DECISION_LEVEL = 0.01
 DECISION_POWER = 0.8
 """Probability the designed manoeuvre must give that test of deciding."""
 TURN_BANK = math.radians(15.0)
-"""Largest bank [rad] of the steady turn :func:`propose_manoeuvre` considers: the turn
-is one full circle over the manoeuvre, or slower where that would need more bank."""
+"""Bank [rad] of the steady turn :func:`propose_manoeuvre` considers: its rate is the one
+this bank gives at the flight's airspeed (a circle in about a minute at 25 m/s), held over
+the whole manoeuvre, within the safety pilot's roll limit."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -695,9 +696,9 @@ def propose_manoeuvre(run: IdentificationRun, *,
         identifies the thrust from a throttle that moves on its own), "catalog" (the thrust
         is known: a declared propeller, a logged motor speed).
     turn : bool
-        Also predict the manoeuvre flown in a steady turn (one full circle over the
-        manoeuvre, or slower where that needs more than :data:`TURN_BANK` of bank at the
-        flight's airspeed), and keep it where it separates more pairs.
+        Also predict the manoeuvre flown in a steady turn (at the rate a :data:`TURN_BANK`
+        bank gives at the flight's airspeed, over the whole manoeuvre), and keep it where
+        it separates more pairs.
     turbulence : str or None
         Turbulence the prediction flies the designed manoeuvre in (the level of
         :func:`~drake_uav.diagrams.identification_flight.fly`; None: still air). Gusts
