@@ -150,8 +150,9 @@ def _add_next_flight(report: Report, run: IdentificationRun,
             f"(a near tie from {1 - NEAR_TIE_MARGIN:.0%}), the correlation of their columns "
             "after the baseline, and the expected partial F-statistic of one against the "
             "other (about 1: no evidence either way; it grows with the length flown, so a "
-            "long flight may give a large F to a pair the near-tie rule still ties: the "
-            "share decides):\n")
+            "long flight may give a large F to a pair the near-tie rule still ties; a pair is "
+            "separated when the share falls below the tie and the F reaches what a powerful "
+            "test needs):\n")
         lines += [f"- {s.sentence()}" for s in design.separations]
         if design.turn is not None:
             lines.append("\n" + _turn_sentence(design.turn, run))
@@ -168,8 +169,7 @@ def _turn_sentence(turn: Turn, run: IdentificationRun) -> str:
     airspeed = float(np.median(run.samples.condition.airspeed))
     bank = math.degrees(turn_bank(turn, airspeed))
     return ("The manoeuvre is flown in a steady turn (a rival depends on the heading or the "
-            f"attitude, "
-            f"which a straight flight does not move): the heading turns at "
+            "attitude, which a straight flight does not move): the heading turns at "
             f"{math.degrees(turn.rate):.1f} deg/s from {turn.start:g} s to {turn.end:g} s, "
             f"about {bank:.0f} deg of bank at {airspeed:.1f} m/s; the autopilot's heading hold "
             "follows the `heading_rad` column (the change from the heading at the start) while "
