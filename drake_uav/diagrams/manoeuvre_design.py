@@ -289,6 +289,7 @@ def expected_f(theta, sigma: float, first, second, base, independent_share: floa
     return 1.0 + float(part @ part) / sigma**2 * independent_share / theta.size
 
 
+@functools.cache
 def decisive_f(columns: int) -> float:
     """Expected partial F-statistic at which a test of ``columns`` columns decides.
 
