@@ -28,7 +28,8 @@ import numpy as np
 
 from drake_uav.estimation.compatibility_fits import (
     ParameterFit,
-    coarse_lag,
+    best_shift_fit,
+    coarse_lags,
     fresh_times,
     linear_fit,
     shift_fit,
@@ -88,11 +89,13 @@ def _component_weights(fit: ParameterFit, design, components: int) -> np.ndarray
     return 1.0 / np.maximum(rms, max(float(rms.max()), 1e-300) * 1e-3)
 
 
-def _two_pass(design, names, components: int, guess: float, step: float,
+def _two_pass(design, names, components: int, guesses: tuple[float, ...], step: float,
               reach: int) -> ParameterFit:
     """:func:`shift_fit` weighted by the components' residual RMS of a first pass (whose
-    skew the weighted pass refines within two grid steps)."""
-    first = shift_fit(design, names, guess, step, reach, KINEMATIC_BLOCK)
+    skew the weighted pass refines within two grid steps). The first pass starts from each
+    of ``guesses`` and from no skew, and keeps the best fit
+    (:func:`~drake_uav.estimation.compatibility_fits.best_shift_fit`)."""
+    first = best_shift_fit(design, names, (*guesses, 0.0), step, reach, KINEMATIC_BLOCK)
     weights = _component_weights(first, design, components)
     return shift_fit(_weighted(design, components, weights), names, first.value("skew"),
                      step, 2, KINEMATIC_BLOCK)
@@ -147,10 +150,11 @@ def attitude_fit(time: np.ndarray, gyro: np.ndarray, euler: np.ndarray, *, windo
     dt = float(np.median(np.diff(time)))
     relation = _EulerRelation(time, gyro, euler)
     n = int(round(2.0 / dt))
-    guess = coarse_lag(high_pass(relation.rates.values, n),
+    guesses = coarse_lags(high_pass(relation.rates.values, n),
                        high_pass(np.unwrap(euler, axis=0), n), 1.0 / dt, max_skew)
     names = ("bias_p", "bias_q", "bias_r")
-    timing = _two_pass(relation.design(0.5 * window, 0.125 * window), names, 3, guess, dt, 6)
+    timing = _two_pass(relation.design(0.5 * window, 0.125 * window), names, 3, guesses, dt,
+                       6)
     tau = timing.value("skew")
     design = relation.design(window, 0.25 * window)
     weights = _component_weights(timing, design, 3)
@@ -216,9 +220,9 @@ def velocity_fit(time: np.ndarray, strapdown: Strapdown, gps_velocity: np.ndarra
 
     held = np.column_stack([np.interp(time, time[j], gps_velocity[j, i]) for i in range(3)])
     n = int(round(2.0 / dt))
-    guess = coarse_lag(high_pass(strapdown.velocity.values, n), high_pass(held, n), 1.0 / dt,
-                       max_skew)
-    return _two_pass(design, ("bias_x", "bias_y", "bias_z"), 3, guess, dt,
+    guesses = coarse_lags(high_pass(strapdown.velocity.values, n), high_pass(held, n),
+                          1.0 / dt, max_skew)
+    return _two_pass(design, ("bias_x", "bias_y", "bias_z"), 3, guesses, dt,
                      max(int(round(period / dt)), 5))
 
 
@@ -285,9 +289,9 @@ def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str
     reference = np.column_stack([commands[_RESPONSE[a][0][0]] for a in axes])
     response = np.column_stack([np.gradient(imu[a], time) for a in axes])
     n = max(int(round(0.1 / dt)), 1)
-    guess = coarse_lag(reference - high_pass(reference, n), response - high_pass(response, n),
-                       1.0 / dt, max_skew)
-    return _two_pass(design, names, len(axes), guess, dt, 6)
+    guesses = coarse_lags(reference - high_pass(reference, n),
+                          response - high_pass(response, n), 1.0 / dt, max_skew)
+    return _two_pass(design, names, len(axes), guesses, dt, 6)
 
 
 def _block_design(parts, t0: np.ndarray, t1: np.ndarray):
