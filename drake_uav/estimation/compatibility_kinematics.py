@@ -253,22 +253,30 @@ def baro_fit(time: np.ndarray, baro_altitude: np.ndarray, gps_down: np.ndarray,
     return linear_fit(np.ones((len(y), 1)), y, ("bias",), at[keep], block)
 
 
-# Regressors of the angular accelerations besides the commands: the body rates and the
-# lateral or normal specific force (a stand-in for sideslip and angle of attack).
-_RESPONSE = {"p": (("aileron", "rudder"), ("p", "r", "ay")),
-             "q": (("elevator",), ("q", "az")),
-             "r": (("rudder", "aileron"), ("r", "p", "ay"))}
+# Per body axis, the commands that move its angular acceleration, the first the axis's own
+# surface (its cross-correlation gives the coarse skew), and the other regressors: the body
+# rates and the lateral or normal specific force (a stand-in for sideslip and angle of
+# attack). Every surface on every axis: an effect the catalog lacks that couples a surface
+# into another axis (an elevator that rolls the aircraft) must not bend the timing; left
+# out, the elevator's roll read as commands 12 ms early on the mavsim Aerosonde.
+_RESPONSE = {"p": (("aileron", "rudder", "elevator"), ("p", "r", "ay")),
+             "q": (("elevator", "aileron", "rudder"), ("q", "az")),
+             "r": (("rudder", "aileron", "elevator"), ("r", "p", "ay"))}
 
 
 def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str, np.ndarray],
-                *, max_skew: float, window: int = 6) -> ParameterFit | None:
+                *, max_skew: float, window: int = 6,
+                throttle: np.ndarray | None = None) -> ParameterFit | None:
     """Skew [s] of the commands against the angular accelerations they cause.
 
     Per body axis, the rate change over ``window`` samples against the integral over the
     window of a constant, the commanded surfaces ``skew`` earlier (held between samples)
     and the other regressors of :data:`_RESPONSE`; the axes share the skew. ``imu`` maps
     ``p q r ax ay az`` to samples, ``commands`` maps surface names to samples (absent
-    surfaces are left out). None when no axis has its command.
+    surfaces are left out). The logged ``throttle`` (0..1), when given, is one more
+    regressor on every axis, not shifted: the propeller's torque rolls the aircraft with
+    it (through the motor's own lag, which is no skew of the commands). None when no axis
+    has its command.
     """
     dt = float(np.median(np.diff(time)))
     axes = [a for a, (surfaces, _) in _RESPONSE.items() if surfaces[0] in commands]
@@ -277,14 +285,14 @@ def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str
     i0, i1 = _windows(time, window, window)
     t0, t1 = time[i0], time[i1]
     parts, names = [], []
+    extra = {} if throttle is None else {"throttle": throttle}
     for axis in axes:
         surfaces = [s for s in _RESPONSE[axis][0] if s in commands]
         held = Cumulative(time, np.column_stack([commands[s] for s in surfaces]), held=True)
-        other = Cumulative(time, np.column_stack([np.ones_like(time)]
-                                                 + [imu[s] for s in _RESPONSE[axis][1]]))
+        signals = {s: imu[s] for s in _RESPONSE[axis][1]} | extra
+        other = Cumulative(time, np.column_stack([np.ones_like(time), *signals.values()]))
         parts.append((imu[axis][i1] - imu[axis][i0], held, other.between(t0, t1)))
-        names += [f"{axis}_{s}" for s in surfaces] + [f"{axis}_{s}" for s in
-                                                      ("bias", *_RESPONSE[axis][1])]
+        names += [f"{axis}_{s}" for s in (*surfaces, "bias", *signals)]
     design = _block_design(parts, t0, t1)
     reference = np.column_stack([commands[_RESPONSE[a][0][0]] for a in axes])
     response = np.column_stack([np.gradient(imu[a], time) for a in axes])
