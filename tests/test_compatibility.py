@@ -20,7 +20,6 @@ from drake_uav.identification.pipeline import measured_command_delay
 from drake_uav.io.flight_log import FlightLogError
 from drake_uav.systems.excitation import Doublet
 from drake_uav.systems.safety_pilot import SafetyPilotGains
-from drake_uav.testing.discovery_cases import INJECTED, SUITES
 from drake_uav.vehicles import load_fixed_wing
 
 PARAMS = load_fixed_wing("aerosonde")
@@ -180,39 +179,6 @@ def test_a_servo_delay_is_not_taken_for_an_air_data_skew():
         skew = result["air_data_time_skew"]
         assert abs(skew.estimate) < min(0.005, SIGMAS * skew.sigma), skew.line()
         assert not skew.significant
-
-
-@pytest.mark.parametrize("seed", (40, 41, 42))
-def test_a_weak_rudder_leaves_no_false_command_skew(seed):
-    """The mavsim Aerosonde's rudder moves the yaw acceleration little beside the aileron:
-    the rudder's cross-correlation peaks about 0.3 s late, and a search from that peak
-    alone read a significant 0.10 s skew on clean flights (a servo delay the aircraft does
-    not have). Clean: no significant skew; surfaces 50 ms late: within 15 ms of it."""
-    mavsim = load_fixed_wing("aerosonde_mavsim")
-    for delay in (0.0, 0.05):
-        flight = fly(mavsim, turbulence="light", seed=seed, duration=60.0,
-                     actuator_delay=delay)
-        skew = check_compatibility(flight.select(flight.measured_names),
-                                   mavsim)["command_time_skew"]
-        if delay == 0.0:
-            assert not skew.significant, skew.line()
-        else:
-            assert abs(skew.estimate - delay) < 0.015, skew.line()
-
-
-@pytest.mark.parametrize("seed", (40, 41))
-def test_an_elevator_that_rolls_the_aircraft_leaves_no_false_command_skew(seed):
-    """An effect the catalog lacks couples the elevator into the roll (C_l += k delta_e,
-    the campaign's ``elevator_roll`` at 30 %, default sensors, mavsim Aerosonde): with
-    only the aileron and rudder on the roll axis the commands read 12 ms early, a
-    significant skew that was then corrected. Every surface on every axis: none."""
-    mavsim = load_fixed_wing("aerosonde_mavsim")
-    options = INJECTED["elevator_roll"].fly_options(0.0186, mavsim, 60.0)
-    flight = fly(mavsim, turbulence="light", seed=seed, duration=60.0,
-                 sensors=SUITES["default"](mavsim.rho), **options)
-    skew = check_compatibility(flight.select(flight.measured_names),
-                               mavsim)["command_time_skew"]
-    assert not skew.significant and not skew.applied, skew.line()
 
 
 def test_skews_of_seconds_between_channel_groups_are_found(straight):

@@ -381,8 +381,7 @@ def _air_data_stage(c: _Check) -> None:
 def _command_stage(c: _Check) -> None:
     imu = {n[4:]: c.channels[n] for n in _IMU}
     commands = {k: c.channels[v] for k, v in _COMMANDS.items() if c.has(v)}
-    fit = command_fit(c.time, imu, commands, max_skew=c.max_skew,
-                      throttle=c.channels["cmd_throttle"] if c.has("cmd_throttle") else None)
+    fit = command_fit(c.time, imu, commands, max_skew=c.max_skew)
     if fit is None:
         return
     skew, period = fit.value("skew"), float(np.median(np.diff(c.time)))

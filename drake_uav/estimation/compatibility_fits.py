@@ -12,12 +12,9 @@ linear in the calibration parameters ``theta`` (biases) for a given skew ``tau``
 the measured group (its samples are ``tau`` late).
 :class:`~drake_uav.estimation.signals.Cumulative` holds the running integrals, read at
 any shifted time by linear interpolation, so a skew costs one interpolation per window.
-:func:`shift_fit` finds the skew by least squares over a grid around a coarse guess,
-refines it between grid points with a parabola through the residual sums, and fits the
-linear parameters at that skew. The guesses are the highest peaks of a cross-correlation
-(:func:`coarse_lags`) and no skew at all; :func:`best_shift_fit` refines each and keeps
-the best fit, since a relation's residual sum has local minima wherever its signals
-repeat.
+:func:`shift_fit` finds the skew by least squares over a grid around a coarse guess
+(:func:`coarse_lag`, the peak of a cross-correlation), refines it between grid points
+with a parabola through the residual sums, and fits the linear parameters at that skew.
 
 Uncertainty. The residuals of these relations are correlated in time (integrated sensor
 noise, overlapping windows, gusts for the air data), so the usual ``s^2 (X^T X)^-1``
@@ -40,9 +37,9 @@ from scipy import stats
 
 from drake_uav.estimation.signals import is_new_sample
 
-__all__ = ["ParameterFit", "best_shift_fit", "block_covariance", "block_sandwich",
-           "coarse_lags", "correlation_time", "correlated_covariance", "larger_errors",
-           "grid_minimum", "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
+__all__ = ["ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
+           "correlation_time", "correlated_covariance", "larger_errors", "grid_minimum",
+           "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
 MAX_RECENTRES = 5
 """Times :func:`shift_fit` moves its grid to an edge minimum before giving up."""
@@ -257,59 +254,11 @@ def shift_fit(design: Design, names: Sequence[str], guess: float, step: float, r
                         float(np.sqrt(np.mean(r * r))))
 
 
-def best_shift_fit(design: Design, names: Sequence[str], guesses: Sequence[float],
-                   step: float, reach: int, block_length: float) -> ParameterFit:
-    """:func:`shift_fit` started from each of ``guesses`` [s]; the fit with the smallest
-    residual RMS.
-
-    The residual sum of a skew has local minima wherever the signals repeat (a multisine's
-    periods, a controller's oscillation): a grid search from one guess finds the minimum
-    nearest to it, not the best one.
-
-    Parameters
-    ----------
-    design : callable
-        ``design(tau) -> (X, y, row_time)``, as for :func:`shift_fit`.
-    names : sequence of str
-        The linear parameters.
-    guesses : sequence of float
-        Starting skews [s] (repeats are fitted once).
-    step : float
-        Grid step [s].
-    reach : int
-        Grid points on either side of a start.
-    block_length : float
-        Time block [s] of the covariance (:func:`block_covariance`).
-
-    Returns
-    -------
-    ParameterFit
-        The linear parameters and the skew (last, named ``"skew"``).
-
-    Raises
-    ------
-    ValueError
-        When ``guesses`` is empty.
-    """
-    starts = list(dict.fromkeys(float(g) for g in guesses))
-    if not starts:
-        raise ValueError("best_shift_fit: no starting skew given")
-    return min((shift_fit(design, names, g, step, reach, block_length) for g in starts),
-               key=lambda fit: fit.residual_rms)
-
-
-def coarse_lags(reference: np.ndarray, delayed: np.ndarray, rate_hz: float,
-                max_lag: float, count: int = 3) -> tuple[float, ...]:
-    """Lags [s] (within ``+-max_lag``) by which ``delayed`` (N, m) may follow ``reference``
-    (N, m), sampled uniformly at ``rate_hz``: the ``count`` highest peaks (local maxima) of
-    the summed squared normalised cross-correlations of the matched columns (a response of
-    either sign counts), the highest first.
-
-    More than one: when a column of ``reference`` drives its response only weakly beside
-    the other signals the relation holds (a rudder beside the aileron's yaw), the highest
-    peak can lie far from the lag the whole relation fits best;
-    :func:`best_shift_fit` refines each.
-    """
+def coarse_lag(reference: np.ndarray, delayed: np.ndarray, rate_hz: float,
+               max_lag: float) -> float:
+    """Lag [s] (within ``+-max_lag``) by which ``delayed`` (N, m) follows ``reference``
+    (N, m), sampled uniformly at ``rate_hz``: the peak of the summed squared normalised
+    cross-correlations of the matched columns (a response of either sign counts)."""
     a = np.asarray(reference, float).reshape(len(reference), -1)
     b = np.asarray(delayed, float).reshape(len(delayed), -1)
     a = (a - a.mean(axis=0)) / np.maximum(a.std(axis=0), 1e-300)
@@ -321,10 +270,7 @@ def coarse_lags(reference: np.ndarray, delayed: np.ndarray, rate_hz: float,
     corr = sp_fft.irfft(spectrum, size, axis=0) / n
     score = np.sum(np.concatenate([corr[-lags:], corr[: lags + 1]]) ** 2, axis=1) if lags \
         else np.sum(corr[:1] ** 2, axis=1)
-    padded = np.concatenate([[-np.inf], score, [-np.inf]])
-    peaks = np.flatnonzero((score >= padded[:-2]) & (score >= padded[2:]))
-    highest = peaks[np.argsort(-score[peaks], kind="stable")[:count]]
-    return tuple(float((int(i) - lags) / rate_hz) for i in highest)
+    return float((int(np.argmax(score)) - lags) / rate_hz)
 
 
 def t_p_value(z: float, dof: int) -> float:

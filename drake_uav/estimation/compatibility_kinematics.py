@@ -28,8 +28,7 @@ import numpy as np
 
 from drake_uav.estimation.compatibility_fits import (
     ParameterFit,
-    best_shift_fit,
-    coarse_lags,
+    coarse_lag,
     fresh_times,
     linear_fit,
     shift_fit,
@@ -89,13 +88,11 @@ def _component_weights(fit: ParameterFit, design, components: int) -> np.ndarray
     return 1.0 / np.maximum(rms, max(float(rms.max()), 1e-300) * 1e-3)
 
 
-def _two_pass(design, names, components: int, guesses: tuple[float, ...], step: float,
+def _two_pass(design, names, components: int, guess: float, step: float,
               reach: int) -> ParameterFit:
     """:func:`shift_fit` weighted by the components' residual RMS of a first pass (whose
-    skew the weighted pass refines within two grid steps). The first pass starts from each
-    of ``guesses`` and from no skew, and keeps the best fit
-    (:func:`~drake_uav.estimation.compatibility_fits.best_shift_fit`)."""
-    first = best_shift_fit(design, names, (*guesses, 0.0), step, reach, KINEMATIC_BLOCK)
+    skew the weighted pass refines within two grid steps)."""
+    first = shift_fit(design, names, guess, step, reach, KINEMATIC_BLOCK)
     weights = _component_weights(first, design, components)
     return shift_fit(_weighted(design, components, weights), names, first.value("skew"),
                      step, 2, KINEMATIC_BLOCK)
@@ -150,11 +147,10 @@ def attitude_fit(time: np.ndarray, gyro: np.ndarray, euler: np.ndarray, *, windo
     dt = float(np.median(np.diff(time)))
     relation = _EulerRelation(time, gyro, euler)
     n = int(round(2.0 / dt))
-    guesses = coarse_lags(high_pass(relation.rates.values, n),
+    guess = coarse_lag(high_pass(relation.rates.values, n),
                        high_pass(np.unwrap(euler, axis=0), n), 1.0 / dt, max_skew)
     names = ("bias_p", "bias_q", "bias_r")
-    timing = _two_pass(relation.design(0.5 * window, 0.125 * window), names, 3, guesses, dt,
-                       6)
+    timing = _two_pass(relation.design(0.5 * window, 0.125 * window), names, 3, guess, dt, 6)
     tau = timing.value("skew")
     design = relation.design(window, 0.25 * window)
     weights = _component_weights(timing, design, 3)
@@ -220,9 +216,9 @@ def velocity_fit(time: np.ndarray, strapdown: Strapdown, gps_velocity: np.ndarra
 
     held = np.column_stack([np.interp(time, time[j], gps_velocity[j, i]) for i in range(3)])
     n = int(round(2.0 / dt))
-    guesses = coarse_lags(high_pass(strapdown.velocity.values, n), high_pass(held, n),
-                          1.0 / dt, max_skew)
-    return _two_pass(design, ("bias_x", "bias_y", "bias_z"), 3, guesses, dt,
+    guess = coarse_lag(high_pass(strapdown.velocity.values, n), high_pass(held, n), 1.0 / dt,
+                       max_skew)
+    return _two_pass(design, ("bias_x", "bias_y", "bias_z"), 3, guess, dt,
                      max(int(round(period / dt)), 5))
 
 
@@ -253,30 +249,22 @@ def baro_fit(time: np.ndarray, baro_altitude: np.ndarray, gps_down: np.ndarray,
     return linear_fit(np.ones((len(y), 1)), y, ("bias",), at[keep], block)
 
 
-# Per body axis, the commands that move its angular acceleration, the first the axis's own
-# surface (its cross-correlation gives the coarse skew), and the other regressors: the body
-# rates and the lateral or normal specific force (a stand-in for sideslip and angle of
-# attack). Every surface on every axis: an effect the catalog lacks that couples a surface
-# into another axis (an elevator that rolls the aircraft) must not bend the timing; left
-# out, the elevator's roll read as commands 12 ms early on the mavsim Aerosonde.
-_RESPONSE = {"p": (("aileron", "rudder", "elevator"), ("p", "r", "ay")),
-             "q": (("elevator", "aileron", "rudder"), ("q", "az")),
-             "r": (("rudder", "aileron", "elevator"), ("r", "p", "ay"))}
+# Regressors of the angular accelerations besides the commands: the body rates and the
+# lateral or normal specific force (a stand-in for sideslip and angle of attack).
+_RESPONSE = {"p": (("aileron", "rudder"), ("p", "r", "ay")),
+             "q": (("elevator",), ("q", "az")),
+             "r": (("rudder", "aileron"), ("r", "p", "ay"))}
 
 
 def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str, np.ndarray],
-                *, max_skew: float, window: int = 6,
-                throttle: np.ndarray | None = None) -> ParameterFit | None:
+                *, max_skew: float, window: int = 6) -> ParameterFit | None:
     """Skew [s] of the commands against the angular accelerations they cause.
 
     Per body axis, the rate change over ``window`` samples against the integral over the
     window of a constant, the commanded surfaces ``skew`` earlier (held between samples)
     and the other regressors of :data:`_RESPONSE`; the axes share the skew. ``imu`` maps
     ``p q r ax ay az`` to samples, ``commands`` maps surface names to samples (absent
-    surfaces are left out). The logged ``throttle`` (0..1), when given, is one more
-    regressor on every axis, not shifted: the propeller's torque rolls the aircraft with
-    it (through the motor's own lag, which is no skew of the commands). None when no axis
-    has its command.
+    surfaces are left out). None when no axis has its command.
     """
     dt = float(np.median(np.diff(time)))
     axes = [a for a, (surfaces, _) in _RESPONSE.items() if surfaces[0] in commands]
@@ -285,21 +273,21 @@ def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str
     i0, i1 = _windows(time, window, window)
     t0, t1 = time[i0], time[i1]
     parts, names = [], []
-    extra = {} if throttle is None else {"throttle": throttle}
     for axis in axes:
         surfaces = [s for s in _RESPONSE[axis][0] if s in commands]
         held = Cumulative(time, np.column_stack([commands[s] for s in surfaces]), held=True)
-        signals = {s: imu[s] for s in _RESPONSE[axis][1]} | extra
-        other = Cumulative(time, np.column_stack([np.ones_like(time), *signals.values()]))
+        other = Cumulative(time, np.column_stack([np.ones_like(time)]
+                                                 + [imu[s] for s in _RESPONSE[axis][1]]))
         parts.append((imu[axis][i1] - imu[axis][i0], held, other.between(t0, t1)))
-        names += [f"{axis}_{s}" for s in (*surfaces, "bias", *signals)]
+        names += [f"{axis}_{s}" for s in surfaces] + [f"{axis}_{s}" for s in
+                                                      ("bias", *_RESPONSE[axis][1])]
     design = _block_design(parts, t0, t1)
     reference = np.column_stack([commands[_RESPONSE[a][0][0]] for a in axes])
     response = np.column_stack([np.gradient(imu[a], time) for a in axes])
     n = max(int(round(0.1 / dt)), 1)
-    guesses = coarse_lags(reference - high_pass(reference, n),
-                          response - high_pass(response, n), 1.0 / dt, max_skew)
-    return _two_pass(design, names, len(axes), guesses, dt, 6)
+    guess = coarse_lag(reference - high_pass(reference, n), response - high_pass(response, n),
+                       1.0 / dt, max_skew)
+    return _two_pass(design, names, len(axes), guess, dt, 6)
 
 
 def _block_design(parts, t0: np.ndarray, t1: np.ndarray):
