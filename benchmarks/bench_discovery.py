@@ -15,7 +15,7 @@ flights the false-discovery rate (flights with any finding).
         [--sizes 0.3,0.2,0.1] [--effects all] [--suites default,research]
         [--turbulence light,moderate] [--workers 2] [--out benchmarks/results/discovery]
         [--min-folds N] [--duration SECONDS] [--excitation multisine_throttle]
-        [--rpm [fitted|table]]
+        [--rpm [fitted|table]] [--rpm-aircraft aerosonde_electric]
         [--quick] [--markdown docs/validation.md]
 
 Results are kept in Parquet under ``--out``; an interrupted run resumes there.
@@ -32,7 +32,10 @@ its own buys. ``--rpm`` flies the Aerosonde with an electric motor and a fixed-p
 propeller and logs its shaft speed (an ESC's telemetry), so that the job identifies the
 thrust from C_T(J) (``--rpm table``: from the propeller's declared table, which fixes it
 independently of the drag; fitted with the drag, a drag that follows the thrust is a
-thrust scale). Each option needs its own ``--out`` folder.
+thrust scale). ``--rpm-aircraft aerosonde_electric`` flies the validation's Aerosonde
+with that motor and propeller instead of the mavsim Aerosonde, whose drag polar has no
+parasitic term (it cruises on less than 1 N of thrust). Each option needs its own
+``--out`` folder.
 
 ``--markdown docs/validation.md`` writes the cells run into that page and its data file
 (``benchmarks/validation_report.py``), keeping the cells other runs measured.
@@ -65,6 +68,7 @@ from drake_uav.testing.discovery_cases import (
     EXCITATIONS,
     FLIGHT_DURATION,
     INJECTED,
+    RPM_AIRCRAFTS,
     RPM_MODES,
     SUITES,
 )
@@ -170,6 +174,10 @@ def main() -> None:
                         help="flights whose logs hold the propeller's shaft speed; the job "
                              "fits C_T(J) with the drag (fitted) or takes the propeller's "
                              "declared table (table)")
+    parser.add_argument("--rpm-aircraft", default=None, choices=RPM_AIRCRAFTS,
+                        help=f"the aircraft --rpm flies (default {RPM_AIRCRAFTS[0]}; "
+                             f"{RPM_AIRCRAFTS[1]}: the validation's Aerosonde with that "
+                             "motor and propeller)")
     parser.add_argument("--quick", action="store_true",
                         help="one clean and one stall-onset 60 s flight, in this process")
     parser.add_argument("--markdown", default=None,
@@ -204,6 +212,10 @@ def _campaigns(args: argparse.Namespace) -> None:
         options["excitation"] = args.excitation
     if args.rpm:
         options["rpm"] = args.rpm
+    if args.rpm_aircraft:
+        if not args.rpm:
+            raise SystemExit("bench_discovery: --rpm-aircraft needs --rpm")
+        options["rpm_aircraft"] = args.rpm_aircraft
     effect_rows = []
     with local_cluster(args.workers) as scheduler:
         clean = _run("clean", Campaign("discovery", seeds=parse_seeds(args.clean_seeds),

@@ -241,3 +241,14 @@ def test_the_rpm_variant_flies_the_propeller_aircraft_and_logs_its_shaft_speed(m
         params.propulsion.C_T0, params.propulsion.C_T1, params.propulsion.C_T2), rtol=1e-9)
     with pytest.raises(ValueError, match="rpm 'measured' unknown"):
         discovery(4, {"rpm": "measured"})
+    with pytest.raises(Stop):  # the validation's Aerosonde with the same motor and propeller
+        discovery(4, {"effect": "tow_force", "rpm": "table",
+                      "rpm_aircraft": discovery_cases.ELECTRIC_AEROSONDE})
+    assert calibrated[-1] == discovery_cases.ELECTRIC_AEROSONDE
+    electric, aerosonde = flown[-1]["aircraft"], discovery_cases.load_fixed_wing("aerosonde")
+    assert electric.name == discovery_cases.ELECTRIC_AEROSONDE
+    assert electric.derivatives == aerosonde.derivatives and electric.mass == aerosonde.mass
+    assert electric.propulsion == params.propulsion
+    assert read[-1][1].diameter == params.propulsion.diameter
+    with pytest.raises(ValueError, match="rpm_aircraft 'unatrap' unknown"):
+        discovery(4, {"rpm": "table", "rpm_aircraft": "unatrap"})

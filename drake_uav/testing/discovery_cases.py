@@ -50,6 +50,7 @@ __all__ = ["INJECTED", "SUITES", "CALIBRATION_SEEDS", "Injection", "unit_strengt
            "discovery", "measured_only", "true_coefficients", "aero_condition", "qbar_s",
            "PULL_POINT", "PullTowardsPoint", "pull_towards_point", "tether_tension",
            "found_as_family", "RPM_AIRCRAFT", "RPM_NOISE", "RPM_MODES", "propeller_table",
+           "ELECTRIC_AEROSONDE", "RPM_AIRCRAFTS", "campaign_aircraft",
            "shaft_speed_logged"]
 
 CALIBRATION_SEEDS = (1000, 1001, 1002)
@@ -272,6 +273,39 @@ RPM_AIRCRAFT = "aerosonde_mavsim"
 """The aircraft of the campaign's RPM variant: the Aerosonde with an electric motor and a
 fixed-pitch propeller (:class:`~drake_uav.vehicles.fixed_wing.MotorPropeller`), whose shaft
 speed an ESC reports."""
+ELECTRIC_AEROSONDE = "aerosonde_electric"
+"""The other aircraft the RPM variant can fly (``rpm_aircraft``): the catalog Aerosonde of
+the validation campaign (its aerodynamics, mass and inertia) with the mavsim Aerosonde's
+motor and propeller. Cruise at 25 m/s takes about 11 N of thrust (0.8 N on the mavsim
+Aerosonde, whose drag polar has no parasitic term), and its C_D varies about 2.6 times
+as much over a flight, so an effect of a given share of that variation is larger against
+the same sensors' noise."""
+RPM_AIRCRAFTS = (RPM_AIRCRAFT, ELECTRIC_AEROSONDE)
+
+
+def campaign_aircraft(name: str) -> FixedWingParams:
+    """The aircraft a campaign flies, by name: a catalog aircraft
+    (:func:`~drake_uav.vehicles.loading.load_fixed_wing`) or :data:`ELECTRIC_AEROSONDE`.
+
+    Parameters
+    ----------
+    name : str
+        The aircraft's name.
+
+    Returns
+    -------
+    FixedWingParams
+        Its parameters.
+
+    Raises
+    ------
+    ValueError
+        For a name that is neither.
+    """
+    if name == ELECTRIC_AEROSONDE:
+        return dataclasses.replace(load_fixed_wing("aerosonde"), name=ELECTRIC_AEROSONDE,
+                                   propulsion=load_fixed_wing(RPM_AIRCRAFT).propulsion)
+    return load_fixed_wing(name)
 RPM_NOISE = 3.0
 """Standard deviation of the logged shaft speed's noise [rad/s] (about 30 rev/min: an
 ESC's electrical-period count at a few thousand rev/min)."""
@@ -396,8 +430,8 @@ def unit_strength_ratio(injection: Injection, flight: FlightLog, params: FixedWi
 def _calibration(turbulence: str, duration: float, excitation: str,
                  aircraft: str = "aerosonde") -> dict[str, float]:
     """Median unit-strength ratio of every injection over the calibration flights of
-    ``duration`` [s] and ``excitation`` with the catalog ``aircraft``."""
-    params = load_fixed_wing(aircraft)
+    ``duration`` [s] and ``excitation`` with the ``aircraft`` (:func:`campaign_aircraft`)."""
+    params = campaign_aircraft(aircraft)
     flights = [fly(params, turbulence=turbulence, seed=s, duration=duration,
                    excitation=excitation) for s in CALIBRATION_SEEDS]
     return {key: float(np.median([unit_strength_ratio(injection, f, params) for f in flights]))
@@ -441,7 +475,8 @@ def discovery(seed: int, params: dict) -> dict:
     or True flies :data:`RPM_AIRCRAFT` and logs its propeller's shaft speed,
     :func:`shaft_speed_logged`, and the job fits C_T(J) with the drag; "table" gives the
     job the propeller's declared table, :func:`propeller_table`, which fixes the thrust
-    independently of the drag).
+    independently of the drag), ``rpm_aircraft`` (:data:`RPM_AIRCRAFT`; or
+    :data:`ELECTRIC_AEROSONDE`, the validation's Aerosonde with that motor and propeller).
 
     Metrics: ``found`` (comma-separated findings), ``exact``, ``partial``, ``missed``,
     ``false_findings``, ``size_realised``, ``strength``; for an aerodynamic effect the
@@ -473,8 +508,11 @@ def discovery(seed: int, params: dict) -> dict:
     rpm = "fitted" if rpm is True else rpm
     if rpm and rpm not in RPM_MODES:
         raise ValueError(f"discovery: rpm {rpm!r} unknown (known: {', '.join(RPM_MODES)})")
-    aircraft = RPM_AIRCRAFT if rpm else "aerosonde"
-    catalog = load_fixed_wing(aircraft)
+    aircraft = params.get("rpm_aircraft", RPM_AIRCRAFT) if rpm else "aerosonde"
+    if aircraft not in (*RPM_AIRCRAFTS, "aerosonde"):
+        raise ValueError(f"discovery: rpm_aircraft {aircraft!r} unknown (known: "
+                         f"{', '.join(RPM_AIRCRAFTS)})")
+    catalog = campaign_aircraft(aircraft)
     options = {"aircraft": catalog, "turbulence": turbulence, "seed": seed,
                "duration": duration, "excitation": excitation,
                "sensors": SUITES[suite](catalog.rho)}
