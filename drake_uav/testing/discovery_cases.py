@@ -281,6 +281,14 @@ Aerosonde, whose drag polar has no parasitic term), and its C_D varies about 2.6
 as much over a flight, so an effect of a given share of that variation is larger against
 the same sensors' noise."""
 RPM_AIRCRAFTS = (RPM_AIRCRAFT, ELECTRIC_AEROSONDE)
+RPM_NOISE = 3.0
+"""Standard deviation of the logged shaft speed's noise [rad/s] (about 30 rev/min: an
+ESC's electrical-period count at a few thousand rev/min)."""
+
+
+RPM_MODES = ("fitted", "table")
+"""How the RPM variant's job takes the thrust: C_T(J) fitted with the drag, or the flown
+propeller's declared table (:func:`propeller_table`)."""
 
 
 def campaign_aircraft(name: str) -> FixedWingParams:
@@ -300,20 +308,13 @@ def campaign_aircraft(name: str) -> FixedWingParams:
     Raises
     ------
     ValueError
-        For a name that is neither.
+        For a name that is neither (from
+        :func:`~drake_uav.vehicles.loading.load_fixed_wing`).
     """
     if name == ELECTRIC_AEROSONDE:
         return dataclasses.replace(load_fixed_wing("aerosonde"), name=ELECTRIC_AEROSONDE,
                                    propulsion=load_fixed_wing(RPM_AIRCRAFT).propulsion)
     return load_fixed_wing(name)
-RPM_NOISE = 3.0
-"""Standard deviation of the logged shaft speed's noise [rad/s] (about 30 rev/min: an
-ESC's electrical-period count at a few thousand rev/min)."""
-
-
-RPM_MODES = ("fitted", "table")
-"""How the RPM variant's job takes the thrust: C_T(J) fitted with the drag, or the flown
-propeller's declared table (:func:`propeller_table`)."""
 
 
 def propeller_table(params: FixedWingParams) -> PropellerTable:
@@ -509,7 +510,7 @@ def discovery(seed: int, params: dict) -> dict:
     if rpm and rpm not in RPM_MODES:
         raise ValueError(f"discovery: rpm {rpm!r} unknown (known: {', '.join(RPM_MODES)})")
     aircraft = params.get("rpm_aircraft", RPM_AIRCRAFT) if rpm else "aerosonde"
-    if aircraft not in (*RPM_AIRCRAFTS, "aerosonde"):
+    if rpm and aircraft not in RPM_AIRCRAFTS:
         raise ValueError(f"discovery: rpm_aircraft {aircraft!r} unknown (known: "
                          f"{', '.join(RPM_AIRCRAFTS)})")
     catalog = campaign_aircraft(aircraft)
