@@ -107,7 +107,8 @@ _GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
 _GPS = ("gps_pn", "gps_pe", "gps_pd", *_GPS_VELOCITY)
 _AIR = {"airspeed": ("pitot_airspeed", "pitot_qbar"), "alpha": ("vane_alpha",),
         "beta": ("vane_beta",)}
-_COMMANDS = {"elevator": "cmd_elevator", "aileron": "cmd_aileron", "rudder": "cmd_rudder"}
+_COMMANDS = {"elevator": "cmd_elevator", "aileron": "cmd_aileron", "rudder": "cmd_rudder",
+             "throttle": "cmd_throttle"}
 
 
 @dataclasses.dataclass
