@@ -20,11 +20,6 @@ from drake_uav.identification.pipeline import measured_command_delay
 from drake_uav.io.flight_log import FlightLogError
 from drake_uav.systems.excitation import Doublet
 from drake_uav.systems.safety_pilot import SafetyPilotGains
-from drake_uav.testing.discovery_cases import (
-    ELECTRIC_AEROSONDE,
-    campaign_aircraft,
-    pull_towards_point,
-)
 from drake_uav.vehicles import load_fixed_wing
 
 PARAMS = load_fixed_wing("aerosonde")
@@ -184,40 +179,6 @@ def test_a_servo_delay_is_not_taken_for_an_air_data_skew():
         skew = result["air_data_time_skew"]
         assert abs(skew.estimate) < min(0.005, SIGMAS * skew.sigma), skew.line()
         assert not skew.significant
-
-
-@pytest.mark.parametrize("seed", (40, 41, 42))
-def test_a_weak_rudder_leaves_no_false_command_skew(seed):
-    """The mavsim Aerosonde's rudder moves the yaw acceleration little beside the aileron:
-    the rudder's cross-correlation peaks about 0.3 s late, and a search from that peak
-    alone read a significant 0.10 s skew on clean flights (a servo delay the aircraft does
-    not have). Clean: no significant skew; surfaces 50 ms late: found within 15 ms."""
-    mavsim = load_fixed_wing("aerosonde_mavsim")
-    for delay in (0.0, 0.05):
-        flight = fly(mavsim, turbulence="light", seed=seed, duration=60.0,
-                     actuator_delay=delay)
-        skew = check_compatibility(flight.select(flight.measured_names),
-                                   mavsim)["command_time_skew"]
-        if delay == 0.0:
-            assert not skew.significant, skew.line()
-        else:
-            assert abs(skew.estimate - delay) < 0.015, skew.line()
-
-
-@pytest.mark.parametrize("seed", (40, 41))
-def test_a_force_the_command_fit_does_not_model_leaves_no_command_skew(seed):
-    """A 4 N pull towards a ground point moves the lateral specific force, the fit's
-    stand-in for sideslip, and a throttle multisine moves the motor's torque: with one
-    regressor per command and a single constant per axis the commands read about 10 ms
-    early. Every command on every axis and a constant moment per
-    few seconds leave the skew within 3 ms of none."""
-    aircraft = campaign_aircraft(ELECTRIC_AEROSONDE)
-    flight = fly(aircraft, turbulence="light", seed=seed, duration=60.0,
-                 excitation="multisine_throttle", **pull_towards_point(4.0))
-    skew = check_compatibility(flight.select(flight.measured_names),
-                               aircraft)["command_time_skew"]
-    assert abs(skew.estimate) < 0.003, skew.line()
-    assert not skew.significant, skew.line()
 
 
 def test_skews_of_seconds_between_channel_groups_are_found(straight):

@@ -107,8 +107,7 @@ _GPS_VELOCITY = ("gps_vn", "gps_ve", "gps_vd")
 _GPS = ("gps_pn", "gps_pe", "gps_pd", *_GPS_VELOCITY)
 _AIR = {"airspeed": ("pitot_airspeed", "pitot_qbar"), "alpha": ("vane_alpha",),
         "beta": ("vane_beta",)}
-_COMMANDS = {"elevator": "cmd_elevator", "aileron": "cmd_aileron", "rudder": "cmd_rudder",
-             "throttle": "cmd_throttle"}
+_COMMANDS = {"elevator": "cmd_elevator", "aileron": "cmd_aileron", "rudder": "cmd_rudder"}
 
 
 @dataclasses.dataclass
@@ -239,17 +238,13 @@ def _wind_segments(time: np.ndarray) -> np.ndarray:
                      return_inverse=True)[1]
 
 
-_RESPONSE = {"airspeed": ("imu_ax", "cmd_throttle"),
-             "alpha": ("imu_az", "cmd_elevator", "imu_q"),
+_RESPONSE = {"airspeed": ("imu_ax", "cmd_throttle"), "alpha": ("imu_az", "cmd_elevator"),
              "beta": ("imu_ay", "cmd_rudder", "cmd_aileron")}
 """Signals that move with each air-data channel at once (those logged are used): the
 specific force along the force the channel's flow angle or airspeed changes, which sees
 a gust when the air data do, and the commands that move that specific force directly
-(thrust, the surfaces' own lift and side force), and the pitch rate, whose own lift
-(``C_L_q``) moves the normal force without a change of the angle of attack. Without the
-commands the specific force leads the flow angle by the surfaces' share and biases the
-skew by about +0.015 s; without the pitch rate, on an aircraft with a large ``C_L_q``
-(the mavsim Aerosonde's 7.95), by about +0.005 s. The
+(thrust, the surfaces' own lift and side force). Without the commands the specific force
+leads the flow angle by the surfaces' share and biases the skew by about +0.015 s. The
 specific force also enters over the dynamic pressure (:meth:`_AirData._response`): a
 flow angle moves the force per dynamic pressure at once, while a throttle that moves the
 airspeed moves the force with no change of the flow angle, through the speed dynamics;

@@ -14,8 +14,7 @@ the measured group (its samples are ``tau`` late).
 any shifted time by linear interpolation, so a skew costs one interpolation per window.
 :func:`shift_fit` finds the skew by least squares over a grid around a coarse guess
 (:func:`coarse_lag`, the peak of a cross-correlation), refines it between grid points
-with a parabola through the residual sums, and fits the linear parameters at that skew;
-:func:`best_shift_fit` does so from several guesses and keeps the best fit.
+with a parabola through the residual sums, and fits the linear parameters at that skew.
 
 Uncertainty. The residuals of these relations are correlated in time (integrated sensor
 noise, overlapping windows, gusts for the air data), so the usual ``s^2 (X^T X)^-1``
@@ -38,10 +37,9 @@ from scipy import stats
 
 from drake_uav.estimation.signals import is_new_sample
 
-__all__ = ["ParameterFit", "best_shift_fit", "block_covariance", "block_sandwich",
-           "coarse_lag", "correlation_time", "correlated_covariance", "larger_errors",
-           "grid_minimum", "linear_fit", "shift_fit", "solve", "fresh_times", "wrap",
-           "t_p_value"]
+__all__ = ["ParameterFit", "block_covariance", "block_sandwich", "coarse_lag",
+           "correlation_time", "correlated_covariance", "larger_errors", "grid_minimum",
+           "linear_fit", "shift_fit", "solve", "fresh_times", "wrap", "t_p_value"]
 
 MAX_RECENTRES = 5
 """Times :func:`shift_fit` moves its grid to an edge minimum before giving up."""
@@ -254,47 +252,6 @@ def shift_fit(design: Design, names: Sequence[str], guess: float, step: float, r
     cov, dof = block_covariance(np.column_stack([-X, dr]), r, row_time, block_length)
     return ParameterFit((*names, "skew"), np.append(theta, tau), cov, dof,
                         float(np.sqrt(np.mean(r * r))))
-
-
-def best_shift_fit(design: Design, names: Sequence[str], guesses: Sequence[float],
-                   step: float, reach: int, block_length: float) -> ParameterFit:
-    """:func:`shift_fit` started from each of ``guesses`` [s]; the fit with the smallest
-    residual RMS.
-
-    The residual sum of a skew has local minima wherever the signals repeat (a
-    multisine's periods, a controller's oscillation): a grid search from one guess finds
-    the minimum nearest to it, not the best one.
-
-    Parameters
-    ----------
-    design : callable
-        ``design(tau) -> (X, y, row_time)``, as for :func:`shift_fit`.
-    names : sequence of str
-        The linear parameters.
-    guesses : sequence of float
-        Starting skews [s] (repeats are fitted once).
-    step : float
-        Grid step [s].
-    reach : int
-        Grid points on either side of a start.
-    block_length : float
-        Time block [s] of the covariance (:func:`block_covariance`).
-
-    Returns
-    -------
-    ParameterFit
-        The linear parameters and the skew (last, named ``"skew"``).
-
-    Raises
-    ------
-    ValueError
-        When ``guesses`` is empty.
-    """
-    starts = list(dict.fromkeys(float(g) for g in guesses))
-    if not starts:
-        raise ValueError("best_shift_fit: no starting skew given")
-    return min((shift_fit(design, names, g, step, reach, block_length) for g in starts),
-               key=lambda fit: fit.residual_rms)
 
 
 def coarse_lag(reference: np.ndarray, delayed: np.ndarray, rate_hz: float,

@@ -15,8 +15,8 @@ and fitted with the skew of the group it tests (Klein & Morelli 2006, ch. 10):
   (:func:`reconstructed_velocity`);
 * barometric against GPS altitude at the GPS sample times: the baro bias (:func:`baro_fit`);
 * the body angular accelerations against the commands, a local linear model per axis
-  (every command, the rates and the specific force as regressors, a constant moment per
-  few seconds), which gives the skew of the commands (:func:`command_fit`).
+  (the commanded surface, the rates and the specific force as regressors), which gives
+  the skew of the commands (:func:`command_fit`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,6 @@ import numpy as np
 
 from drake_uav.estimation.compatibility_fits import (
     ParameterFit,
-    best_shift_fit,
     coarse_lag,
     fresh_times,
     linear_fit,
@@ -89,12 +88,11 @@ def _component_weights(fit: ParameterFit, design, components: int) -> np.ndarray
     return 1.0 / np.maximum(rms, max(float(rms.max()), 1e-300) * 1e-3)
 
 
-def _two_pass(design, names, components: int, guess: float | tuple[float, ...],
-              step: float, reach: int) -> ParameterFit:
+def _two_pass(design, names, components: int, guess: float, step: float,
+              reach: int) -> ParameterFit:
     """:func:`shift_fit` weighted by the components' residual RMS of a first pass (whose
-    skew the weighted pass refines within two grid steps); several ``guess`` [s] start
-    the first pass each (:func:`best_shift_fit`)."""
-    first = best_shift_fit(design, names, np.atleast_1d(guess), step, reach, KINEMATIC_BLOCK)
+    skew the weighted pass refines within two grid steps)."""
+    first = shift_fit(design, names, guess, step, reach, KINEMATIC_BLOCK)
     weights = _component_weights(first, design, components)
     return shift_fit(_weighted(design, components, weights), names, first.value("skew"),
                      step, 2, KINEMATIC_BLOCK)
@@ -251,86 +249,59 @@ def baro_fit(time: np.ndarray, baro_altitude: np.ndarray, gps_down: np.ndarray,
     return linear_fit(np.ones((len(y), 1)), y, ("bias",), at[keep], block)
 
 
-# Per body axis: the command that drives it (the axis is fitted when that command is
-# logged) and the regressors besides the commands: the body rates and the lateral or
-# normal specific force (a stand-in for sideslip and angle of attack).
-_RESPONSE = {"p": ("aileron", ("p", "r", "ay")),
-             "q": ("elevator", ("q", "az")),
-             "r": ("rudder", ("r", "p", "ay"))}
-SLOW_MOMENT_BLOCK = 5.0
-"""Time block [s] over which the command fit holds an axis's unmodelled moment constant.
-
-A moment the local model lacks (a force the specific force stands in for wrongly, such as
-a tether's pull; the motor torque as the airspeed changes) moves with the attitude and
-heading the commands caused, so it correlates with the commands' rate of change and
-biases the skew (by -10 to -40 ms on simulated flights with such forces). One constant per
-block absorbs it, leaving the skew to the faster response (the multisine's 0.2-1.5 Hz)."""
+# Regressors of the angular accelerations besides the commands: the body rates and the
+# lateral or normal specific force (a stand-in for sideslip and angle of attack).
+_RESPONSE = {"p": (("aileron", "rudder"), ("p", "r", "ay")),
+             "q": (("elevator",), ("q", "az")),
+             "r": (("rudder", "aileron"), ("r", "p", "ay"))}
 
 
 def command_fit(time: np.ndarray, imu: dict[str, np.ndarray], commands: dict[str, np.ndarray],
                 *, max_skew: float, window: int = 6) -> ParameterFit | None:
     """Skew [s] of the commands against the angular accelerations they cause.
 
-    Per body axis whose own command is logged (:data:`_RESPONSE`), the rate change over
-    ``window`` samples against the integral over the window of every logged command
-    ``skew`` earlier (held between samples: any surface or the throttle may move any axis,
-    an elevator that rolls the aircraft, the motor's torque) and of the axis's other
-    regressors, less the means over blocks of :data:`SLOW_MOMENT_BLOCK` (a constant
-    moment per block). The axes share the skew. The grid search starts from the peak of
-    the commands' cross-correlation with the accelerations and from no skew; the better
-    fit is kept (the residual sum has local minima where the multisine repeats, and a
-    weak rudder's peak lies far from the skew). ``imu`` maps ``p q r ax ay az`` to
-    samples, ``commands`` maps command names (``elevator``, ``aileron``, ``rudder``,
-    ``throttle``) to samples. None when no axis has its command.
+    Per body axis, the rate change over ``window`` samples against the integral over the
+    window of a constant, the commanded surfaces ``skew`` earlier (held between samples)
+    and the other regressors of :data:`_RESPONSE`; the axes share the skew. ``imu`` maps
+    ``p q r ax ay az`` to samples, ``commands`` maps surface names to samples (absent
+    surfaces are left out). None when no axis has its command.
     """
     dt = float(np.median(np.diff(time)))
-    axes = [a for a, (command, _) in _RESPONSE.items() if command in commands]
+    axes = [a for a, (surfaces, _) in _RESPONSE.items() if surfaces[0] in commands]
     if not axes:
         return None
     i0, i1 = _windows(time, window, window)
     t0, t1 = time[i0], time[i1]
-    mid = 0.5 * (t0 + t1)
-    block = ((mid - mid[0]) // SLOW_MOMENT_BLOCK).astype(int)
-    held = Cumulative(time, np.column_stack(list(commands.values())), held=True)
     parts, names = [], []
     for axis in axes:
-        other = Cumulative(time, np.column_stack([imu[s] for s in _RESPONSE[axis][1]]))
-        parts.append((imu[axis][i1] - imu[axis][i0], other.between(t0, t1)))
-        names += [f"{axis}_{s}" for s in (*commands, *_RESPONSE[axis][1])]
-    design = _block_design(parts, held, t0, t1, block)
-    reference = np.column_stack([commands[_RESPONSE[a][0]] for a in axes])
+        surfaces = [s for s in _RESPONSE[axis][0] if s in commands]
+        held = Cumulative(time, np.column_stack([commands[s] for s in surfaces]), held=True)
+        other = Cumulative(time, np.column_stack([np.ones_like(time)]
+                                                 + [imu[s] for s in _RESPONSE[axis][1]]))
+        parts.append((imu[axis][i1] - imu[axis][i0], held, other.between(t0, t1)))
+        names += [f"{axis}_{s}" for s in surfaces] + [f"{axis}_{s}" for s in
+                                                      ("bias", *_RESPONSE[axis][1])]
+    design = _block_design(parts, t0, t1)
+    reference = np.column_stack([commands[_RESPONSE[a][0][0]] for a in axes])
     response = np.column_stack([np.gradient(imu[a], time) for a in axes])
     n = max(int(round(0.1 / dt)), 1)
     guess = coarse_lag(reference - high_pass(reference, n), response - high_pass(response, n),
                        1.0 / dt, max_skew)
-    return _two_pass(design, names, len(axes), (guess, 0.0), dt, 6)
+    return _two_pass(design, names, len(axes), guess, dt, 6)
 
 
-def _without_block_means(values: np.ndarray, block: np.ndarray) -> np.ndarray:
-    """``values`` (n, m) less their mean over the rows of each ``block`` index (n)."""
-    counts = np.bincount(block)
-    sums = np.column_stack([np.bincount(block, weights=column, minlength=len(counts))
-                            for column in values.T])
-    return values - (sums / counts[:, None])[block]
-
-
-def _block_design(parts, held: Cumulative, t0: np.ndarray, t1: np.ndarray,
-                  block: np.ndarray):
-    """Stacked per-axis rows (axis fastest) with a block-diagonal regressor matrix, every
-    column and observation less its mean over each slow block ``block`` (n)."""
-    commands = held.values.shape[1]
-    widths = [commands + other.shape[1] for _, other in parts]
+def _block_design(parts, t0: np.ndarray, t1: np.ndarray):
+    """Stacked per-axis rows (axis fastest) with a block-diagonal regressor matrix."""
+    widths = [held.values.shape[1] + other.shape[1] for _, held, other in parts]
     offsets = np.concatenate([[0], np.cumsum(widths)])
     count, mid = len(parts), 0.5 * (t0 + t1)
-    changes = [_without_block_means(change[:, None], block)[:, 0] for change, _ in parts]
 
     def design(tau):
-        shifted = held.between(t0, t1, tau)
         X = np.zeros((len(t0), count, offsets[-1]))
         y = np.empty((len(t0), count))
-        for a, (_, other) in enumerate(parts):
-            X[:, a, offsets[a]:offsets[a + 1]] = _without_block_means(
-                np.column_stack([shifted, other]), block)
-            y[:, a] = changes[a]
+        for a, (change, held, other) in enumerate(parts):
+            block = np.column_stack([held.between(t0, t1, tau), other])
+            X[:, a, offsets[a]:offsets[a + 1]] = block
+            y[:, a] = change
         return X.reshape(-1, offsets[-1]), y.reshape(-1), np.repeat(mid, count)
     return design
